@@ -1,0 +1,11 @@
+"""smarticle-mjx: batched simulation of shape-changing smarticles and their gliders."""
+
+import os as _os
+
+# XLA's concurrency-optimised CPU scheduler was seen to leave every thread
+# idle on large vmapped MJX batches; turn it off before JAX initialises.
+_FLAG = "--xla_cpu_enable_concurrency_optimized_scheduler=false"
+if _FLAG.split("=")[0] not in _os.environ.get("XLA_FLAGS", ""):
+    _os.environ["XLA_FLAGS"] = (_os.environ.get("XLA_FLAGS", "") + " " + _FLAG).strip()
+
+__version__ = "0.1.0"

@@ -1,0 +1,192 @@
+"""What both backends share: the compiled scene, lane parameters, records, status.
+
+A *lane* is one independent simulation of the same scene: its own initial
+state, amplitude, chirality, gait kind and per-robot phase offsets. Backends
+advance a batch of lanes by whole gait periods and return one
+:class:`PeriodRecords` per call; nothing of size lanes x steps is kept unless
+a full-rate track is asked for.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+
+import jax
+import mujoco
+import numpy as np
+
+from .. import gait as gait_mod
+from ..scene import SceneLayout, SceneParams, build_mjcf, compile_model
+
+
+class Status(enum.IntFlag):
+    """Per-lane status bits; a lane may carry several. ``OK`` is 0."""
+
+    OK = 0
+    INVALID = 1  # initial configuration overlaps: never simulated
+    NONFINITE = 2  # NaN/inf appeared in the state
+    PENETRATION = 4  # robots interpenetrated deeper than the bound
+    RETIRED = 8  # stopped early: outcome decided (engine.batch)
+
+
+# contact sensor output per pair: number of contacts, deepest distance
+SENSOR_WIDTH = 2
+
+
+@dataclasses.dataclass(frozen=True)
+class Scene:
+    """A compiled N-robot scene: the MuJoCo model and its index maps.
+
+    The model is built from ``params`` with placeholder poses; each lane's
+    initial poses are written into its state, so one model serves a batch.
+    """
+
+    params: SceneParams
+    model: mujoco.MjModel
+    layout: SceneLayout
+    xml: str
+
+    @staticmethod
+    def build(params: SceneParams, n_robots: int) -> "Scene":
+        if n_robots < 1:
+            raise ValueError("n_robots must be >= 1")
+        spacing = 4 * (params.robot.body_length + 2 * params.robot.arm_length)
+        poses = [(spacing * i, 0.0, 0.0, 0.0, 0.0) for i in range(n_robots)]
+        xml = build_mjcf(params, poses)
+        xml = xml.replace('data="found" num="1"', 'data="found dist" num="1" reduce="mindist"')
+        model = compile_model(xml)
+        return Scene(params, model, SceneLayout.of(model), xml)
+
+    @property
+    def n_robots(self) -> int:
+        return self.layout.n_robots
+
+    @property
+    def n_pairs(self) -> int:
+        return len(self.layout.pairs)
+
+    def qpos_from_poses(self, poses: np.ndarray) -> np.ndarray:
+        """qpos [..., nq] for poses [..., N, 5] (bodies resting on the plate)."""
+        poses = np.asarray(poses, dtype=float)
+        lead = poses.shape[:-2]
+        q = np.broadcast_to(self.model.qpos0, lead + (self.model.nq,)).copy()
+        lay = self.layout
+        hz = self.params.robot.body_height / 2
+        for i in range(self.n_robots):
+            a = lay.free_qpos[i]
+            h = poses[..., i, 2]
+            q[..., a] = poses[..., i, 0]
+            q[..., a + 1] = poses[..., i, 1]
+            q[..., a + 2] = hz
+            q[..., a + 3] = np.cos(h / 2)
+            q[..., a + 4] = 0.0
+            q[..., a + 5] = 0.0
+            q[..., a + 6] = np.sin(h / 2)
+            q[..., lay.arm_qpos[i, 0]] = poses[..., i, 3]
+            q[..., lay.arm_qpos[i, 1]] = poses[..., i, 4]
+        return q
+
+    def poses_from_qpos(self, qpos: np.ndarray) -> np.ndarray:
+        """Planar poses [..., N, 5] (x, y, heading, alpha1, alpha2) from qpos."""
+        qpos = np.asarray(qpos)
+        lay = self.layout
+        out = []
+        for i in range(self.n_robots):
+            a = lay.free_qpos[i]
+            w, x, y, z = (qpos[..., a + 3 + k] for k in range(4))
+            heading = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+            out.append(np.stack([qpos[..., a], qpos[..., a + 1], heading,
+                                 qpos[..., lay.arm_qpos[i, 0]], qpos[..., lay.arm_qpos[i, 1]]], -1))
+        return np.stack(out, -2)
+
+
+@dataclasses.dataclass(frozen=True)
+class Lanes:
+    """Per-lane inputs of a batch (host numpy arrays, leading axis B).
+
+    Attributes:
+      poses: [B, N, 5] initial poses (m, rad); arm angles are usually the
+        gait's setpoint at t = 0.
+      amplitude: [B] alpha_max in rad.
+      chirality: [B] +1 (ccw) or -1 (cw).
+      kind: [B] 0 square, 1 diagonal.
+      phase: [B, N] per-robot phase offsets, fractions of a period.
+      period: gait period in s, shared by the batch (it fixes the number of
+        steps per period, a static shape).
+    """
+
+    poses: np.ndarray
+    amplitude: np.ndarray
+    chirality: np.ndarray
+    kind: np.ndarray
+    phase: np.ndarray
+    period: float
+
+    def __post_init__(self):
+        b = self.poses.shape[0]
+        for name in ("amplitude", "chirality", "kind"):
+            if getattr(self, name).shape != (b,):
+                raise ValueError(f"lanes.{name} must have shape ({b},)")
+        if self.phase.shape != self.poses.shape[:2]:
+            raise ValueError("lanes.phase must have shape [B, N]")
+
+    @property
+    def size(self) -> int:
+        return self.poses.shape[0]
+
+    @staticmethod
+    def from_gait(poses, spec: gait_mod.GaitSpec, phase=None) -> "Lanes":
+        poses = np.asarray(poses, dtype=float)
+        if poses.ndim == 2:
+            poses = poses[None]
+        b, n = poses.shape[:2]
+        return Lanes(
+            poses=poses,
+            amplitude=np.full(b, spec.amplitude),
+            chirality=np.full(b, spec.chirality_sign, dtype=np.int32),
+            kind=np.full(b, spec.kind_code, dtype=np.int32),
+            phase=np.zeros((b, n)) if phase is None else np.broadcast_to(np.asarray(phase, float), (b, n)).copy(),
+            period=spec.period(),
+        )
+
+    def take(self, idx) -> "Lanes":
+        return Lanes(self.poses[idx], self.amplitude[idx], self.chirality[idx], self.kind[idx],
+                     self.phase[idx], self.period)
+
+
+def steps_per_period(period: float, timestep: float) -> int:
+    n = int(round(period / timestep))
+    if n < 1 or abs(n * timestep - period) > 1e-6 * period + 1e-12:
+        raise ValueError(f"gait period {period} s is not a whole number of time steps {timestep} s")
+    return n
+
+
+_setpoints = jax.jit(gait_mod.setpoints)
+
+
+def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
+    """Setpoints [B, len(t), nu] for every lane at times ``t`` (host numpy)."""
+    sp = _setpoints(
+        t[None, :, None], lanes.amplitude[:, None, None], lanes.period, scene.params.robot.servo_speed,
+        lanes.chirality[:, None, None], lanes.kind[:, None, None], lanes.phase[:, None, :])
+    sp = np.asarray(sp)  # [B, T, N, 2]
+    return sp.reshape(sp.shape[0], sp.shape[1], -1)
+
+
+@dataclasses.dataclass
+class PeriodRecords:
+    """Records of ``K`` gait periods for ``B`` lanes.
+
+    Attributes:
+      poses: [B, K, N, 5] poses at the end of each period (gait phase 0).
+      touched: [B, K, P] bool, robots of pair p touched at least once.
+      min_dist: [B, K, P] deepest inter-robot contact distance (m, negative
+        is penetration); +inf where they did not touch.
+      status: [B] Status bits accumulated over these periods.
+    """
+
+    poses: np.ndarray
+    touched: np.ndarray
+    min_dist: np.ndarray
+    status: np.ndarray

@@ -1,0 +1,141 @@
+"""Gait: time -> arm setpoints, one pure JAX-traceable function for every backend.
+
+Square gait of amplitude a (radians), corners c0 = (+a, +a) then, for
+chirality ``CCW`` (+1, counter-clockwise in the (alpha1, alpha2) plane):
+(-a, +a), (-a, -a), (+a, -a); for ``CW`` (-1): (+a, -a), (-a, -a), (-a, +a).
+Each quarter period one arm moves 2a at the servo's maximal speed, then both
+dwell at the corner. CW is CCW with the arms swapped, which is the mirror
+image of the robot: opposite chiralities give mirror-image trajectories.
+
+Time-symmetric gait (``DIAGONAL``): c0 -> c2 -> c0, both arms moving at once
+(U shape to the opposite U shape and back; S1 -> S3 -> S1 in the paper).
+
+Period policy: a fixed period, or ``period = ref_period * a / ref_amplitude``
+(the paper: fixed arm speed, dwell scaled so the period scales with the
+amplitude; 1.6 s at 90 deg). The period must leave time for each move.
+
+Every argument but ``kind``-independent constants may be a traced array, so
+amplitude, chirality, gait kind and phase offset vary per lane without
+recompiling. Works with numpy inputs as well (results are jax arrays).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax.numpy as jnp
+import numpy as np
+
+SQUARE = 0
+DIAGONAL = 1
+CCW = 1
+CW = -1
+KINDS = {"square": SQUARE, "diagonal": DIAGONAL}
+CHIRALITIES = {"ccw": CCW, "cw": CW}
+
+
+def move_time(amplitude, speed, kind):
+    """Duration of one edge: 2a at ``speed`` (both gait kinds move 2a)."""
+    return 2.0 * amplitude / speed
+
+
+def setpoints(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0):
+    """Arm setpoints (alpha1, alpha2) at time ``t``.
+
+    Args:
+      t: time in s, any shape.
+      amplitude: alpha_max in rad.
+      period: gait period in s.
+      speed: maximal arm speed in rad/s; each move is a ramp at this speed.
+      chirality: ``CCW`` (+1) or ``CW`` (-1).
+      kind: ``SQUARE`` (0) or ``DIAGONAL`` (1).
+      phase: offset as a fraction of the period (robot lags by ``phase * T``
+        when negative, leads when positive).
+
+    Returns:
+      Array [..., 2] of setpoints in rad, broadcast over all arguments.
+    """
+    t = jnp.asarray(t, dtype=float)
+    a = jnp.asarray(amplitude, dtype=float)
+    T = jnp.asarray(period, dtype=float)
+    u = jnp.mod(t / T + phase, 1.0)  # gait phase in [0, 1)
+    tm = move_time(a, speed, kind)
+
+    # square: quarter q in 0..3, time since quarter start
+    q = jnp.floor(u * 4.0)
+    tq = (u - q / 4.0) * T
+    s = jnp.clip(tq / tm, 0.0, 1.0)  # progress of the moving arm
+    # arm that moves in quarter q: CCW moves arm1 on even quarters
+    ccw = jnp.asarray(chirality) > 0
+    arm1_moves_even = ccw
+    # value of arm "first" (moves on even quarters) and "second" (odd)
+    # first: +a -> -a in q0, stays -a in q1, -a -> +a in q2, stays +a in q3
+    first = jnp.select([q == 0, q == 1, q == 2], [a * (1 - 2 * s), -a, -a * (1 - 2 * s)], a)
+    # second: +a in q0, +a -> -a in q1, -a in q2, -a -> +a in q3
+    second = jnp.select([q == 0, q == 1, q == 2], [a, a * (1 - 2 * s), -a], -a * (1 - 2 * s))
+    sq1 = jnp.where(arm1_moves_even, first, second)
+    sq2 = jnp.where(arm1_moves_even, second, first)
+
+    # diagonal: half h in 0..1, both arms +a -> -a then -a -> +a
+    h = jnp.floor(u * 2.0)
+    th = (u - h / 2.0) * T
+    sd = jnp.clip(th / tm, 0.0, 1.0)
+    dg = jnp.where(h == 0, a * (1 - 2 * sd), -a * (1 - 2 * sd))
+
+    diag = jnp.asarray(kind) == DIAGONAL
+    return jnp.stack([jnp.where(diag, dg, sq1), jnp.where(diag, dg, sq2)], -1)
+
+
+@dataclasses.dataclass(frozen=True)
+class GaitSpec:
+    """A gait as a user names it (host-side, validated).
+
+    ``period_s`` None means the paper's policy: ``ref_period_s`` scaled by
+    ``amplitude_deg / ref_amplitude_deg``.
+    """
+
+    amplitude_deg: float = 90.0
+    chirality: str = "ccw"
+    kind: str = "square"
+    period_s: float | None = None
+    ref_period_s: float = 1.6
+    ref_amplitude_deg: float = 90.0
+
+    def period(self) -> float:
+        if self.period_s is not None:
+            return float(self.period_s)
+        return self.ref_period_s * self.amplitude_deg / self.ref_amplitude_deg
+
+    def validate(self, speed: float, arm_limit_deg: float = 100.0) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"gait kind must be one of {sorted(KINDS)}, got {self.kind!r}")
+        if self.chirality not in CHIRALITIES:
+            raise ValueError(f"chirality must be one of {sorted(CHIRALITIES)}, got {self.chirality!r}")
+        if not 0 < self.amplitude_deg <= min(90.0, arm_limit_deg):
+            raise ValueError(f"amplitude must be in (0, 90] deg (servo range), got {self.amplitude_deg}")
+        T = self.period()
+        if not (T > 0 and math.isfinite(T)):
+            raise ValueError(f"gait period must be positive, got {T}")
+        edges = 4 if self.kind == "square" else 2
+        need = edges * float(move_time(math.radians(self.amplitude_deg), speed, KINDS[self.kind]))
+        if T < need * (1 - 1e-9):
+            raise ValueError(
+                f"period {T:.4g} s is shorter than the {edges} moves at max speed need ({need:.4g} s)")
+
+    @property
+    def amplitude(self) -> float:
+        return math.radians(self.amplitude_deg)
+
+    @property
+    def chirality_sign(self) -> int:
+        return CHIRALITIES[self.chirality]
+
+    @property
+    def kind_code(self) -> int:
+        return KINDS[self.kind]
+
+    def setpoints(self, t, speed: float, phase=0.0) -> np.ndarray:
+        """Host convenience: numpy setpoints [..., 2] at times ``t``."""
+        return np.asarray(setpoints(t, self.amplitude, self.period(), speed,
+                                    self.chirality_sign, self.kind_code, phase))

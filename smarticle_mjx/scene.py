@@ -1,0 +1,343 @@
+"""Scene generator: robot and plate parameters plus N initial poses -> MJCF.
+
+Conventions (used by every other module):
+
+* Lengths in metres, angles in radians, masses in kilograms, unless a name says
+  ``_deg`` or ``_W`` (units of the body length W).
+* Robot body frame: +x along the body axis (from arm 1's hinge to arm 2's
+  hinge), +y the side the arms fold to at positive angles. The body *normal*
+  n = -y (so the paper's theta ~ 270 deg, "the direction of robot 1's normal",
+  is -y in robot 1's frame).
+* Arm angles alpha1 (hinge at x = -W/2) and alpha2 (hinge at x = +W/2) are 0
+  when the arm extends the body axis; positive folds the arm toward +y. Equal
+  values are mirror-symmetric shapes; (+a, +a) and (-a, -a) are the two U's.
+* A pose is ``(x, y, heading, alpha1, alpha2)``: body centre, body-axis angle
+  from world +x, arm angles.
+
+Choices where the paper is silent (all parameters):
+
+* Body height 2.5 cm; arms are capsules of diameter 0.3 cm (the arm
+  thickness) whose axis lies ``arm_clearance + arm_radius`` above the plate,
+  inside the body's height, so robot-robot contacts are exactly planar.
+* Arm mass 2 g each (a 5.4 x 0.3 x ~1 cm plastic link); body takes the rest.
+* Servo: MuJoCo position actuator, stiffness ``servo_kp``, critically damped
+  (``dampratio`` 1), torque clipped to the stall torque 0.078 N m; reflected
+  rotor inertia ``servo_armature``.
+* Plate friction mu = 0.37 (DART-derived figure quoted in public code);
+  robot-robot friction 0.3. The plate geom has priority, so body-plate
+  contacts use exactly the plate's mu.
+* Elliptic friction cones: pyramidal cones are anisotropic in the plane and
+  break the rotation invariance a planar study needs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Sequence
+
+import mujoco
+import numpy as np
+
+# contype/conaffinity bits: the plate and the robot bodies share bit 1; every
+# robot geom (and the optional wall) has bit 2. Arms carry only bit 2, so they
+# can never touch the plate, whatever their height.
+_PLATE_BIT = 1
+_ROBOT_BIT = 2
+
+
+@dataclasses.dataclass(frozen=True)
+class RobotParams:
+    """Geometry, mass and servo of one smarticle (SI units)."""
+
+    body_length: float = 0.050  # W
+    body_thickness: float = 0.022  # D
+    body_height: float = 0.025
+    arm_length: float = 0.054  # L, hinge to tip
+    arm_thickness: float = 0.003
+    arm_clearance: float = 0.005  # gap between arm underside and plate
+    mass: float = 0.0348
+    arm_mass: float = 0.002
+    arm_limit_deg: float = 100.0  # hinge range; gait corners stay inside
+    servo_kp: float = 0.3  # N m / rad
+    servo_dampratio: float = 1.0
+    servo_torque: float = 0.078  # N m (stall torque)
+    servo_speed: float = 8.727  # rad/s (0.12 s / 60 deg)
+    servo_armature: float = 1e-6  # kg m^2
+    joint_damping: float = 0.0
+
+    def validate(self) -> None:
+        positive = ("body_length", "body_thickness", "body_height", "arm_length",
+                    "arm_thickness", "mass", "arm_mass", "servo_kp",
+                    "servo_torque", "servo_speed")
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise ValueError(f"robot.{name} must be positive, got {getattr(self, name)}")
+        if self.mass <= 2 * self.arm_mass:
+            raise ValueError("robot.mass must exceed the two arms' mass")
+        if self.arm_clearance < 0:
+            raise ValueError("robot.arm_clearance must be >= 0")
+        if self.arm_clearance + self.arm_thickness > self.body_height:
+            raise ValueError("arms must lie within the body's height (arm_clearance + arm_thickness <= body_height)")
+        if not 0 < self.arm_limit_deg <= 180:
+            raise ValueError("robot.arm_limit_deg must be in (0, 180]")
+
+    @property
+    def arm_radius(self) -> float:
+        return 0.5 * self.arm_thickness
+
+    @property
+    def arm_z(self) -> float:
+        """Height of the arm axis above the plate."""
+        return self.arm_clearance + self.arm_radius
+
+    @property
+    def body_mass(self) -> float:
+        return self.mass - 2 * self.arm_mass
+
+
+@dataclasses.dataclass(frozen=True)
+class SceneParams:
+    """Plate, contacts and solver settings for an N-robot scene."""
+
+    robot: RobotParams = RobotParams()
+    plate_friction: float = 0.37
+    robot_friction: float = 0.3
+    contact_timeconst: float = 0.005  # s; solref[0] for every contact
+    contact_dampratio: float = 1.0
+    timestep: float = 1e-3  # chosen by benchmarks/timestep_convergence.py
+    iterations: int = 20
+    ls_iterations: int = 10
+    tolerance: float = 1e-8
+    boundary_radius: float | None = None  # optional circular wall (m)
+    boundary_segments: int = 48
+
+    def validate(self) -> None:
+        self.robot.validate()
+        if not self.timestep > 0:
+            raise ValueError("timestep must be positive")
+        if self.contact_timeconst < 2 * self.timestep:
+            raise ValueError(
+                f"contact_timeconst {self.contact_timeconst} < 2 * timestep {self.timestep}: "
+                "MuJoCo would silently stiffen nothing and soften contacts; lower the timestep")
+        if self.plate_friction < 0 or self.robot_friction < 0:
+            raise ValueError("friction coefficients must be >= 0")
+        if self.iterations < 1 or self.ls_iterations < 1:
+            raise ValueError("solver iterations must be >= 1")
+        if self.boundary_radius is not None and self.boundary_radius <= 0:
+            raise ValueError("boundary_radius must be positive")
+
+    def replace(self, **changes) -> "SceneParams":
+        return dataclasses.replace(self, **changes)
+
+
+def _fmt(*values: float) -> str:
+    return " ".join(f"{v:.9g}" for v in values)
+
+
+def _robot_xml(i: int, p: RobotParams, pose: Sequence[float]) -> str:
+    x, y, heading, a1, a2 = (float(v) for v in pose)
+    hw, hd, hh = p.body_length / 2, p.body_thickness / 2, p.body_height / 2
+    r = p.arm_radius
+    arm_dz = p.arm_z - hh  # arm axis relative to the body centre
+    tip = p.arm_length - r  # capsule ends exactly at the arm length
+    lim = p.arm_limit_deg
+    quat = _fmt(math.cos(heading / 2), 0, 0, math.sin(heading / 2))
+    rgba = "0.85 0.35 0.2 1" if i == 0 else "0.2 0.45 0.85 1"
+    return f"""
+    <body name="r{i}" pos="{_fmt(x, y, hh)}" quat="{quat}">
+      <freejoint name="r{i}_free"/>
+      <geom name="r{i}_body" type="box" size="{_fmt(hw, hd, hh)}" mass="{p.body_mass:.9g}"
+            contype="{_PLATE_BIT | _ROBOT_BIT}" conaffinity="{_PLATE_BIT | _ROBOT_BIT}" rgba="{rgba}"/>
+      <body name="r{i}_arm1" pos="{_fmt(-hw, 0, arm_dz)}">
+        <joint name="r{i}_a1" type="hinge" axis="0 0 -1" range="{-lim:.9g} {lim:.9g}"
+               armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0"/>
+        <geom name="r{i}_arm1" type="capsule" fromto="{_fmt(0, 0, 0, -tip, 0, 0)}" size="{r:.9g}"
+              mass="{p.arm_mass:.9g}" contype="{_ROBOT_BIT}" conaffinity="{_ROBOT_BIT}" rgba="0.3 0.3 0.3 1"/>
+      </body>
+      <body name="r{i}_arm2" pos="{_fmt(hw, 0, arm_dz)}">
+        <joint name="r{i}_a2" type="hinge" axis="0 0 1" range="{-lim:.9g} {lim:.9g}"
+               armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0"/>
+        <geom name="r{i}_arm2" type="capsule" fromto="{_fmt(0, 0, 0, tip, 0, 0)}" size="{r:.9g}"
+              mass="{p.arm_mass:.9g}" contype="{_ROBOT_BIT}" conaffinity="{_ROBOT_BIT}" rgba="0.3 0.3 0.3 1"/>
+      </body>
+    </body>""", (a1, a2)
+
+
+def _boundary_xml(s: SceneParams) -> str:
+    if s.boundary_radius is None:
+        return ""
+    n = s.boundary_segments
+    half_len = s.boundary_radius * math.tan(math.pi / n) * 1.02
+    h = s.robot.body_height
+    parts = []
+    for k in range(n):
+        ang = 2 * math.pi * k / n
+        cx = (s.boundary_radius + 0.005) * math.cos(ang)
+        cy = (s.boundary_radius + 0.005) * math.sin(ang)
+        parts.append(
+            f'    <geom name="wall{k}" type="box" size="{_fmt(0.005, half_len, h)}" pos="{_fmt(cx, cy, h)}" '
+            f'euler="0 0 {math.degrees(ang):.9g}" contype="{_ROBOT_BIT}" conaffinity="{_ROBOT_BIT}" '
+            f'rgba="0.6 0.6 0.6 0.4"/>')
+    return "\n".join(parts)
+
+
+def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str = "smarticles") -> str:
+    """Return the MJCF text of a scene with one robot per pose.
+
+    Args:
+      params: scene parameters (validated here).
+      poses: N poses ``(x, y, heading, alpha1, alpha2)`` in m and rad.
+      name: model name.
+
+    Returns:
+      MJCF XML text. Arm angles of the poses become the hinges' initial
+      ``qpos`` through a keyframe named ``init``; actuators are ordered
+      ``r0_a1, r0_a2, r1_a1, ...``. For every robot pair (i < j) a contact
+      sensor ``touch_i_j`` counts the contacts between the two robots.
+    """
+    params.validate()
+    poses = [tuple(p) for p in poses]
+    if len(poses) < 1:
+        raise ValueError("a scene needs at least one robot pose")
+    for p in poses:
+        if len(p) != 5 or not all(math.isfinite(float(v)) for v in p):
+            raise ValueError(f"a pose is 5 finite numbers (x, y, heading, alpha1, alpha2), got {p}")
+    rp = params.robot
+    lim = math.radians(rp.arm_limit_deg)
+    bodies, arms = [], []
+    for i, pose in enumerate(poses):
+        xml, a = _robot_xml(i, rp, pose)
+        if max(abs(a[0]), abs(a[1])) > lim:
+            raise ValueError(f"robot {i}: initial arm angles {a} exceed the hinge limit {rp.arm_limit_deg} deg")
+        bodies.append(xml)
+        arms.append(a)
+    n = len(poses)
+    acts = []
+    for i in range(n):
+        for k in (1, 2):
+            acts.append(
+                f'    <position name="r{i}_s{k}" joint="r{i}_a{k}" kp="{rp.servo_kp:.9g}" '
+                f'dampratio="{rp.servo_dampratio:.9g}" ctrlrange="{-lim:.9g} {lim:.9g}" '
+                f'forcerange="{-rp.servo_torque:.9g} {rp.servo_torque:.9g}"/>')
+    sensors = []
+    for i in range(n):
+        for j in range(i + 1, n):
+            sensors.append(f'    <contact name="touch_{i}_{j}" subtree1="r{i}" subtree2="r{j}" data="found" num="1"/>')
+    excludes = "\n".join(f'    <exclude body1="r{i}_arm1" body2="r{i}_arm2"/>' for i in range(n))
+    qpos = []
+    for i, pose in enumerate(poses):
+        x, y, heading = (float(v) for v in pose[:3])
+        qpos += [x, y, rp.body_height / 2, math.cos(heading / 2), 0, 0, math.sin(heading / 2), *arms[i]]
+    ctrl = [a for pair in arms for a in pair]
+    solref = _fmt(params.contact_timeconst, params.contact_dampratio)
+    plate = 2.0 if params.boundary_radius is None else params.boundary_radius + 0.1
+    return f"""<mujoco model="{name}">
+  <!-- generated by smarticle_mjx.scene.build_mjcf; do not edit by hand -->
+  <compiler angle="radian" autolimits="true"/>
+  <option timestep="{params.timestep:.9g}" integrator="implicitfast" cone="elliptic" solver="Newton"
+          iterations="{params.iterations}" ls_iterations="{params.ls_iterations}" tolerance="{params.tolerance:.9g}"/>
+  <default>
+    <geom condim="3" friction="{params.robot_friction:.9g} 0.005 0.0001" solref="{solref}"/>
+  </default>
+  <worldbody>
+    <light pos="0 0 1" dir="0 0 -1"/>
+    <geom name="plate" type="plane" size="{plate:.9g} {plate:.9g} 0.01" priority="1"
+          friction="{params.plate_friction:.9g} 0.005 0.0001" contype="{_PLATE_BIT}" conaffinity="{_PLATE_BIT}"
+          rgba="0.8 0.8 0.8 1"/>
+{_boundary_xml(params)}{''.join(bodies)}
+  </worldbody>
+  <contact>
+{excludes}
+  </contact>
+  <actuator>
+{chr(10).join(acts)}
+  </actuator>
+  <sensor>
+{chr(10).join(sensors)}
+  </sensor>
+  <keyframe>
+    <key name="init" qpos="{_fmt(*qpos)}" ctrl="{_fmt(*ctrl)}"/>
+  </keyframe>
+</mujoco>
+"""
+
+
+def compile_model(xml: str) -> mujoco.MjModel:
+    """Compile MJCF text; raise ValueError with MuJoCo's message on failure."""
+    try:
+        return mujoco.MjModel.from_xml_string(xml)
+    except Exception as e:  # mujoco raises a bare ValueError/Exception
+        raise ValueError(f"MJCF does not compile: {e}") from e
+
+
+@dataclasses.dataclass(frozen=True)
+class SceneLayout:
+    """Index maps from a compiled scene, computed once per model."""
+
+    n_robots: int
+    free_qpos: np.ndarray  # (N,) start of each robot's free-joint qpos
+    free_qvel: np.ndarray  # (N,) start of each robot's free-joint qvel
+    arm_qpos: np.ndarray  # (N, 2) qpos address of the two hinges
+    arm_qvel: np.ndarray  # (N, 2)
+    geom_robot: np.ndarray  # (ngeom,) robot owning each geom, -1 for world geoms
+    pairs: np.ndarray  # (P, 2) robot index pairs i < j, sensor order
+
+    @staticmethod
+    def of(model: mujoco.MjModel) -> "SceneLayout":
+        n = 0
+        while mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"r{n}") >= 0:
+            n += 1
+        if n == 0:
+            raise ValueError("model has no smarticle bodies named r0, r1, ...")
+        fq, fv, aq, av = [], [], [], []
+        for i in range(n):
+            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"r{i}_free")
+            fq.append(model.jnt_qposadr[j])
+            fv.append(model.jnt_dofadr[j])
+            ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"r{i}_a{k}") for k in (1, 2)]
+            aq.append([model.jnt_qposadr[k] for k in ids])
+            av.append([model.jnt_dofadr[k] for k in ids])
+        geom_robot = np.full(model.ngeom, -1, dtype=np.int32)
+        for g in range(model.ngeom):
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
+            if name.startswith("r") and "_" in name:
+                geom_robot[g] = int(name[1:name.index("_")])
+        pairs = np.array([(i, j) for i in range(n) for j in range(i + 1, n)], dtype=np.int32).reshape(-1, 2)
+        return SceneLayout(n, np.array(fq), np.array(fv), np.array(aq), np.array(av), geom_robot, pairs)
+
+
+def standard_poses(kind: str, robot: RobotParams = RobotParams()) -> list[tuple[float, ...]]:
+    """Initial poses of the reference scenes in ``models/``.
+
+    ``single``: one robot at the origin. ``pair``: a C1-like anti-aligned pair
+    (|r| = 1.3 W, theta = 270 deg, phi = 180 deg). ``seven``: the paper's
+    compressed relaxation start, 7 robots side by side on a hexagonal patch,
+    arms at the gait's first corner.
+    """
+    from .configs import pose_from_relative  # local: configs imports scene
+
+    a = math.pi / 2
+    if kind == "single":
+        return [(0.0, 0.0, 0.0, a, a)]
+    if kind == "pair":
+        p1 = (0.0, 0.0, 0.0, a, a)
+        x, y, h = pose_from_relative(1.3, math.radians(270), math.pi, robot.body_length)
+        return [p1, (float(x), float(y), float(h), a, a)]
+    if kind == "seven":
+        # Arms folded to (+90, +90): each robot is a U about W+2L... wide; pack
+        # the U's in staggered rows with a small gap.
+        w = robot.body_length + 2 * robot.arm_thickness + 0.004
+        depth = robot.arm_length + robot.body_thickness / 2 + 0.004
+        spots = [(-w, 0), (0, 0), (w, 0), (-w / 2, -depth), (w / 2, -depth), (-w / 2, depth), (w / 2, depth)]
+        return [(x, y, 0.0, a, a) for x, y in spots]
+    raise ValueError(f"unknown standard scene {kind!r} (single, pair, seven)")
+
+
+REFERENCE_SCENES = ("single", "pair", "seven")
+
+
+def reference_models(params: SceneParams = SceneParams()) -> dict[str, str]:
+    """MJCF text of the reference scenes stored in ``models/``, by file name."""
+    return {f"{k}.xml": build_mjcf(params, standard_poses(k, params.robot), name=f"smarticles_{k}")
+            for k in REFERENCE_SCENES}
