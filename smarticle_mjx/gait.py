@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -85,6 +86,19 @@ def setpoints(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0
 
     diag = jnp.asarray(kind) == DIAGONAL
     return jnp.stack([jnp.where(diag, dg, sq1), jnp.where(diag, dg, sq2)], -1)
+
+
+def setpoints_and_rates(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0):
+    """Setpoints and their time derivatives, [..., 4] = (a1, a2, da1/dt, da2/dt).
+
+    The rates are the exact derivative of :func:`setpoints` (forward-mode
+    autodiff), i.e. +-speed during a move and 0 while dwelling; the servo
+    uses them as velocity feed-forward.
+    """
+    t = jnp.asarray(t, dtype=float)
+    f = lambda tt: setpoints(tt, amplitude, period, speed, chirality, kind, phase)  # noqa: E731
+    sp, rate = jax.jvp(f, (t,), (jnp.ones_like(t),))
+    return jnp.concatenate([sp, rate], -1)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -20,12 +20,20 @@ Choices where the paper is silent (all parameters):
   thickness) whose axis lies ``arm_clearance + arm_radius`` above the plate,
   inside the body's height, so robot-robot contacts are exactly planar.
 * Arm mass 2 g each (a 5.4 x 0.3 x ~1 cm plastic link); body takes the rest.
-* Servo: MuJoCo position actuator, stiffness ``servo_kp``, critically damped
-  (``dampratio`` 1), torque clipped to the stall torque 0.078 N m; reflected
-  rotor inertia ``servo_armature``.
+* Servo: a PD loop with velocity feed-forward, as a hobby servo tracking a
+  ramp: a position actuator (``servo_kp``) and a velocity actuator (gain
+  ``servo_kv``, critical damping by default) per hinge; the gait supplies the
+  setpoint and its rate. The hinge's total actuator torque is clipped to the
+  stall torque 0.078 N m (``actuatorfrcrange``), and the gearbox's reflected
+  inertia ``servo_armature`` = 5e-5 kg m^2 limits the arm's acceleration to
+  ~1500 rad/s^2 (full speed in ~6 ms). Softer servos or smaller armatures
+  made the single robot "drift" at dt = 1 ms by numerical hopping, a drift
+  that vanished at dt/4; see docs/timestep.md.
 * Plate friction mu = 0.37 (DART-derived figure quoted in public code);
   robot-robot friction 0.3. The plate geom has priority, so body-plate
   contacts use exactly the plate's mu.
+* Contacts: solref time constant 5 ms (critically damped), solimp
+  (0.95, 0.99, 1 mm); both tested for convergence in ``benchmarks/``.
 * Elliptic friction cones: pyramidal cones are anisotropic in the plane and
   break the rotation invariance a planar study needs.
 """
@@ -59,11 +67,11 @@ class RobotParams:
     mass: float = 0.0348
     arm_mass: float = 0.002
     arm_limit_deg: float = 100.0  # hinge range; gait corners stay inside
-    servo_kp: float = 0.3  # N m / rad
-    servo_dampratio: float = 1.0
+    servo_kp: float = 0.5  # N m / rad
+    servo_kv: float | None = None  # N m s / rad; None: critically damped
     servo_torque: float = 0.078  # N m (stall torque)
     servo_speed: float = 8.727  # rad/s (0.12 s / 60 deg)
-    servo_armature: float = 1e-6  # kg m^2
+    servo_armature: float = 5e-5  # kg m^2
     joint_damping: float = 0.0
 
     def validate(self) -> None:
@@ -75,6 +83,10 @@ class RobotParams:
                 raise ValueError(f"robot.{name} must be positive, got {getattr(self, name)}")
         if self.mass <= 2 * self.arm_mass:
             raise ValueError("robot.mass must exceed the two arms' mass")
+        if self.servo_kv is not None and self.servo_kv < 0:
+            raise ValueError("robot.servo_kv must be >= 0")
+        if self.servo_armature < 0:
+            raise ValueError("robot.servo_armature must be >= 0")
         if self.arm_clearance < 0:
             raise ValueError("robot.arm_clearance must be >= 0")
         if self.arm_clearance + self.arm_thickness > self.body_height:
@@ -92,6 +104,17 @@ class RobotParams:
         return self.arm_clearance + self.arm_radius
 
     @property
+    def hinge_inertia(self) -> float:
+        """Arm (thin rod about its end) plus reflected servo inertia."""
+        return self.arm_mass * self.arm_length ** 2 / 3 + self.servo_armature
+
+    @property
+    def kv(self) -> float:
+        if self.servo_kv is not None:
+            return self.servo_kv
+        return 2.0 * math.sqrt(self.servo_kp * self.hinge_inertia)
+
+    @property
     def body_mass(self) -> float:
         return self.mass - 2 * self.arm_mass
 
@@ -105,7 +128,10 @@ class SceneParams:
     robot_friction: float = 0.3
     contact_timeconst: float = 0.005  # s; solref[0] for every contact
     contact_dampratio: float = 1.0
-    timestep: float = 1e-3  # chosen by benchmarks/timestep_convergence.py
+    # solimp (dmin, dmax, width): stiff enough that a stalled servo pressing an
+    # arm into a neighbour penetrates ~0.1 mm, not the ~2 mm of the defaults
+    contact_solimp: tuple[float, float, float] = (0.95, 0.99, 0.001)
+    timestep: float = 5e-4  # chosen by benchmarks/timestep_convergence.py
     iterations: int = 20
     ls_iterations: int = 10
     tolerance: float = 1e-8
@@ -120,6 +146,9 @@ class SceneParams:
             raise ValueError(
                 f"contact_timeconst {self.contact_timeconst} < 2 * timestep {self.timestep}: "
                 "MuJoCo would silently stiffen nothing and soften contacts; lower the timestep")
+        dmin, dmax, width = self.contact_solimp
+        if not (0 < dmin <= dmax < 1 and width > 0):
+            raise ValueError("contact_solimp must satisfy 0 < dmin <= dmax < 1 and width > 0")
         if self.plate_friction < 0 or self.robot_friction < 0:
             raise ValueError("friction coefficients must be >= 0")
         if self.iterations < 1 or self.ls_iterations < 1:
@@ -151,13 +180,15 @@ def _robot_xml(i: int, p: RobotParams, pose: Sequence[float]) -> str:
             contype="{_PLATE_BIT | _ROBOT_BIT}" conaffinity="{_PLATE_BIT | _ROBOT_BIT}" rgba="{rgba}"/>
       <body name="r{i}_arm1" pos="{_fmt(-hw, 0, arm_dz)}">
         <joint name="r{i}_a1" type="hinge" axis="0 0 -1" range="{-lim:.9g} {lim:.9g}"
-               armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0"/>
+               armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0"
+               actuatorfrcrange="{-p.servo_torque:.9g} {p.servo_torque:.9g}"/>
         <geom name="r{i}_arm1" type="capsule" fromto="{_fmt(0, 0, 0, -tip, 0, 0)}" size="{r:.9g}"
               mass="{p.arm_mass:.9g}" contype="{_ROBOT_BIT}" conaffinity="{_ROBOT_BIT}" rgba="0.3 0.3 0.3 1"/>
       </body>
       <body name="r{i}_arm2" pos="{_fmt(hw, 0, arm_dz)}">
         <joint name="r{i}_a2" type="hinge" axis="0 0 1" range="{-lim:.9g} {lim:.9g}"
-               armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0"/>
+               armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0"
+               actuatorfrcrange="{-p.servo_torque:.9g} {p.servo_torque:.9g}"/>
         <geom name="r{i}_arm2" type="capsule" fromto="{_fmt(0, 0, 0, tip, 0, 0)}" size="{r:.9g}"
               mass="{p.arm_mass:.9g}" contype="{_ROBOT_BIT}" conaffinity="{_ROBOT_BIT}" rgba="0.3 0.3 0.3 1"/>
       </body>
@@ -192,8 +223,9 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
 
     Returns:
       MJCF XML text. Arm angles of the poses become the hinges' initial
-      ``qpos`` through a keyframe named ``init``; actuators are ordered
-      ``r0_a1, r0_a2, r1_a1, ...``. For every robot pair (i < j) a contact
+      ``qpos`` through a keyframe named ``init``. Controls per robot are
+      ``(alpha1, alpha2, rate1, rate2)``: setpoints (rad) then their rates
+      (rad/s), robot after robot. For every robot pair (i < j) a contact
       sensor ``touch_i_j`` counts the contacts between the two robots.
     """
     params.validate()
@@ -217,9 +249,10 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
     for i in range(n):
         for k in (1, 2):
             acts.append(
-                f'    <position name="r{i}_s{k}" joint="r{i}_a{k}" kp="{rp.servo_kp:.9g}" '
-                f'dampratio="{rp.servo_dampratio:.9g}" ctrlrange="{-lim:.9g} {lim:.9g}" '
-                f'forcerange="{-rp.servo_torque:.9g} {rp.servo_torque:.9g}"/>')
+                f'    <position name="r{i}_p{k}" joint="r{i}_a{k}" kp="{rp.servo_kp:.9g}" '
+                f'ctrlrange="{-lim:.9g} {lim:.9g}"/>')
+        for k in (1, 2):
+            acts.append(f'    <velocity name="r{i}_v{k}" joint="r{i}_a{k}" kv="{rp.kv:.9g}"/>')
     sensors = []
     for i in range(n):
         for j in range(i + 1, n):
@@ -229,7 +262,7 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
     for i, pose in enumerate(poses):
         x, y, heading = (float(v) for v in pose[:3])
         qpos += [x, y, rp.body_height / 2, math.cos(heading / 2), 0, 0, math.sin(heading / 2), *arms[i]]
-    ctrl = [a for pair in arms for a in pair]
+    ctrl = [c for pair in arms for c in (*pair, 0.0, 0.0)]
     solref = _fmt(params.contact_timeconst, params.contact_dampratio)
     plate = 2.0 if params.boundary_radius is None else params.boundary_radius + 0.1
     return f"""<mujoco model="{name}">
@@ -238,7 +271,8 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
   <option timestep="{params.timestep:.9g}" integrator="implicitfast" cone="elliptic" solver="Newton"
           iterations="{params.iterations}" ls_iterations="{params.ls_iterations}" tolerance="{params.tolerance:.9g}"/>
   <default>
-    <geom condim="3" friction="{params.robot_friction:.9g} 0.005 0.0001" solref="{solref}"/>
+    <geom condim="3" friction="{params.robot_friction:.9g} 0.005 0.0001" solref="{solref}"
+          solimp="{_fmt(*params.contact_solimp)}"/>
   </default>
   <worldbody>
     <light pos="0 0 1" dir="0 0 -1"/>

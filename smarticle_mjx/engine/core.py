@@ -162,15 +162,19 @@ def steps_per_period(period: float, timestep: float) -> int:
     return n
 
 
-_setpoints = jax.jit(gait_mod.setpoints)
+_controls = jax.jit(gait_mod.setpoints_and_rates)
 
 
 def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
-    """Setpoints [B, len(t), nu] for every lane at times ``t`` (host numpy)."""
-    sp = _setpoints(
+    """Controls [B, len(t), nu] for every lane at times ``t`` (host numpy).
+
+    Per robot: setpoints (alpha1, alpha2) then their rates, as the scene's
+    actuators expect.
+    """
+    sp = _controls(
         t[None, :, None], lanes.amplitude[:, None, None], lanes.period, scene.params.robot.servo_speed,
         lanes.chirality[:, None, None], lanes.kind[:, None, None], lanes.phase[:, None, :])
-    sp = np.asarray(sp)  # [B, T, N, 2]
+    sp = np.asarray(sp)  # [B, T, N, 4]
     return sp.reshape(sp.shape[0], sp.shape[1], -1)
 
 

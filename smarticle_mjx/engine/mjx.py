@@ -77,7 +77,7 @@ class MjxBackend:
             def body(carry, i):
                 d, touched, mind, finite = carry
                 t = t_start + dt * i
-                ctrl = gait_mod.setpoints(t, amplitude, period, speed, chirality, kind, phase).reshape(-1)
+                ctrl = gait_mod.setpoints_and_rates(t, amplitude, period, speed, chirality, kind, phase).reshape(-1)
                 d = d.replace(ctrl=ctrl.astype(d.ctrl.dtype))
                 d = mjx.step(mx, d)
                 # contacts of this step's forward pass (state at time t)
