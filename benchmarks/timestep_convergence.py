@@ -33,7 +33,7 @@ def run_batch(params, poses, gait, periods):
     be = make_backend("native", scene)
     lanes = Lanes.from_gait(poses, gait)
     t = time.perf_counter()
-    _, rec, _ = be.advance(be.initial_state(lanes), lanes, 0.0, periods)
+    _, rec, _ = be.advance(be.initial_state(lanes), lanes, periods)
     wall = time.perf_counter() - t
     be.close()
     return rec, wall

@@ -90,14 +90,13 @@ class MjxBackend:
 
             init = (d, jnp.zeros(n_pairs, bool), jnp.full(n_pairs, jnp.inf), jnp.asarray(True))
             (d, touched, mind, finite), _ = jax.lax.scan(body, init, jnp.arange(nstep))
-            d = d.replace(time=t_start + dt * nstep)
             return d, touched, mind, finite
 
         fn = jax.jit(jax.vmap(one_lane, in_axes=(0, 0, 0, 0, 0, None, None)))
         self._compiled[nstep] = fn
         return fn
 
-    def advance(self, state, lanes: Lanes, t0: float, n_periods: int, track_stride: int | None = None):
+    def advance(self, state, lanes: Lanes, n_periods: int, *, t0: float = 0.0, track_stride: int | None = None):
         """Advance batched ``state`` by ``n_periods``; same contract as the native backend."""
         if track_stride:
             raise NotImplementedError("full-rate tracks are recorded by the native backend")
@@ -111,11 +110,30 @@ class MjxBackend:
         min_dist = np.full((b, n_periods, self.scene.n_pairs), np.inf)
         status = np.zeros(b, dtype=np.int32)
         for k in range(n_periods):
-            t_start = jnp.float32(t0 + k * lanes.period)
-            state, tch, mind, finite = fn(state, *args, jnp.float32(lanes.period), t_start)
+            # period-relative gait time: lanes may have different clocks
+            state, tch, mind, finite = fn(state, *args, jnp.float32(lanes.period), jnp.float32(0.0))
             touched[:, k] = np.asarray(tch)
             min_dist[:, k] = np.asarray(mind)
             poses[:, k] = self.scene.poses_from_qpos(np.asarray(state.qpos, dtype=np.float64))
             status |= np.where(np.asarray(finite), 0, int(Status.NONFINITE))
             status |= np.where((min_dist[:, k] < -self.penetration_limit).any(-1), int(Status.PENETRATION), 0)
         return state, PeriodRecords(poses, touched, min_dist, status), None
+
+    def step_qpos(self, lanes: Lanes, nsteps: int) -> np.ndarray:
+        """qpos [B, nsteps, nq] of the first ``nsteps`` steps from rest (for
+        step-by-step comparison with the native backend)."""
+        mx, speed = self.mx, self.scene.params.robot.servo_speed
+        dt = float(self.model.opt.timestep)
+
+        def one_lane(d, amplitude, chirality, kind, phase):
+            def body(d, i):
+                ctrl = gait_mod.setpoints_and_rates(dt * i, amplitude, lanes.period, speed, chirality, kind, phase)
+                d = mjx.step(mx, d.replace(ctrl=ctrl.reshape(-1).astype(d.ctrl.dtype)))
+                return d, d.qpos
+            return jax.lax.scan(body, d, jnp.arange(nsteps))[1]
+
+        fn = jax.jit(jax.vmap(one_lane))
+        out = fn(self.initial_state(lanes), jnp.asarray(lanes.amplitude, jnp.float32),
+                 jnp.asarray(lanes.chirality, jnp.int32), jnp.asarray(lanes.kind, jnp.int32),
+                 jnp.asarray(lanes.phase, jnp.float32))
+        return np.asarray(out, dtype=np.float64)

@@ -60,9 +60,12 @@ class NativeBackend:
         state[:, 0] = 0.0
         return state
 
-    def advance(self, state: np.ndarray, lanes: Lanes, t0: float, n_periods: int,
+    def advance(self, state: np.ndarray, lanes: Lanes, n_periods: int, *, t0: float = 0.0,
                 track_stride: int | None = None):
-        """Advance ``state`` [B, nstate] from time ``t0`` by ``n_periods`` periods.
+        """Advance ``state`` [B, nstate] by ``n_periods`` whole gait periods.
+
+        Every lane must be at gait phase 0 (a whole number of periods into its
+        run); lanes need not share a clock. ``t0`` only labels track times.
 
         Returns:
           (new_state, PeriodRecords, track) where track is None or a dict with
@@ -80,16 +83,17 @@ class NativeBackend:
         status = np.zeros(b, dtype=np.int32)
         state = np.array(state, dtype=np.float64, copy=True)
         track_t, track_q = [], []
+        # every call starts at gait phase 0 and the gait is periodic, so the
+        # controls of one period serve every period and every lane's clock
+        t_rel = dt * np.arange(nstep)
+        ctrl_all = lane_controls(self.scene, lanes, t_rel) if b <= slice_size else None
         for k in range(n_periods):
             t_start = t0 + k * lanes.period
-            t = t_start + dt * np.arange(nstep)
             out_q = []
             for lo in range(0, b, slice_size):
                 sl = slice(lo, min(b, lo + slice_size))
-                sub = lanes.take(sl)
-                ctrl = lane_controls(self.scene, sub, t)
+                ctrl = ctrl_all[sl] if ctrl_all is not None else lane_controls(self.scene, lanes.take(sl), t_rel)
                 init = state[sl].copy()
-                init[:, 0] = t_start  # keep the clock exact over long runs
                 states, sens = self.pool.rollout(
                     m, self.datas, init, ctrl, nstep=nstep)
                 sens = sens.reshape(sens.shape[0], nstep, n_pairs, SENSOR_WIDTH)
@@ -107,8 +111,15 @@ class NativeBackend:
                     out_q.append(states[:, track_stride - 1::track_stride, self.qpos_at:self.qpos_at + m.nq])
             if track_stride:
                 track_q.append(np.concatenate(out_q, 0))
-                track_t.append(t[track_stride - 1::track_stride] + dt)
+                track_t.append(t_start + t_rel[track_stride - 1::track_stride] + dt)
         track = None
         if track_stride:
             track = {"t": np.concatenate(track_t), "qpos": np.concatenate(track_q, 1)}
         return state, PeriodRecords(poses, touched, min_dist, status), track
+
+    def step_qpos(self, lanes: Lanes, nsteps: int) -> np.ndarray:
+        """qpos [B, nsteps, nq] of the first ``nsteps`` steps from rest."""
+        dt = self.model.opt.timestep
+        ctrl = lane_controls(self.scene, lanes, dt * np.arange(nsteps))
+        states, _ = self.pool.rollout(self.model, self.datas, self.initial_state(lanes), ctrl, nstep=nsteps)
+        return states[:, :, self.qpos_at:self.qpos_at + self.model.nq]

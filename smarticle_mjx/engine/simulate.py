@@ -76,7 +76,7 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
     be = make_backend(backend, scene, nthread=nthread)
     try:
         state = be.initial_state(lanes)
-        _, rec, track = be.advance(state, lanes, 0.0, periods, track_stride=track_stride)
+        _, rec, track = be.advance(state, lanes, periods, track_stride=track_stride)
     finally:
         if hasattr(be, "close"):
             be.close()

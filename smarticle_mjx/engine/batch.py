@@ -1,0 +1,230 @@
+"""Run many lanes through a fixed-size batch: chunks, early exit, refill.
+
+The batch holds ``batch_size`` slots. Every chunk advances all occupied
+slots by ``chunk_periods`` gait periods. A lane is finished when it has run
+all its periods or the :class:`RetireRule` decides its outcome; its records
+go to the ``on_lanes`` callback at once and its slot takes the next queued
+lane, so the batch stays full. Memory is O(batch_size x periods), never
+lanes x steps.
+
+Why retiring quiet lanes is sound (and measured in benchmarks/engine.py):
+a lone robot does not drift (converged drift ~1e-5 W per period, see
+docs/timestep.md) and friction stops any coasting within ~0.05 s, so a pair
+that went ``quiet_periods`` whole periods without touching starts every
+later period from the same relative pose and would stay apart forever.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import numpy as np
+
+from .. import configs
+from .core import Lanes, Status
+
+
+@dataclasses.dataclass(frozen=True)
+class RetireRule:
+    """When a lane's outcome is decided before its last period.
+
+    Attributes:
+      quiet_periods: retire after this many consecutive periods in which no
+        pair touched (0 disables early exit).
+      min_separation_W: and only if every pair's |r| (in W) at the last
+        period boundary exceeds this.
+      on_bad_status: retire lanes whose status turned non-finite or
+        penetrating.
+    """
+
+    quiet_periods: int = 2
+    min_separation_W: float = 0.0
+    on_bad_status: bool = True
+
+    def validate(self):
+        if self.quiet_periods < 0 or self.min_separation_W < 0:
+            raise ValueError("retire rule values must be >= 0")
+
+
+@dataclasses.dataclass
+class LaneResults:
+    """Records of finished lanes (host numpy), as handed to ``on_lanes``.
+
+    Attributes:
+      index: [b] lane indices into the queue.
+      poses: [b, K, N, 5] poses at the end of each period; NaN after retiring.
+      touched: [b, K, P]; False after retiring.
+      min_dist: [b, K, P]; inf after retiring or where no touch.
+      status: [b] Status bits.
+      periods_run: [b] periods actually simulated.
+    """
+
+    index: np.ndarray
+    poses: np.ndarray
+    touched: np.ndarray
+    min_dist: np.ndarray
+    status: np.ndarray
+    periods_run: np.ndarray
+
+
+def _take_state(state, idx):
+    if isinstance(state, np.ndarray):
+        return state[idx]
+    import jax
+    return jax.tree_util.tree_map(lambda x: x[idx], state)
+
+
+def _put_state(state, idx, new):
+    if isinstance(state, np.ndarray):
+        state[idx] = new
+        return state
+    import jax
+    return jax.tree_util.tree_map(lambda x, y: x.at[idx].set(y), state, new)
+
+
+def _scatter_records(rec, idx, b):
+    from .core import PeriodRecords
+    k, n = rec.poses.shape[1], rec.poses.shape[2]
+    p = rec.touched.shape[2]
+    out = PeriodRecords(np.full((b, k, n, 5), np.nan), np.zeros((b, k, p), bool), np.full((b, k, p), np.inf),
+                        np.zeros(b, np.int32))
+    out.poses[idx], out.touched[idx], out.min_dist[idx], out.status[idx] = rec.poses, rec.touched, rec.min_dist, rec.status
+    return out
+
+
+def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chunk_periods: int = 5,
+              rule: RetireRule = RetireRule(), valid: np.ndarray | None = None,
+              on_lanes: Callable[[LaneResults], None] | None = None,
+              on_progress: Callable[[int, int, int], None] | None = None) -> dict:
+    """Run every lane of ``lanes`` for ``periods`` periods (or until retired).
+
+    Args:
+      backend: a native or mjx backend built for the lanes' scene.
+      lanes: all lanes, queued in order.
+      periods: periods per lane.
+      batch_size: slots advanced together.
+      chunk_periods: periods per chunk (retirement is checked between chunks).
+      rule: early-exit rule.
+      valid: [M] bool; invalid lanes are reported with Status.INVALID and
+        never simulated.
+      on_lanes: receives each group of finished lanes (any order).
+      on_progress: called as (lanes_done, lanes_total, lane_periods_run).
+
+    Returns:
+      Summary dict: lanes, simulated lane-periods, full lane-periods, wall
+      seconds spent in the backend.
+    """
+    import time
+
+    rule.validate()
+    if periods < 1 or batch_size < 1 or chunk_periods < 1:
+        raise ValueError("periods, batch_size and chunk_periods must be positive")
+    m = lanes.size
+    n, p = lanes.poses.shape[1], backend.scene.n_pairs
+    valid = np.ones(m, bool) if valid is None else np.asarray(valid, bool)
+    W = backend.scene.params.robot.body_length
+    done = 0
+    lane_periods = 0
+
+    def emit(res: LaneResults):
+        nonlocal done
+        done += len(res.index)
+        if on_lanes is not None:
+            on_lanes(res)
+        if on_progress is not None:
+            on_progress(done, m, lane_periods)
+
+    bad = np.flatnonzero(~valid)
+    if len(bad):
+        emit(LaneResults(bad, np.full((len(bad), periods, n, 5), np.nan), np.zeros((len(bad), periods, p), bool),
+                         np.full((len(bad), periods, p), np.inf), np.full(len(bad), int(Status.INVALID), np.int32),
+                         np.zeros(len(bad), np.int32)))
+    queue = list(np.flatnonzero(valid))
+    qpos = 0
+    b = min(batch_size, len(queue))
+    if b == 0:
+        return dict(lanes=m, lane_periods=0, full_lane_periods=0, backend_seconds=0.0)
+
+    shrink = getattr(backend, "name", "") == "native"
+    slot_lane = np.array(queue[:b])
+    qpos = b
+    slot_lanes = lanes.take(slot_lane)
+    state = backend.initial_state(slot_lanes)
+    slot_done = np.zeros(b, np.int32)
+    active = np.ones(b, bool)
+    buf_poses = np.full((b, periods, n, 5), np.nan)
+    buf_touch = np.zeros((b, periods, p), bool)
+    buf_dist = np.full((b, periods, p), np.inf)
+    buf_status = np.zeros(b, np.int32)
+    wall = 0.0
+
+    while active.any():
+        # a slot with fewer periods left than the chunk still runs the
+        # chunk; the surplus records are dropped (same results, simpler)
+        t = time.perf_counter()
+        if shrink and not active.all():
+            # native: idle slots cost real work, run only the occupied ones
+            idx = np.flatnonzero(active)
+            sub_state, sub_rec, _ = backend.advance(_take_state(state, idx), slot_lanes.take(idx), chunk_periods)
+            state = _put_state(state, idx, sub_state)
+            rec = _scatter_records(sub_rec, idx, b)
+        else:
+            state, rec, _ = backend.advance(state, slot_lanes, chunk_periods)
+        wall += time.perf_counter() - t
+        finished = []
+        for s in np.flatnonzero(active):
+            k0 = slot_done[s]
+            k1 = min(periods, k0 + chunk_periods)
+            used = k1 - k0
+            buf_poses[s, k0:k1] = rec.poses[s, :used]
+            buf_touch[s, k0:k1] = rec.touched[s, :used]
+            buf_dist[s, k0:k1] = rec.min_dist[s, :used]
+            buf_status[s] |= rec.status[s]
+            slot_done[s] = k1
+            lane_periods += used
+            if k1 >= periods:
+                finished.append(s)
+            elif rule.on_bad_status and buf_status[s] & (Status.NONFINITE | Status.PENETRATION):
+                buf_status[s] |= int(Status.RETIRED)
+                finished.append(s)
+            elif rule.quiet_periods and k1 >= rule.quiet_periods and \
+                    not buf_touch[s, k1 - rule.quiet_periods:k1].any():
+                last = buf_poses[s, k1 - 1]
+                sep_ok = True
+                if rule.min_separation_W > 0:
+                    i, j = backend.scene.layout.pairs.T
+                    r, _, _ = configs.relative_coordinates(last[i], last[j], W)
+                    sep_ok = bool((r > rule.min_separation_W).all())
+                if sep_ok:
+                    buf_status[s] |= int(Status.RETIRED)
+                    finished.append(s)
+        if finished:
+            f = np.array(finished)
+            emit(LaneResults(slot_lane[f].copy(), buf_poses[f].copy(), buf_touch[f].copy(), buf_dist[f].copy(),
+                             buf_status[f].copy(), slot_done[f].copy()))
+            # refill
+            refill = []
+            for s in f:
+                if qpos < len(queue):
+                    slot_lane[s] = queue[qpos]
+                    qpos += 1
+                    refill.append(s)
+                else:
+                    active[s] = False
+            if refill:
+                r_idx = np.array(refill)
+                new_lanes = lanes.take(slot_lane[r_idx])
+                state = _put_state(state, r_idx, backend.initial_state(new_lanes))
+                slot_lanes = lanes.take(slot_lane)
+                slot_done[r_idx] = 0
+                buf_poses[r_idx] = np.nan
+                buf_touch[r_idx] = False
+                buf_dist[r_idx] = np.inf
+                buf_status[r_idx] = 0
+            if not active.any():
+                break
+            # mjx: idle slots keep running a finished lane (discarded) so the
+            # batch shape, and so the compiled function, stays the same
+    return dict(lanes=m, lane_periods=int(lane_periods), full_lane_periods=int(valid.sum()) * periods,
+                backend_seconds=wall)

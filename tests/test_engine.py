@@ -1,0 +1,124 @@
+"""Batched engine: one interface, two backends, early exit, same answers everywhere."""
+
+import numpy as np
+import pytest
+
+from smarticle_mjx import configs as C
+from smarticle_mjx import scene as S
+from smarticle_mjx.engine import Lanes, Scene, Status, make_backend
+from smarticle_mjx.engine.batch import RetireRule, run_lanes
+from smarticle_mjx.gait import GaitSpec
+
+P = S.SceneParams()
+GAIT = GaitSpec(90.0)
+A0 = GAIT.setpoints(0.0, P.robot.servo_speed)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return Scene.build(P, 2)
+
+
+def _lanes(n, seed=0, r_range=(0.9, 2.0)):
+    rng = np.random.default_rng(seed)
+    cf = C.random_configs(4 * n, rng, r_range)
+    poses = C.pair_poses(cf[:, 0], cf[:, 1], cf[:, 2], A0[0], A0[1])
+    poses = poses[C.poses_valid(poses)][:n]
+    return Lanes.from_gait(poses, GAIT)
+
+
+def _collect(backend, lanes, periods, **kw):
+    got = {}
+    summary = run_lanes(backend, lanes, periods, on_lanes=lambda r: got.update(
+        {int(i): (r.touched[k], r.poses[k], int(r.status[k]), int(r.periods_run[k])) for k, i in enumerate(r.index)}),
+        **kw)
+    return got, summary
+
+
+def test_one_lane_alone_equals_the_same_lane_in_a_batch(scene):
+    lanes = _lanes(6)
+    be = make_backend("native", scene)
+    _, batch, _ = be.advance(be.initial_state(lanes), lanes, 3)
+    one = lanes.take([4])
+    _, alone, _ = be.advance(be.initial_state(one), one, 3)
+    np.testing.assert_array_equal(alone.poses[0], batch.poses[4])
+    np.testing.assert_array_equal(alone.touched[0], batch.touched[4])
+
+
+def test_records_do_not_depend_on_batch_size_or_threads(scene):
+    lanes = _lanes(10, seed=1)
+    runs = []
+    for nthread, batch_size in ((1, 3), (2, 10), (2, 4)):
+        be = make_backend("native", scene, nthread=nthread)
+        got, _ = _collect(be, lanes, 4, batch_size=batch_size, chunk_periods=2, rule=RetireRule(quiet_periods=0))
+        runs.append(got)
+        be.close()
+    for other in runs[1:]:
+        for i in range(lanes.size):
+            np.testing.assert_array_equal(other[i][0], runs[0][i][0])
+            np.testing.assert_array_equal(other[i][1], runs[0][i][1])
+
+
+def test_early_exit_retires_quiet_lanes_and_keeps_bound_ones(scene):
+    # lane 0 far apart (never touches), lane 1 a colliding pair
+    far = C.pair_poses(3.5, 1.0, 2.0, A0[0], A0[1])
+    near = C.pair_poses(1.16, 6.026, 4.451, A0[0], A0[1])
+    lanes = Lanes.from_gait(np.stack([far, near]), GAIT)
+    be = make_backend("native", scene)
+    got, summary = _collect(be, lanes, 6, batch_size=1, chunk_periods=1, rule=RetireRule(quiet_periods=2))
+    assert got[0][3] == 2 and got[0][2] & Status.RETIRED
+    assert np.isnan(got[0][1][2:]).all() and not got[0][0].any()
+    assert got[1][0].any()
+    assert summary["lane_periods"] < summary["full_lane_periods"]
+
+
+def test_invalid_lanes_are_flagged_and_never_simulated(scene):
+    lanes = _lanes(3, seed=2)
+    valid = np.array([True, False, True])
+    be = make_backend("native", scene)
+    got, summary = _collect(be, lanes, 2, valid=valid, rule=RetireRule(quiet_periods=0))
+    assert got[1][2] == Status.INVALID and got[1][3] == 0
+    assert got[0][2] == Status.OK and got[2][3] == 2
+    assert summary["lane_periods"] == 4
+
+
+def test_refill_keeps_every_lane_and_matches_a_full_batch(scene):
+    """Slots refilled mid-run give each lane the records it gets in a batch of its own."""
+    lanes = _lanes(5, seed=3)
+    be = make_backend("native", scene)
+    small, _ = _collect(be, lanes, 4, batch_size=2, chunk_periods=2, rule=RetireRule(quiet_periods=0))
+    _, full, _ = be.advance(be.initial_state(lanes), lanes, 4)
+    assert sorted(small) == list(range(5))
+    for i in range(5):
+        np.testing.assert_array_equal(small[i][1], full.poses[i])
+
+
+def _max_arm_and_body_diff(params, lanes):
+    scene = Scene.build(params, 2)
+    nat = make_backend("native", scene).step_qpos(lanes, 100)
+    mj = make_backend("mjx", scene).step_qpos(lanes, 100)
+    lay = scene.layout
+    arms = np.abs(mj[..., lay.arm_qpos.ravel()] - nat[..., lay.arm_qpos.ravel()]).max()
+    body = max(np.abs(mj[..., a:a + 2] - nat[..., a:a + 2]).max() for a in lay.free_qpos)
+    moved = np.abs(nat[:, -1, lay.arm_qpos[0]] - nat[:, 0, lay.arm_qpos[0]]).max()
+    return arms, body, moved
+
+
+def test_mjx_agrees_with_native_step_by_step():
+    """Same scene, same controls: MJX (float32) and MuJoCo C (float64) follow
+    the same path over the first 100 steps: arm angles within 1 mrad
+    (0.06 deg), bodies within 0.1 mm.
+
+    Measured: 0.57 mrad and 0.014 mm. The arm gap peaks ~17 steps into the
+    first move, while the servo is clamped at its stall torque (the two
+    implicit integrators linearise a clamped actuator differently), then
+    decays; with a servo that never saturates it is 0.2 mrad."""
+    lanes = _lanes(4, seed=4)
+    arms, body, moved = _max_arm_and_body_diff(P, lanes)
+    assert moved > 0.1, "arms must have moved"
+    assert arms < 1e-3 and body < 1e-4
+
+
+def test_unknown_backend_is_refused(scene):
+    with pytest.raises(ValueError, match="unknown backend"):
+        make_backend("cuda", scene)
