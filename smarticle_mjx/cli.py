@@ -101,6 +101,108 @@ def models(
     typer.echo(("updated: " + ", ".join(stale)) if stale and not check else "models up to date")
 
 
+def _scan_common(cfg, out: pathlib.Path, resume: bool, overwrite: bool, quiet: bool, flush_rows: int = 64):
+    """Run a scan/sweep with a progress bar and print the summary."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
+        TimeRemainingColumn
+
+    from .scan import run_scan
+    from .store import StoreError
+
+    if resume and overwrite:
+        _fail("--resume and --overwrite exclude each other")
+    mode = "resume" if resume else "overwrite" if overwrite else "new"
+    columns = [TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()]
+    try:
+        with Progress(*columns, disable=quiet, transient=False) as bar:
+            tasks = {}
+
+            def progress(p):
+                if p["run"] not in tasks:
+                    tasks[p["run"]] = bar.add_task(p["run"], total=p["total"], rate="")
+                rate = f"{p['steps'] / max(p['elapsed'], 1e-9):,.0f} steps/s"
+                bar.update(tasks[p["run"]], completed=p["done"], rate=rate)
+
+            if flush_rows < 1:
+                raise ValueError("--flush-rows must be positive")
+            summary = run_scan(cfg, out, mode=mode, on_progress=progress, flush_rows=flush_rows)
+    except (ValueError, StoreError) as e:
+        _fail(str(e))
+    for name, r in summary["runs"].items():
+        typer.echo(f"{name}: {r['valid']}/{summary['configs']} valid configurations, "
+                   f"bound at the end: {r['bound_end_fraction']:.1%}")
+    typer.echo(f"wall {summary['wall_s']:.1f} s, {summary['steps']:,} steps simulated "
+               f"({summary['steps_per_s']:,.0f} steps/s); wrote {out}")
+
+
+_CONFIGS_HELP = "random (uniform |r|, theta, phi) or polar (fixed |r| grid)"
+
+
+@app.command()
+def scan(
+    configs: str = typer.Option("random", help=_CONFIGS_HELP),
+    n: int = typer.Option(5000, help="random: number of configurations"),
+    r_min: float = typer.Option(0.5, help="random: smallest |r| in W"),
+    r_max: float = typer.Option(2.5, help="random: largest |r| in W"),
+    radius: float = typer.Option(1.3, help="polar: |r| in W"),
+    positions: int = typer.Option(1000, help="polar: number of theta values"),
+    orientations: int = typer.Option(1, help="polar: number of phi values per position"),
+    amplitude: float = typer.Option(90.0, help="alpha_max in degrees"),
+    periods: int = typer.Option(75, help="gait periods per configuration"),
+    chirality: str = typer.Option("ccw", help="ccw or cw"),
+    gait: str = typer.Option("square", help="square or diagonal"),
+    period: Optional[float] = typer.Option(None, help="gait period in s (default: 1.6 s x amplitude / 90)"),
+    backend: str = typer.Option("native", help="native (MuJoCo C, all cores) or mjx (JAX)"),
+    seed: int = typer.Option(0, help="seed of the random configurations"),
+    batch_size: int = typer.Option(256, help="lanes simulated together"),
+    out: pathlib.Path = typer.Option(pathlib.Path("scan.h5"), help="output store (.h5)"),
+    resume: bool = typer.Option(False, help="continue an interrupted scan into the same store"),
+    overwrite: bool = typer.Option(False, help="replace an existing store"),
+    quiet: bool = typer.Option(False, help="no progress bar"),
+    flush_rows: int = typer.Option(64, help="journal finished configurations in blocks of this many"),
+):
+    """One basin scan at one amplitude into an HDF5 store."""
+    from .scan import ScanConfig
+    cfg = ScanConfig(configs=configs, n=n, r_range_W=(r_min, r_max), radius_W=radius, positions=positions,
+                     orientations=orientations, amplitudes_deg=(amplitude,), periods=periods, chirality=chirality,
+                     gait=gait, period_s=period, backend=backend, seed=seed, batch_size=batch_size)
+    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows)
+
+
+@app.command("sweep-amplitude")
+def sweep_amplitude(
+    amplitudes: Optional[str] = typer.Option(None, help="'10:90:10' (inclusive) or '10,40,90' degrees"),
+    study: Optional[pathlib.Path] = typer.Option(None, help="study file (TOML) from sweeps/; flags below override"),
+    configs: Optional[str] = typer.Option(None, help=_CONFIGS_HELP),
+    n: Optional[int] = typer.Option(None, help="random: number of configurations"),
+    periods: Optional[int] = typer.Option(None, help="gait periods per configuration"),
+    backend: Optional[str] = typer.Option(None, help="native or mjx"),
+    seed: Optional[int] = typer.Option(None, help="seed of the random configurations"),
+    out: pathlib.Path = typer.Option(pathlib.Path("sweep.h5"), help="output store (.h5)"),
+    resume: bool = typer.Option(False, help="continue an interrupted sweep"),
+    overwrite: bool = typer.Option(False, help="replace an existing store"),
+    quiet: bool = typer.Option(False, help="no progress bar"),
+    flush_rows: int = typer.Option(64, help="journal finished configurations in blocks of this many"),
+):
+    """The same scan over several amplitudes, one store, one group per amplitude."""
+    import dataclasses
+
+    from .scan import ScanConfig, load_study, parse_amplitudes
+    try:
+        cfg = load_study(study) if study is not None else ScanConfig()
+        changes = {k: v for k, v in dict(configs=configs, n=n, periods=periods, backend=backend, seed=seed).items()
+                   if v is not None}
+        if amplitudes is not None:
+            changes["amplitudes_deg"] = parse_amplitudes(amplitudes)
+        elif study is None:
+            raise UserError("give --amplitudes or --study")
+        cfg = dataclasses.replace(cfg, **changes)
+    except (UserError, ValueError) as e:
+        _fail(str(e))
+    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows)
+
+
 def main():  # pragma: no cover
     app()
 

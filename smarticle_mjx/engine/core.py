@@ -156,10 +156,21 @@ class Lanes:
 
 
 def steps_per_period(period: float, timestep: float) -> int:
+    """Whole time steps in one gait period (the period is rounded to them)."""
     n = int(round(period / timestep))
-    if n < 1 or abs(n * timestep - period) > 1e-6 * period + 1e-12:
-        raise ValueError(f"gait period {period} s is not a whole number of time steps {timestep} s")
+    if n < 1:
+        raise ValueError(f"gait period {period} s is shorter than a time step {timestep} s")
     return n
+
+
+def on_step_grid(lanes: "Lanes", timestep: float) -> "Lanes":
+    """Lanes whose period is rounded to a whole number of time steps.
+
+    The change is at most dt/2 and comes out of the dwell at the corners, so
+    period boundaries stay at gait phase 0 exactly, however many periods run.
+    """
+    period = steps_per_period(lanes.period, timestep) * timestep
+    return dataclasses.replace(lanes, period=period)
 
 
 _controls = jax.jit(gait_mod.setpoints_and_rates)

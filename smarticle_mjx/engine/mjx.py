@@ -21,7 +21,7 @@ import numpy as np
 from mujoco import mjx
 
 from .. import gait as gait_mod
-from .core import Lanes, PeriodRecords, Scene, Status, steps_per_period
+from .core import Lanes, PeriodRecords, Scene, Status, on_step_grid, steps_per_period
 
 
 def _strip_sensors(xml: str) -> str:
@@ -100,6 +100,7 @@ class MjxBackend:
         """Advance batched ``state`` by ``n_periods``; same contract as the native backend."""
         if track_stride:
             raise NotImplementedError("full-rate tracks are recorded by the native backend")
+        lanes = on_step_grid(lanes, float(self.model.opt.timestep))
         nstep = steps_per_period(lanes.period, float(self.model.opt.timestep))
         fn = self._period_fn(nstep)
         b = lanes.size
@@ -121,19 +122,24 @@ class MjxBackend:
 
     def step_qpos(self, lanes: Lanes, nsteps: int) -> np.ndarray:
         """qpos [B, nsteps, nq] of the first ``nsteps`` steps from rest (for
-        step-by-step comparison with the native backend)."""
-        mx, speed = self.mx, self.scene.params.robot.servo_speed
-        dt = float(self.model.opt.timestep)
+        step-by-step comparison with the native backend, and benchmarks).
+        The period is traced here, so only ``nsteps`` and B recompile."""
+        lanes = on_step_grid(lanes, float(self.model.opt.timestep))
+        key = ("steps", nsteps)
+        if key not in self._compiled:
+            mx, speed = self.mx, self.scene.params.robot.servo_speed
+            dt = float(self.model.opt.timestep)
 
-        def one_lane(d, amplitude, chirality, kind, phase):
-            def body(d, i):
-                ctrl = gait_mod.setpoints_and_rates(dt * i, amplitude, lanes.period, speed, chirality, kind, phase)
-                d = mjx.step(mx, d.replace(ctrl=ctrl.reshape(-1).astype(d.ctrl.dtype)))
-                return d, d.qpos
-            return jax.lax.scan(body, d, jnp.arange(nsteps))[1]
+            def one_lane(d, amplitude, chirality, kind, phase, period):
+                def body(d, i):
+                    ctrl = gait_mod.setpoints_and_rates(dt * i, amplitude, period, speed, chirality, kind, phase)
+                    d = mjx.step(mx, d.replace(ctrl=ctrl.reshape(-1).astype(d.ctrl.dtype)))
+                    return d, d.qpos
+                return jax.lax.scan(body, d, jnp.arange(nsteps))[1]
 
-        fn = jax.jit(jax.vmap(one_lane))
-        out = fn(self.initial_state(lanes), jnp.asarray(lanes.amplitude, jnp.float32),
-                 jnp.asarray(lanes.chirality, jnp.int32), jnp.asarray(lanes.kind, jnp.int32),
-                 jnp.asarray(lanes.phase, jnp.float32))
-        return np.asarray(out, dtype=np.float64)
+            self._compiled[key] = jax.jit(jax.vmap(one_lane, in_axes=(0, 0, 0, 0, 0, None)))
+        out = self._compiled[key](
+            self.initial_state(lanes), jnp.asarray(lanes.amplitude, jnp.float32),
+            jnp.asarray(lanes.chirality, jnp.int32), jnp.asarray(lanes.kind, jnp.int32),
+            jnp.asarray(lanes.phase, jnp.float32), jnp.float32(lanes.period))
+        return np.asarray(jax.block_until_ready(out), dtype=np.float64)

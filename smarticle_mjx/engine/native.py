@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
-from .core import SENSOR_WIDTH, Lanes, PeriodRecords, Scene, Status, lane_controls, steps_per_period
+from .core import SENSOR_WIDTH, Lanes, PeriodRecords, Scene, Status, lane_controls, on_step_grid, steps_per_period
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
 
@@ -73,6 +73,7 @@ class NativeBackend:
         """
         m = self.model
         dt = m.opt.timestep
+        lanes = on_step_grid(lanes, dt)
         nstep = steps_per_period(lanes.period, dt)
         b, n_pairs = lanes.size, self.scene.n_pairs
         per_lane = nstep * (self.nstate + m.nsensordata + m.nu) * 8
@@ -120,6 +121,7 @@ class NativeBackend:
     def step_qpos(self, lanes: Lanes, nsteps: int) -> np.ndarray:
         """qpos [B, nsteps, nq] of the first ``nsteps`` steps from rest."""
         dt = self.model.opt.timestep
+        lanes = on_step_grid(lanes, dt)
         ctrl = lane_controls(self.scene, lanes, dt * np.arange(nsteps))
         states, _ = self.pool.rollout(self.model, self.datas, self.initial_state(lanes), ctrl, nstep=nsteps)
         return states[:, :, self.qpos_at:self.qpos_at + self.model.nq]

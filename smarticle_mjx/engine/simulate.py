@@ -9,7 +9,7 @@ import numpy as np
 from .. import configs
 from ..gait import GaitSpec
 from ..scene import SceneParams
-from .core import Lanes, Scene, Status
+from .core import Lanes, Scene, Status, on_step_grid
 
 
 @dataclasses.dataclass
@@ -71,7 +71,7 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
     if len(poses) > 1 and not configs.poses_valid(poses, params.robot):
         raise ValueError("initial poses overlap: robots would start interpenetrating")
     scene = Scene.build(params, len(poses))
-    lanes = Lanes.from_gait(poses, gait, phase)
+    lanes = on_step_grid(Lanes.from_gait(poses, gait, phase), params.timestep)
     from . import make_backend
     be = make_backend(backend, scene, nthread=nthread)
     try:

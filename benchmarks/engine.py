@@ -1,0 +1,121 @@
+"""Engine throughput: single-thread mj_step, native rollout and MJX vs batch size.
+
+Prints a table and writes JSON. Compile time (MJX) is timed apart from run
+time; every MJX run blocks until ready. Also: wall time of one 75-period pair
+simulation, and peak memory (max RSS) of this process.
+
+    python benchmarks/engine.py                # default sizes
+    python benchmarks/engine.py --quick        # smaller sizes, for a smoke run
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import platform
+import resource
+import time
+
+import numpy as np
+
+from smarticle_mjx import configs as C
+from smarticle_mjx import scene as S
+from smarticle_mjx.engine import Lanes, Scene, make_backend
+from smarticle_mjx.engine.simulate import simulate
+from smarticle_mjx.gait import GaitSpec
+
+
+def sample_lanes(n, params, gait, seed=0):
+    a0 = gait.setpoints(0.0, params.robot.servo_speed)
+    rng = np.random.default_rng(seed)
+    out = []
+    while sum(len(x) for x in out) < n:
+        cf = C.random_configs(4 * n, rng, (0.8, 2.0))
+        p = C.pair_poses(cf[:, 0], cf[:, 1], cf[:, 2], a0[0], a0[1])
+        out.append(p[C.poses_valid(p)])
+    return Lanes.from_gait(np.concatenate(out)[:n], gait)
+
+
+def mj_step_rate(model, seconds=3.0):
+    import mujoco
+    d = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, d, 0)
+    n, t = 0, time.perf_counter()
+    while time.perf_counter() - t < seconds:
+        for _ in range(1000):
+            mujoco.mj_step(model, d)
+        n += 1000
+    return n / (time.perf_counter() - t)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--native-batches", default="1,4,16,64,256,1024")
+    ap.add_argument("--mjx-batches", default="1,16,128,1024,4096")
+    ap.add_argument("--mjx-steps", type=int, default=100)
+    ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "engine.json"))
+    args = ap.parse_args()
+    if args.quick:
+        args.native_batches, args.mjx_batches, args.mjx_steps = "1,16,64", "1,16,128", 50
+
+    params, gait = S.SceneParams(), GaitSpec(90.0)
+    pair = S.compile_model(S.build_mjcf(params, S.standard_poses("pair")))
+    cores = os.cpu_count() or 1
+    out = dict(machine=platform.platform(), cores=cores, timestep=params.timestep)
+
+    import jax
+    out["jax_device"] = str(jax.devices()[0].device_kind)
+    ref = mj_step_rate(pair)
+    out["mj_step_single_thread_steps_per_s"] = ref
+    print(f"device: {out['jax_device']}, cores: {cores}, dt {params.timestep} s")
+    print(f"single-thread mj_step, pair scene: {ref:,.0f} steps/s (x{cores} cores = {ref * cores:,.0f})")
+
+    scene = Scene.build(params, 2)
+    native = make_backend("native", scene)
+    rows = []
+    print(f"{'backend':>7} {'batch':>6} {'compile s':>9} {'run s':>7} {'env-steps/s':>12} {'vs mj_step x cores':>18}")
+    nstep = int(round(gait.period() / params.timestep))
+    for b in (int(x) for x in args.native_batches.split(",")):
+        lanes = sample_lanes(b, params, gait)
+        state = native.initial_state(lanes)
+        t = time.perf_counter()
+        native.advance(state, lanes, 1)
+        dt = time.perf_counter() - t
+        rate = b * nstep / dt
+        rows.append(dict(backend="native", batch=b, compile_s=0.0, run_s=dt, steps_per_s=rate))
+        print(f"{'native':>7} {b:>6} {0:9.1f} {dt:7.2f} {rate:12,.0f} {rate / (ref * cores):18.2f}", flush=True)
+    native.close()
+
+    mjx_be = make_backend("mjx", scene)
+    for b in (int(x) for x in args.mjx_batches.split(",")):
+        lanes = sample_lanes(b, params, gait)
+        t = time.perf_counter()
+        mjx_be.step_qpos(lanes, args.mjx_steps)  # compiles and runs
+        first = time.perf_counter() - t
+        t = time.perf_counter()
+        mjx_be.step_qpos(lanes, args.mjx_steps)
+        run = time.perf_counter() - t
+        # first call = compile + run; the second reuses the compiled function
+        rate = b * args.mjx_steps / run
+        rows.append(dict(backend="mjx", batch=b, compile_s=max(0.0, first - run), run_s=run, steps_per_s=rate))
+        print(f"{'mjx':>7} {b:>6} {max(0.0, first - run):9.1f} {run:7.2f} {rate:12,.0f} {rate / (ref * cores):18.2f}",
+              flush=True)
+    out["throughput"] = rows
+
+    a0 = gait.setpoints(0.0, params.robot.servo_speed)
+    poses = C.pair_poses(1.16, 6.026, 4.451, a0[0], a0[1])
+    t = time.perf_counter()
+    simulate(params, poses, gait, periods=75)
+    out["pair_75_periods_wall_s"] = time.perf_counter() - t
+    out["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"one 75-period pair simulation (native): {out['pair_75_periods_wall_s']:.1f} s")
+    print(f"peak RSS: {out['peak_rss_mib']:.0f} MiB")
+    pathlib.Path(args.out).write_text(json.dumps(out, indent=2))
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,248 @@
+"""Basin scans and amplitude sweeps: configurations -> engine -> store."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import pathlib
+import time
+import tomllib
+from typing import Callable
+
+import numpy as np
+
+from . import configs as C
+from .engine import Lanes, Scene, make_backend, steps_per_period
+from .engine.batch import RetireRule, run_lanes
+from .gait import GaitSpec
+from .scene import SceneParams
+from .store import Writer, longest_run
+
+
+@dataclasses.dataclass(frozen=True)
+class ScanConfig:
+    """Everything that defines a scan's data; stored in full in the store.
+
+    ``configs`` "random": ``n`` uniform (|r|, theta, phi) with |r| in
+    ``r_range_W``; "polar": |r| = ``radius_W``, ``positions`` x
+    ``orientations`` grid (the paper's 1000-point scan at 1.3 W).
+    """
+
+    configs: str = "random"
+    n: int = 5000
+    r_range_W: tuple[float, float] = (0.5, 2.5)
+    radius_W: float = 1.3
+    positions: int = 1000
+    orientations: int = 1
+    amplitudes_deg: tuple[float, ...] = (90.0,)
+    periods: int = 75
+    chirality: str = "ccw"
+    gait: str = "square"
+    period_s: float | None = None
+    backend: str = "native"
+    seed: int = 0
+    batch_size: int = 256
+    chunk_periods: int = 5
+    quiet_periods: int = 2
+
+    def validate(self, params: SceneParams) -> None:
+        if self.configs not in ("random", "polar"):
+            raise ValueError(f"--configs must be random or polar, got {self.configs!r}")
+        if self.configs == "random":
+            if self.n <= 0:
+                raise ValueError(f"--n must be positive, got {self.n}")
+            lo, hi = self.r_range_W
+            if not 0 <= lo < hi:
+                raise ValueError(f"|r| range must satisfy 0 <= min < max, got {self.r_range_W}")
+        else:
+            if self.positions <= 0 or self.orientations <= 0:
+                raise ValueError("--positions and --orientations must be positive")
+            if self.radius_W <= 0:
+                raise ValueError(f"--radius must be positive, got {self.radius_W}")
+        if self.periods <= 0:
+            raise ValueError(f"--periods must be positive, got {self.periods}")
+        if not self.amplitudes_deg:
+            raise ValueError("no amplitudes given")
+        if len(set(self.amplitudes_deg)) != len(self.amplitudes_deg):
+            raise ValueError("amplitudes must be distinct")
+        for a in self.amplitudes_deg:
+            self.gait_spec(a).validate(params.robot.servo_speed, params.robot.arm_limit_deg)
+        if self.backend not in ("native", "mjx"):
+            raise ValueError(f"--backend must be native or mjx, got {self.backend!r}")
+        if self.batch_size <= 0 or self.chunk_periods <= 0 or self.quiet_periods < 0:
+            raise ValueError("batch size and chunk periods must be positive, quiet periods >= 0")
+
+    def gait_spec(self, amplitude_deg: float) -> GaitSpec:
+        return GaitSpec(amplitude_deg=float(amplitude_deg), chirality=self.chirality, kind=self.gait,
+                        period_s=self.period_s)
+
+    def initial_configs(self) -> np.ndarray:
+        """[M, 3] (|r| in W, theta, phi in rad); the same for every amplitude."""
+        if self.configs == "random":
+            return C.random_configs(self.n, np.random.default_rng(self.seed), self.r_range_W)
+        return C.polar_configs(self.radius_W, self.positions, self.orientations)
+
+    def to_json(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["r_range_W"] = list(self.r_range_W)
+        d["amplitudes_deg"] = [float(a) for a in self.amplitudes_deg]
+        return d
+
+
+def run_name(amplitude_deg: float) -> str:
+    return f"a{amplitude_deg:06.2f}"
+
+
+def parse_amplitudes(text: str) -> tuple[float, ...]:
+    """'10:90:10' (inclusive range) or '10,40,90' -> amplitudes in degrees."""
+    text = text.strip()
+    try:
+        if ":" in text:
+            lo, hi, step = (float(x) for x in text.split(":"))
+            if step <= 0 or hi < lo:
+                raise ValueError
+            n = int(math.floor((hi - lo) / step + 1e-9)) + 1
+            return tuple(round(lo + k * step, 6) for k in range(n))
+        return tuple(float(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise ValueError(f"amplitudes must look like '10:90:10' or '10,40,90', got {text!r}") from None
+
+
+def load_study(path) -> ScanConfig:
+    """A study file (TOML) from sweeps/: keys are ScanConfig fields."""
+    path = pathlib.Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ValueError(f"study file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ValueError(f"cannot read study file {path}: {e}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ValueError(f"study file {path} is not valid TOML: {e}") from None
+    study = raw.get("study", raw)
+    fields = {f.name for f in dataclasses.fields(ScanConfig)}
+    unknown = set(study) - fields - {"description", "figure"}
+    if unknown:
+        raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
+    kw = {k: v for k, v in study.items() if k in fields}
+    for k in ("r_range_W", "amplitudes_deg"):
+        if k in kw:
+            kw[k] = tuple(float(x) for x in kw[k])
+    try:
+        return ScanConfig(**kw)
+    except TypeError as e:
+        raise ValueError(f"study file {path}: {e}") from None
+
+
+def _rows(cfg: np.ndarray, valid: np.ndarray, res, body_length: float) -> dict:
+    """Store rows from engine LaneResults (pair scenes)."""
+    poses = res.poses
+    p1, p2 = poses[:, :, 0], poses[:, :, 1]
+    r, th, ph = C.relative_coordinates(p1, p2, body_length)
+    com = np.stack([(p1[..., 0] + p2[..., 0]) / 2, (p1[..., 1] + p2[..., 1]) / 2,
+                    np.angle(np.exp(1j * p1[..., 2]) + np.exp(1j * p2[..., 2]))], -1)
+    return {
+        "config": cfg.astype(np.float64), "valid": valid, "status": res.status.astype(np.int32),
+        "periods_run": res.periods_run.astype(np.int32), "touched": res.touched,
+        "min_dist": res.min_dist.astype(np.float32), "poses": poses.astype(np.float32),
+        "rel": np.stack([r, th, ph], -1).astype(np.float32), "com": com.astype(np.float32),
+        "lifetime": longest_run(res.touched[:, :, 0]),
+    }
+
+
+def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams = SceneParams(),
+             flush_rows: int = 64, on_progress: Callable[[dict], None] | None = None) -> dict:
+    """Run a scan or sweep into the store ``out``.
+
+    Args:
+      config: what to scan.
+      out: store path (.h5).
+      mode: "new", "resume" or "overwrite" (see store.Writer).
+      params: scene parameters.
+      flush_rows: journal finished rows in blocks of at least this many.
+      on_progress: receives dicts with run, done, total, lane_periods, elapsed.
+
+    Returns:
+      Summary: configurations, valid, bound-at-end fraction per run, wall
+      time, simulated steps and steps per second.
+    """
+    config.validate(params)
+    params.validate()
+    cfg = config.initial_configs()
+    runs = {}
+    for a in config.amplitudes_deg:
+        g = config.gait_spec(a)
+        period = steps_per_period(g.period(), params.timestep) * params.timestep
+        runs[run_name(a)] = {"amplitude_deg": float(a), "period_s": period, "chirality": g.chirality,
+                             "gait": g.kind, "periods": config.periods, "n_configs": len(cfg)}
+    full = {"scan": config.to_json(), "scene": _params_json(params)}
+    scene = Scene.build(params, 2)
+    backend = make_backend(config.backend, scene)
+    t0 = time.perf_counter()
+    summary = {"configs": len(cfg), "runs": {}, "steps": 0}
+    rule = RetireRule(quiet_periods=config.quiet_periods)
+    try:
+        with Writer(out, full, runs, mode=mode) as w:
+            for name, attrs in runs.items():
+                g = config.gait_spec(attrs["amplitude_deg"])
+                a0 = g.setpoints(0.0, params.robot.servo_speed)
+                poses = C.pair_poses(cfg[:, 0], cfg[:, 1], cfg[:, 2], a0[0], a0[1], params.robot)
+                valid = C.poses_valid(poses, params.robot)
+                start = w.done_rows(name)
+                nstep = steps_per_period(g.period(), params.timestep)
+                pending: dict[int, dict] = {}
+                next_row = start
+
+                def flush(force=False):
+                    nonlocal next_row
+                    k = next_row
+                    while k in pending:
+                        k += 1
+                    if k > next_row and (force or k - next_row >= flush_rows):
+                        idx = range(next_row, k)
+                        rows = {f: np.stack([pending[i][f] for i in idx]) for f in pending[next_row]}
+                        w.append(name, next_row, rows)
+                        for i in idx:
+                            del pending[i]
+                        next_row = k
+
+                def on_lanes(res):
+                    rows = _rows(cfg[start + res.index], valid[start + res.index], res, params.robot.body_length)
+                    for j, i in enumerate(res.index):
+                        pending[start + int(i)] = {f: v[j] for f, v in rows.items()}
+                    summary["steps"] += int(res.periods_run.sum()) * nstep
+                    flush()
+
+                def progress(done, total, lane_periods):
+                    if on_progress:
+                        on_progress({"run": name, "done": start + done, "total": len(cfg),
+                                     "elapsed": time.perf_counter() - t0, "steps": summary["steps"]})
+
+                lanes = Lanes.from_gait(poses[start:], g)
+                if start < len(cfg):
+                    run_lanes(backend, lanes, config.periods, batch_size=config.batch_size,
+                              chunk_periods=config.chunk_periods, rule=rule, valid=valid[start:],
+                              on_lanes=on_lanes, on_progress=progress)
+                    flush(force=True)
+                elif on_progress:
+                    progress(0, 0, 0)
+            w.finalize()
+    finally:
+        if hasattr(backend, "close"):
+            backend.close()
+    from .store import Store
+    st = Store(out)
+    for name in st.runs:
+        d = st.run(name, fields=("valid", "touched"))
+        v = d["valid"]
+        summary["runs"][name] = {"valid": int(v.sum()),
+                                 "bound_end_fraction": float(d["touched"][v, -1, 0].mean()) if v.any() else 0.0}
+    summary["wall_s"] = time.perf_counter() - t0
+    summary["steps_per_s"] = summary["steps"] / max(summary["wall_s"], 1e-9)
+    return summary
+
+
+def _params_json(params: SceneParams) -> dict:
+    d = dataclasses.asdict(params)
+    d["contact_solimp"] = list(params.contact_solimp)
+    return d

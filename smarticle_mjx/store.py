@@ -1,0 +1,282 @@
+"""HDF5 stores of scans and sweeps: schema, crash-safe writer, reader.
+
+A store is one HDF5 file. While a scan runs, results go chunk by chunk into
+a journal folder beside it (``NAME.h5.parts/``): each chunk is a small HDF5
+file written under a temporary name and renamed, so a killed process leaves
+only complete chunks. When every run is complete the journal is merged into
+``NAME.h5`` (again written aside and renamed) and removed. ``--resume``
+continues from the journal; a lock file held with ``flock`` refuses a second
+writer, and is released by the kernel even on SIGKILL.
+
+Schema (version 1; see docs/store.md)::
+
+    /                      attrs: schema_version, package, mujoco, jax, h5py,
+                                  numpy versions, config (JSON), created, seed
+    /runs/<name>/          one group per amplitude; attrs: amplitude_deg,
+                                  period_s, chirality, gait, periods, pairs
+        config    [M, 3]   initial (|r| in W, theta, phi in rad)
+        valid     [M]      bool, False: overlapping start, never simulated
+        status    [M]      int32 Status bits (engine.Status)
+        periods_run [M]    int32
+        touched   [M, K, P] bool, touched at least once in period k
+        min_dist  [M, K, P] float32, deepest contact (m), inf if none
+        poses     [M, K, N, 5] float32, poses at the end of each period
+        rel       [M, K, 3] float32, (|r| W, theta, phi) of pair 0 per period
+        com       [M, K, 3] float32, pair centre of mass (x, y) and mean heading
+        lifetime  [M]      int32, longest run of consecutive bound periods
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import fcntl
+import json
+import os
+import pathlib
+import shutil
+
+import h5py
+import numpy as np
+
+SCHEMA_VERSION = 1
+ROW_FIELDS = ("config", "valid", "status", "periods_run", "touched", "min_dist", "poses", "rel", "com", "lifetime")
+
+
+class StoreError(Exception):
+    """A store cannot be created, resumed or read as asked."""
+
+
+def versions() -> dict:
+    import jax
+    import mujoco
+
+    from . import __version__
+    return {"package": f"smarticle-mjx {__version__}", "mujoco": mujoco.__version__, "jax": jax.__version__,
+            "h5py": h5py.__version__, "numpy": np.__version__}
+
+
+def longest_run(flags: np.ndarray) -> np.ndarray:
+    """Longest run of True along the last axis: [..., K] -> [...]."""
+    flags = np.asarray(flags, bool)
+    best = np.zeros(flags.shape[:-1], np.int32)
+    cur = np.zeros(flags.shape[:-1], np.int32)
+    for k in range(flags.shape[-1]):
+        cur = np.where(flags[..., k], cur + 1, 0)
+        best = np.maximum(best, cur)
+    return best
+
+
+def _journal(path: pathlib.Path) -> pathlib.Path:
+    return path.with_name(path.name + ".parts")
+
+
+class Writer:
+    """Crash-safe writer of one store. Use as a context manager.
+
+    Args:
+      path: the final ``.h5`` path.
+      config: the full configuration (JSON-serialisable); a resumed store
+        must have been started with exactly the same configuration.
+      runs: {run name: group attrs} in the order they are run.
+      mode: "new" (refuse an existing store or journal), "resume" or
+        "overwrite".
+    """
+
+    def __init__(self, path, config: dict, runs: dict[str, dict], mode: str = "new"):
+        self.path = pathlib.Path(path)
+        self.config = json.loads(json.dumps(config))  # normalised
+        self.runs = runs
+        self.mode = mode
+        self.parts = _journal(self.path)
+        self._lock = None
+
+    # -------------------------------------------------------------- set-up
+    def __enter__(self):
+        if self.path.suffix.lower() not in (".h5", ".hdf5"):
+            raise StoreError(f"store must end in .h5 or .hdf5, got {self.path.name!r}")
+        if self.path.parent.exists() and not self.path.parent.is_dir():
+            raise StoreError(f"output location {self.path.parent} is not a directory")
+        if not self.path.parent.is_dir():
+            raise StoreError(f"output directory {self.path.parent} does not exist")
+        if not os.access(self.path.parent, os.W_OK):
+            raise StoreError(f"output directory {self.path.parent} is not writable")
+        lock_path = self.path.with_name(self.path.name + ".lock")
+        try:
+            fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as e:
+            raise StoreError(f"cannot create lock file {lock_path}: {e.strerror}") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            raise StoreError(f"{self.path} is being written by another process") from None
+        self._lock = (fd, lock_path)
+        try:
+            self._prepare()
+        except BaseException:
+            self._release()
+            raise
+        return self
+
+    def _prepare(self):
+        exists = self.path.exists()
+        journal = self.parts.exists()
+        if self.mode == "new":
+            if exists or journal:
+                what = "store" if exists else "unfinished store (journal)"
+                raise StoreError(f"{what} {self.path} exists; pass --resume to continue it or --overwrite to replace it")
+        elif self.mode == "resume":
+            if exists and not journal:
+                raise StoreError(f"{self.path} is already complete; nothing to resume")
+            if not journal:
+                raise StoreError(f"nothing to resume at {self.path} (no journal {self.parts.name})")
+            saved = json.loads((self.parts / "config.json").read_text())
+            if saved != self.config:
+                diff = sorted(k for k in set(saved) | set(self.config) if saved.get(k) != self.config.get(k))
+                raise StoreError(f"{self.path} was started with a different configuration ({', '.join(diff)}); "
+                                 "refusing to append")
+        elif self.mode != "overwrite":
+            raise ValueError(f"unknown mode {self.mode!r}")
+        if self.mode == "overwrite" and journal:
+            shutil.rmtree(self.parts)
+        if self.mode != "resume":
+            self.parts.mkdir()
+            meta = {"config": self.config, "runs": self.runs, "created": _now(), **versions()}
+            _atomic_text(self.parts / "meta.json", json.dumps(meta, indent=1))
+            _atomic_text(self.parts / "config.json", json.dumps(self.config, indent=1, sort_keys=True))
+
+    def _release(self):
+        if self._lock:
+            fd, _ = self._lock
+            fcntl.flock(fd, fcntl.LOCK_UN)
+            os.close(fd)
+            self._lock = None
+
+    def __exit__(self, *exc):
+        self._release()
+        return False
+
+    # -------------------------------------------------------------- journal
+    def done_rows(self, run: str) -> int:
+        """Rows of ``run`` already journaled (they form a prefix 0..n-1)."""
+        n = 0
+        for part in self._parts(run):
+            with h5py.File(part, "r") as f:
+                n = max(n, int(f.attrs["stop"]))
+        return n
+
+    def _parts(self, run):
+        return sorted(self.parts.glob(f"{run}--*.h5"))
+
+    def append(self, run: str, start: int, rows: dict[str, np.ndarray]):
+        """Journal rows ``start .. start+len-1`` of ``run`` atomically."""
+        if run not in self.runs:
+            raise StoreError(f"unknown run {run!r}")
+        missing = set(ROW_FIELDS) - set(rows)
+        if missing:
+            raise StoreError(f"rows lack fields {sorted(missing)}")
+        n = len(rows["config"])
+        if any(len(v) != n for v in rows.values()):
+            raise StoreError("all row fields must have the same length")
+        if start != self.done_rows(run):
+            raise StoreError(f"rows must be appended in order: expected start {self.done_rows(run)}, got {start}")
+        final = self.parts / f"{run}--{start:09d}.h5"
+        tmp = final.with_name(final.name + ".tmp")
+        with h5py.File(tmp, "w") as f:
+            f.attrs["start"], f.attrs["stop"] = start, start + n
+            for k in ROW_FIELDS:
+                f.create_dataset(k, data=rows[k])
+        os.replace(tmp, final)
+
+    # -------------------------------------------------------------- finalise
+    def finalize(self):
+        """Merge the journal into the final store (atomically) and remove it."""
+        meta = json.loads((self.parts / "meta.json").read_text())
+        tmp = self.path.with_name(self.path.name + ".tmp")
+        with h5py.File(tmp, "w") as out:
+            out.attrs["schema_version"] = SCHEMA_VERSION
+            for k, v in versions().items():
+                out.attrs[k] = v
+            out.attrs["config"] = json.dumps(meta["config"])
+            out.attrs["created"] = meta["created"]
+            out.attrs["finished"] = _now()
+            out.attrs["seed"] = int(meta["config"].get("seed", 0))
+            runs = out.create_group("runs")
+            for run, attrs in meta["runs"].items():
+                g = runs.create_group(run)
+                for k, v in attrs.items():
+                    g.attrs[k] = v
+                parts = self._parts(run)
+                if not parts:
+                    raise StoreError(f"run {run} has no results")
+                for part in parts:
+                    with h5py.File(part, "r") as f:
+                        for k in ROW_FIELDS:
+                            _append_rows(g, k, f[k][()])
+            out.attrs["complete"] = True
+        os.replace(tmp, self.path)
+        shutil.rmtree(self.parts)
+
+
+def _append_rows(group, name, data):
+    if name not in group:
+        chunk_rows = max(1, min(256, int(2 ** 20 // max(1, data[0].nbytes if len(data) else 1))))
+        group.create_dataset(name, data=data, maxshape=(None,) + data.shape[1:],
+                             chunks=(chunk_rows,) + data.shape[1:], compression="gzip", compression_opts=4,
+                             shuffle=True)
+        return
+    ds = group[name]
+    if ds.shape[1:] != data.shape[1:] or ds.dtype != data.dtype:
+        raise StoreError(f"schema mismatch appending {name}: {ds.shape[1:]}/{ds.dtype} vs {data.shape[1:]}/{data.dtype}")
+    n = ds.shape[0]
+    ds.resize(n + len(data), axis=0)
+    ds[n:] = data
+
+
+def _now() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+def _atomic_text(path: pathlib.Path, text: str):
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+# ------------------------------------------------------------------ reader
+
+class Store:
+    """Read-only view of a finished store: ``Store(path).run(name)[field]``."""
+
+    def __init__(self, path):
+        self.path = pathlib.Path(path)
+        if not self.path.exists():
+            if _journal(self.path).exists():
+                raise StoreError(f"{self.path} is unfinished; complete it with --resume")
+            raise StoreError(f"no store at {self.path}")
+        try:
+            with h5py.File(self.path, "r") as f:
+                self.attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
+                self.runs = list(f["runs"].keys()) if "runs" in f else []
+                self.run_attrs = {r: dict(f["runs"][r].attrs) for r in self.runs}
+        except OSError as e:
+            raise StoreError(f"{self.path} is not a readable HDF5 store: {e}") from None
+        if self.attrs.get("schema_version") != SCHEMA_VERSION:
+            raise StoreError(f"{self.path}: schema version {self.attrs.get('schema_version')} "
+                             f"(this reader knows {SCHEMA_VERSION})")
+        self.config = json.loads(self.attrs["config"])
+
+    def run(self, name: str | None = None, fields=ROW_FIELDS) -> dict[str, np.ndarray]:
+        """Named arrays of one run (default: the first)."""
+        name = name or self.runs[0]
+        if name not in self.runs:
+            raise StoreError(f"{self.path} has no run {name!r} (runs: {', '.join(self.runs)})")
+        with h5py.File(self.path, "r") as f:
+            g = f["runs"][name]
+            return {k: g[k][()] for k in fields}
+
+
+@contextlib.contextmanager
+def opened(path):
+    yield Store(path)

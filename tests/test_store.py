@@ -1,0 +1,205 @@
+"""Stores and the scan commands: nothing lost, bad input refused, nothing changed."""
+
+import hashlib
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from smarticle_mjx.cli import app
+from smarticle_mjx.store import SCHEMA_VERSION, Store, StoreError, Writer, longest_run
+
+runner = CliRunner()
+SMALL = ["--n", "16", "--periods", "3", "--batch-size", "8", "--quiet"]
+
+
+def _digest(path):
+    return hashlib.sha256(pathlib.Path(path).read_bytes()).hexdigest()
+
+
+def _arrays(path):
+    st = Store(path)
+    return {r: st.run(r) for r in st.runs}
+
+
+def _smx(*args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+def test_longest_run():
+    flags = np.array([[1, 1, 0, 1, 1, 1, 0], [0, 0, 0, 0, 0, 0, 0], [1, 1, 1, 1, 1, 1, 1]], bool)
+    np.testing.assert_array_equal(longest_run(flags), [3, 0, 7])
+
+
+def test_scan_store_schema_and_reader(tmp_path):
+    out = tmp_path / "scan.h5"
+    r = _smx("scan", *SMALL, "--out", out)
+    assert r.exit_code == 0, r.output
+    assert "bound at the end" in r.output
+    with h5py.File(out) as f:  # plain h5py can read it
+        assert f.attrs["schema_version"] == SCHEMA_VERSION
+        assert {"mujoco", "jax", "package", "config", "created", "seed"} <= set(f.attrs)
+        g = f["runs/a090.00"]
+        assert g.attrs["amplitude_deg"] == 90.0 and g["touched"].shape == (16, 3, 1)
+        assert g["touched"].chunks is not None and g["touched"].compression == "gzip"
+        assert g["touched"].maxshape[0] is None
+    d = Store(out).run()
+    assert d["valid"].dtype == bool and (d["periods_run"][~d["valid"]] == 0).all()
+    assert (d["status"][~d["valid"]] == 1).all()
+    np.testing.assert_array_equal(d["lifetime"], longest_run(d["touched"][:, :, 0]))
+    assert not (out.parent / "scan.h5.parts").exists()
+
+
+def test_sweep_has_one_group_per_amplitude(tmp_path):
+    out = tmp_path / "sweep.h5"
+    r = _smx("sweep-amplitude", "--amplitudes", "60,90", "--n", "8", "--periods", "2", "--quiet", "--out", out)
+    assert r.exit_code == 0, r.output
+    st = Store(out)
+    assert st.runs == ["a060.00", "a090.00"]
+    assert st.run_attrs["a060.00"]["period_s"] == pytest.approx(1.6 * 60 / 90, abs=2.5e-4)  # on the step grid
+    # the same initial configurations at every amplitude
+    np.testing.assert_array_equal(st.run("a060.00")["config"], st.run("a090.00")["config"])
+
+
+def test_study_files_in_sweeps_load():
+    from smarticle_mjx.scan import load_study
+    from smarticle_mjx.scene import SceneParams
+    studies = sorted((pathlib.Path(__file__).resolve().parents[1] / "sweeps").glob("*.toml"))
+    assert studies
+    for path in studies:
+        load_study(path).validate(SceneParams())
+
+
+def test_kill_and_resume_gives_the_uninterrupted_store(tmp_path):
+    """SIGKILL mid-scan, then --resume: the final store equals an uninterrupted run."""
+    args = ["--n", "48", "--periods", "3", "--batch-size", "8", "--flush-rows", "4", "--quiet"]
+    ref = tmp_path / "ref.h5"
+    assert _smx("scan", *args, "--out", ref).exit_code == 0
+    out = tmp_path / "killed.h5"
+    parts = tmp_path / "killed.h5.parts"
+    cmd = [sys.executable, "-m", "smarticle_mjx.cli", "scan", *args, "--out", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(list(parts.glob("*--*.h5"))) < 2 and proc.poll() is None:
+        time.sleep(0.05)
+    assert proc.poll() is None, "scan finished before it could be killed"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not out.exists() and parts.exists()
+    done_before = len(list(parts.glob("*--*.h5")))
+    r = _smx("scan", *args, "--out", out, "--resume")
+    assert r.exit_code == 0, r.output
+    assert done_before >= 2
+    a, b = _arrays(ref), _arrays(out)
+    for run in a:
+        for k in a[run]:
+            np.testing.assert_array_equal(a[run][k], b[run][k], err_msg=k)
+
+
+def test_second_writer_is_refused(tmp_path):
+    out = tmp_path / "busy.h5"
+    with Writer(out, {"x": 1}, {"r": {}}):
+        r = _smx("scan", *SMALL, "--out", out)
+        assert r.exit_code == 2
+        assert "another process" in r.output
+    with pytest.raises(StoreError, match="another process"):
+        with Writer(out, {"x": 1}, {"r": {}}, mode="resume"):
+            with Writer(out, {"x": 1}, {"r": {}}, mode="resume"):
+                pass
+
+
+def test_resume_with_a_different_configuration_is_refused(tmp_path):
+    out = tmp_path / "s.h5"
+    with Writer(out, {"scan": {"periods": 3}}, {"a090.00": {}}):
+        pass  # leaves an empty journal, as a killed run would
+    before = sorted(p.name for p in (tmp_path / "s.h5.parts").iterdir())
+    r = _smx("scan", *SMALL, "--out", out, "--resume")
+    assert r.exit_code == 2 and "different configuration" in r.output
+    assert sorted(p.name for p in (tmp_path / "s.h5.parts").iterdir()) == before
+
+
+@pytest.mark.parametrize("args,message", [
+    (["scan", "--amplitude", "120"], "amplitude"),
+    (["scan", "--amplitude", "-5"], "amplitude"),
+    (["scan", "--n", "0"], "--n must be positive"),
+    (["scan", "--periods", "0"], "--periods must be positive"),
+    (["scan", "--configs", "polar", "--positions", "0"], "positive"),
+    (["scan", "--backend", "gpu"], "backend"),
+    (["sweep-amplitude", "--amplitudes", "10:abc"], "amplitudes must look like"),
+    (["sweep-amplitude", "--amplitudes", "30,95"], "amplitude"),
+    (["sweep-amplitude"], "--amplitudes or --study"),
+])
+def test_bad_input_is_one_line_exit_2_and_creates_nothing(tmp_path, args, message):
+    out = tmp_path / "x.h5"
+    r = _smx(*args, "--out", out, "--quiet")
+    assert r.exit_code == 2, r.output
+    assert message in r.output
+    assert len(r.output.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unreadable_study_file(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("this is = = not toml")
+    for study, msg in ((bad, "not valid TOML"), (tmp_path / "missing.toml", "does not exist")):
+        r = _smx("sweep-amplitude", "--study", study, "--out", tmp_path / "x.h5", "--quiet")
+        assert r.exit_code == 2 and msg in r.output
+    assert not (tmp_path / "x.h5").exists()
+    unknown = tmp_path / "unknown.toml"
+    unknown.write_text("[study]\namplitudes_deg = [90]\nfrobnicate = 1\n")
+    r = _smx("sweep-amplitude", "--study", unknown, "--out", tmp_path / "x.h5", "--quiet")
+    assert r.exit_code == 2 and "unknown keys" in r.output
+
+
+def test_unwritable_output_is_refused(tmp_path):
+    r = _smx("scan", *SMALL, "--out", tmp_path / "no" / "such" / "dir.h5")
+    assert r.exit_code == 2 and "does not exist" in r.output
+    afile = tmp_path / "plain.txt"
+    afile.write_text("x")
+    r = _smx("scan", *SMALL, "--out", afile / "x.h5")
+    assert r.exit_code == 2 and "not a directory" in r.output
+    assert afile.read_text() == "x"
+    r = _smx("scan", *SMALL, "--out", "/proc/x.h5")
+    assert r.exit_code == 2
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        if os.access(ro, os.W_OK):
+            pytest.skip("running as a user who can write anywhere")
+        r = _smx("scan", *SMALL, "--out", ro / "x.h5")
+        assert r.exit_code == 2 and "not writable" in r.output
+    finally:
+        ro.chmod(0o700)
+
+
+def test_existing_store_is_never_touched_without_resume_or_overwrite(tmp_path):
+    out = tmp_path / "keep.h5"
+    assert _smx("scan", *SMALL, "--out", out).exit_code == 0
+    digest = _digest(out)
+    r = _smx("scan", *SMALL, "--out", out)
+    assert r.exit_code == 2 and "exists" in r.output
+    r = _smx("scan", *SMALL, "--out", out, "--resume")
+    assert r.exit_code == 2 and "already complete" in r.output
+    r = _smx("scan", "--n", "0", "--out", out, "--overwrite")
+    assert r.exit_code == 2
+    assert _digest(out) == digest
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.h5", "keep.h5.lock"]
+    r = _smx("scan", *SMALL, "--out", out, "--overwrite", "--periods", "2")
+    assert r.exit_code == 0 and Store(out).run()["touched"].shape[1] == 2
+
+
+def test_reader_refuses_unfinished_and_foreign_files(tmp_path):
+    with pytest.raises(StoreError, match="no store"):
+        Store(tmp_path / "none.h5")
+    junk = tmp_path / "junk.h5"
+    junk.write_text("not hdf5")
+    with pytest.raises(StoreError, match="not a readable"):
+        Store(junk)
