@@ -203,6 +203,25 @@ def sweep_amplitude(
     _scan_common(cfg, out, resume, overwrite, quiet, flush_rows)
 
 
+@app.command("phase-diagram")
+def phase_diagram(
+    store: pathlib.Path = typer.Argument(..., help="a scan or sweep store (.h5)"),
+    out: pathlib.Path = typer.Option(pathlib.Path("figures"), help="output folder"),
+    run: Optional[str] = typer.Option(None, help="run (amplitude group) to draw; default: all"),
+):
+    """(theta, phi) phase diagram: attracted red, repelled cyan, invalid white (PNG + SVG)."""
+    from .plots import phase_diagram as draw
+    from .store import Store, StoreError
+    try:
+        runs = [run] if run else Store(store).runs
+        if out.exists() and not out.is_dir():
+            raise UserError(f"{out} is not a directory")
+        written = [p for r in runs for p in draw(store, out, r)]
+    except (UserError, StoreError) as e:
+        _fail(str(e))
+    typer.echo("wrote " + ", ".join(map(str, written)))
+
+
 def main():  # pragma: no cover
     app()
 

@@ -28,7 +28,6 @@ Schema (version 1; see docs/store.md)::
 
 from __future__ import annotations
 
-import contextlib
 import datetime
 import fcntl
 import json
@@ -275,8 +274,3 @@ class Store:
         with h5py.File(self.path, "r") as f:
             g = f["runs"][name]
             return {k: g[k][()] for k in fields}
-
-
-@contextlib.contextmanager
-def opened(path):
-    yield Store(path)

@@ -1,0 +1,1 @@
+"""Reducers: stores -> physical quantities. numpy and h5py only, no engine."""
