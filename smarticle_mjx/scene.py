@@ -131,7 +131,7 @@ class SceneParams:
     # solimp (dmin, dmax, width): stiff enough that a stalled servo pressing an
     # arm into a neighbour penetrates ~0.1 mm, not the ~2 mm of the defaults
     contact_solimp: tuple[float, float, float] = (0.95, 0.99, 0.001)
-    timestep: float = 5e-4  # chosen by benchmarks/timestep_convergence.py
+    timestep: float = 2.5e-4  # chosen by benchmarks/timestep_convergence.py (docs/timestep.md)
     iterations: int = 20
     ls_iterations: int = 10
     tolerance: float = 1e-8

@@ -63,7 +63,7 @@ def test_sweep_has_one_group_per_amplitude(tmp_path):
     assert r.exit_code == 0, r.output
     st = Store(out)
     assert st.runs == ["a060.00", "a090.00"]
-    assert st.run_attrs["a060.00"]["period_s"] == pytest.approx(1.6 * 60 / 90, abs=2.5e-4)  # on the step grid
+    assert st.run_attrs["a060.00"]["period_s"] == pytest.approx(1.6 * 60 / 90, abs=1.25e-4)  # on the step grid
     # the same initial configurations at every amplitude
     np.testing.assert_array_equal(st.run("a060.00")["config"], st.run("a090.00")["config"])
 
