@@ -88,10 +88,11 @@ def test_phase_diagram_from_a_polar_scan(tmp_path):
 def test_gait_rates_are_the_derivative_of_the_setpoints():
     t = np.linspace(0.01, 3.1, 777)
     out = np.asarray(G.setpoints_and_rates(t, np.radians(70), 1.6 * 70 / 90, 8.727, -1, 0, 0.1))
-    h = 1e-4
+    h = 1e-3  # float32 setpoints: a larger step keeps round-off below 1e-3 rad/s
     fd = (np.asarray(G.setpoints(t + h, np.radians(70), 1.6 * 70 / 90, 8.727, -1, 0, 0.1))
           - np.asarray(G.setpoints(t - h, np.radians(70), 1.6 * 70 / 90, 8.727, -1, 0, 0.1))) / (2 * h)
     smooth = np.abs(fd - out[:, 2:]).max(1) < 1e-2  # away from ramp corners
     assert smooth.mean() > 0.97
     np.testing.assert_allclose(out[smooth, 2:], fd[smooth], atol=2e-2)
-    assert set(np.round(np.abs(out[:, 2:]), 2).ravel()) <= {0.0, 8.73}
+    speeds = np.abs(out[:, 2:]).ravel()
+    assert np.all(np.isclose(speeds, 0.0) | np.isclose(speeds, 8.727, rtol=1e-5))

@@ -27,7 +27,7 @@ def test_paper_robot_mass_and_geometry():
     mujoco.mj_forward(m, d)
     body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "r0_body")
     np.testing.assert_allclose(2 * m.geom_size[body], [0.050, 0.022, 0.025])
-    assert m.nu == 2 and m.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+    assert m.nu == 4 and m.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC  # per arm: setpoint + rate
 
 
 def _can_collide(m, g1, g2):
