@@ -149,8 +149,9 @@ def test_contacts_robot_robot_yes_arm_plate_and_self_never():
     names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(m.ngeom)]
     kinds = set()
     nsteps = int(2 * GAIT.period() / P.timestep)
+    ctrl = np.asarray(G.setpoints_and_rates(P.timestep * np.arange(nsteps), GAIT.amplitude, GAIT.period(), SPEED))
     for k in range(nsteps):
-        d.ctrl[:] = np.tile(np.asarray(G.setpoints_and_rates(d.time, GAIT.amplitude, GAIT.period(), SPEED)), 2)
+        d.ctrl[:] = np.tile(ctrl[k], 2)
         mujoco.mj_step(m, d)
         for c in d.contact[:d.ncon]:
             g1, g2 = c.geom

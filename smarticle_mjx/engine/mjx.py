@@ -56,6 +56,17 @@ class MjxBackend:
         self.slots = jnp.asarray(_contact_slots(scene, self.model, self.mx))
         self.penetration_limit = penetration_limit
         self._compiled = {}
+        cpus = [d for d in jax.local_devices() if d.platform == "cpu"]
+        self.devices = cpus if len(cpus) == len(jax.local_devices()) else jax.local_devices()[:1]
+
+    def _shard(self, tree, b: int):
+        """Split the lane axis across devices (host cores) when it divides evenly."""
+        n = len(self.devices)
+        if n < 2 or b % n:
+            return tree
+        from jax.sharding import Mesh, NamedSharding, PartitionSpec
+        sharding = NamedSharding(Mesh(np.array(self.devices), ("lanes",)), PartitionSpec("lanes"))
+        return jax.device_put(tree, sharding)
 
     def initial_state(self, lanes: Lanes):
         """Batched mjx.Data at t = 0 with the lanes' poses at rest."""
@@ -63,7 +74,7 @@ class MjxBackend:
         d0 = mjx.make_data(self.model)
         b = lanes.size
         d = jax.tree_util.tree_map(lambda x: jnp.broadcast_to(x, (b,) + x.shape), d0)
-        return d.replace(qpos=qpos)
+        return self._shard(d.replace(qpos=qpos), b)
 
     def _period_fn(self, nstep: int):
         """jit(vmap(one lane, one period)) for ``nstep`` steps per period."""
@@ -104,8 +115,8 @@ class MjxBackend:
         nstep = steps_per_period(lanes.period, float(self.model.opt.timestep))
         fn = self._period_fn(nstep)
         b = lanes.size
-        args = (jnp.asarray(lanes.amplitude, jnp.float32), jnp.asarray(lanes.chirality, jnp.int32),
-                jnp.asarray(lanes.kind, jnp.int32), jnp.asarray(lanes.phase, jnp.float32))
+        args = self._shard((jnp.asarray(lanes.amplitude, jnp.float32), jnp.asarray(lanes.chirality, jnp.int32),
+                            jnp.asarray(lanes.kind, jnp.int32), jnp.asarray(lanes.phase, jnp.float32)), b)
         poses = np.empty((b, n_periods, self.scene.n_robots, 5))
         touched = np.zeros((b, n_periods, self.scene.n_pairs), dtype=bool)
         min_dist = np.full((b, n_periods, self.scene.n_pairs), np.inf)
@@ -138,8 +149,7 @@ class MjxBackend:
                 return jax.lax.scan(body, d, jnp.arange(nsteps))[1]
 
             self._compiled[key] = jax.jit(jax.vmap(one_lane, in_axes=(0, 0, 0, 0, 0, None)))
-        out = self._compiled[key](
-            self.initial_state(lanes), jnp.asarray(lanes.amplitude, jnp.float32),
-            jnp.asarray(lanes.chirality, jnp.int32), jnp.asarray(lanes.kind, jnp.int32),
-            jnp.asarray(lanes.phase, jnp.float32), jnp.float32(lanes.period))
+        args = self._shard((jnp.asarray(lanes.amplitude, jnp.float32), jnp.asarray(lanes.chirality, jnp.int32),
+                            jnp.asarray(lanes.kind, jnp.int32), jnp.asarray(lanes.phase, jnp.float32)), lanes.size)
+        out = self._compiled[key](self.initial_state(lanes), *args, jnp.float32(lanes.period))
         return np.asarray(jax.block_until_ready(out), dtype=np.float64)
