@@ -161,21 +161,23 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
 
     while active.any():
         # a slot with fewer periods left than the chunk still runs the
-        # chunk; the surplus records are dropped (same results, simpler)
+        # chunk (the surplus records are dropped); no chunk runs past the
+        # longest remaining lane
+        n_adv = int(min(chunk_periods, (periods - slot_done[active]).max()))
         t = time.perf_counter()
         if shrink and not active.all():
             # native: idle slots cost real work, run only the occupied ones
             idx = np.flatnonzero(active)
-            sub_state, sub_rec, _ = backend.advance(_take_state(state, idx), slot_lanes.take(idx), chunk_periods)
+            sub_state, sub_rec, _ = backend.advance(_take_state(state, idx), slot_lanes.take(idx), n_adv)
             state = _put_state(state, idx, sub_state)
             rec = _scatter_records(sub_rec, idx, b)
         else:
-            state, rec, _ = backend.advance(state, slot_lanes, chunk_periods)
+            state, rec, _ = backend.advance(state, slot_lanes, n_adv)
         wall += time.perf_counter() - t
         finished = []
         for s in np.flatnonzero(active):
             k0 = slot_done[s]
-            k1 = min(periods, k0 + chunk_periods)
+            k1 = min(periods, k0 + n_adv)
             used = k1 - k0
             buf_poses[s, k0:k1] = rec.poses[s, :used]
             buf_touch[s, k0:k1] = rec.touched[s, :used]
