@@ -29,13 +29,7 @@ from smarticle_mjx.gait import GaitSpec
 
 def sample_lanes(n, params, gait, seed=0):
     a0 = gait.setpoints(0.0, params.robot.servo_speed)
-    rng = np.random.default_rng(seed)
-    out = []
-    while sum(len(x) for x in out) < n:
-        cf = C.random_configs(4 * n, rng, (0.8, 2.0))
-        p = C.pair_poses(cf[:, 0], cf[:, 1], cf[:, 2], a0[0], a0[1])
-        out.append(p[C.poses_valid(p)])
-    return Lanes.from_gait(np.concatenate(out)[:n], gait)
+    return Lanes.from_gait(C.sample_valid_pairs(n, np.random.default_rng(seed), (0.8, 2.0), a0[0], a0[1]), gait)
 
 
 def mj_step_rate(model, seconds=3.0):
@@ -88,6 +82,19 @@ def main():
         rows.append(dict(backend="native", batch=b, compile_s=0.0, run_s=dt, steps_per_s=rate))
         print(f"{'native':>7} {b:>6} {0:9.1f} {dt:7.2f} {rate:12,.0f} {rate / (ref * cores):18.2f}", flush=True)
     native.close()
+    # the same colliding lanes on one thread: the per-core cost of this
+    # workload (the resting scene above has no robot-robot contacts)
+    one = make_backend("native", scene, nthread=1)
+    lanes = sample_lanes(64, params, gait)
+    t = time.perf_counter()
+    one.advance(one.initial_state(lanes), lanes, 1)
+    single = 64 * nstep / (time.perf_counter() - t)
+    one.close()
+    out["native_single_thread_same_lanes_steps_per_s"] = single
+    best = max(r["steps_per_s"] for r in rows)
+    out["native_parallel_efficiency"] = best / (single * cores)
+    print(f"native, 1 thread, same 64 colliding lanes: {single:,.0f} steps/s; "
+          f"best batched rate = {out['native_parallel_efficiency']:.2f} x (that x {cores} cores)")
 
     mjx_be = make_backend("mjx", scene)
     for b in (int(x) for x in args.mjx_batches.split(",")):

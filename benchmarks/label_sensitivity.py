@@ -31,9 +31,7 @@ def main():
     params, gait = S.SceneParams(timestep=args.dt), GaitSpec(90.0)
     a0 = gait.setpoints(0.0, params.robot.servo_speed)
     rng = np.random.default_rng(args.seed)  # same sample as timestep_convergence.py
-    cf = C.random_configs(4 * args.configs, rng, r_range_W=(0.8, 2.0))
-    poses = C.pair_poses(cf[:, 0], cf[:, 1], cf[:, 2], a0[0], a0[1])
-    poses = poses[C.poses_valid(poses)][:args.configs]
+    poses = C.sample_valid_pairs(args.configs, rng, (0.8, 2.0), a0[0], a0[1])
     moved = poses.copy()
     moved[:, 1, 0] += args.shift
     be = make_backend("native", Scene.build(params, 2))

@@ -59,9 +59,7 @@ def main():
     base = S.SceneParams(contact_timeconst=args.contact_timeconst)
     a0 = gait.setpoints(0.0, base.robot.servo_speed)
     rng = np.random.default_rng(args.seed)
-    cf = C.random_configs(4 * args.configs, rng, r_range_W=(0.8, 2.0))
-    poses = C.pair_poses(cf[:, 0], cf[:, 1], cf[:, 2], a0[0], a0[1])
-    poses = poses[C.poses_valid(poses)][:args.configs]
+    poses = C.sample_valid_pairs(args.configs, rng, (0.8, 2.0), a0[0], a0[1])
 
     rows = []
     print(f"{len(poses)} configurations x {args.periods} periods at 90 deg, contact timeconst {base.contact_timeconst} s")

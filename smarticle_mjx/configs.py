@@ -202,3 +202,17 @@ def polar_configs(radius_W: float, positions: int, orientations: int):
     ph = np.arange(orientations) * TWO_PI / orientations
     T, P = np.meshgrid(th, ph, indexing="ij")
     return np.stack([np.full(T.size, radius_W), T.ravel(), P.ravel()], -1)
+
+
+def sample_valid_pairs(n: int, rng: np.random.Generator, r_range_W, alpha1, alpha2,
+                       robot: RobotParams = RobotParams()) -> np.ndarray:
+    """Poses [n, 2, 5] of ``n`` random non-overlapping pairs (uniform
+    (|r|, theta, phi) with |r| in ``r_range_W``, rejection of overlaps)."""
+    out, have = [], 0
+    while have < n:
+        cf = random_configs(4 * n, rng, r_range_W)
+        p = pair_poses(cf[:, 0], cf[:, 1], cf[:, 2], alpha1, alpha2, robot)
+        p = p[poses_valid(p, robot)]
+        out.append(p)
+        have += len(p)
+    return np.concatenate(out)[:n]

@@ -89,6 +89,7 @@ class Writer:
         self.mode = mode
         self.parts = _journal(self.path)
         self._lock = None
+        self._done: dict[str, int] = {}
 
     # -------------------------------------------------------------- set-up
     def __enter__(self):
@@ -159,11 +160,13 @@ class Writer:
     # -------------------------------------------------------------- journal
     def done_rows(self, run: str) -> int:
         """Rows of ``run`` already journaled (they form a prefix 0..n-1)."""
-        n = 0
-        for part in self._parts(run):
-            with h5py.File(part, "r") as f:
-                n = max(n, int(f.attrs["stop"]))
-        return n
+        if run not in self._done:
+            n = 0
+            for part in self._parts(run):
+                with h5py.File(part, "r") as f:
+                    n = max(n, int(f.attrs["stop"]))
+            self._done[run] = n
+        return self._done[run]
 
     def _parts(self, run):
         return sorted(self.parts.glob(f"{run}--*.h5"))
@@ -187,6 +190,7 @@ class Writer:
             for k in ROW_FIELDS:
                 f.create_dataset(k, data=rows[k])
         os.replace(tmp, final)
+        self._done[run] = start + n
 
     # -------------------------------------------------------------- finalise
     def finalize(self):

@@ -20,10 +20,7 @@ def scene():
 
 
 def _lanes(n, seed=0, r_range=(0.9, 2.0)):
-    rng = np.random.default_rng(seed)
-    cf = C.random_configs(4 * n, rng, r_range)
-    poses = C.pair_poses(cf[:, 0], cf[:, 1], cf[:, 2], A0[0], A0[1])
-    poses = poses[C.poses_valid(poses)][:n]
+    poses = C.sample_valid_pairs(n, np.random.default_rng(seed), r_range, A0[0], A0[1])
     return Lanes.from_gait(poses, GAIT)
 
 
