@@ -26,7 +26,7 @@ def main():
     ap.add_argument("--dt", type=float, default=S.SceneParams().timestep)
     ap.add_argument("--shift", type=float, default=1e-9, help="m, added to robot 2's x")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "label_sensitivity.json"))
+    ap.add_argument("--out", default=None, help="default: results/label_sensitivity_dt<dt>.json")
     args = ap.parse_args()
     params, gait = S.SceneParams(timestep=args.dt), GaitSpec(90.0)
     a0 = gait.setpoints(0.0, params.robot.servo_speed)
@@ -48,7 +48,8 @@ def main():
     print(f"dt {args.dt}: shifting robot 2 by {args.shift} m changes the bound-at-end label of "
           f"{1 - out['agree_bound_end']:.1%} of {len(poses)} configurations "
           f"(attracted: {1 - out['agree_attracted']:.1%})")
-    pathlib.Path(args.out).write_text(json.dumps(out, indent=2))
+    path = args.out or pathlib.Path(__file__).parent / "results" / f"label_sensitivity_dt{args.dt:g}.json"
+    pathlib.Path(path).write_text(json.dumps(out, indent=2))
 
 
 if __name__ == "__main__":
