@@ -8,10 +8,9 @@ _FLAG = "--xla_cpu_enable_concurrency_optimized_scheduler=false"
 if _FLAG.split("=")[0] not in _os.environ.get("XLA_FLAGS", ""):
     _os.environ["XLA_FLAGS"] = (_os.environ.get("XLA_FLAGS", "") + " " + _FLAG).strip()
 
-# One XLA host device per core, so the mjx backend can shard a batch across
-# cores (a single CPU device ran MJX on one core only). Respect a user's
-# own setting.
-if "xla_force_host_platform_device_count" not in _os.environ.get("XLA_FLAGS", ""):
-    _os.environ["XLA_FLAGS"] += f" --xla_force_host_platform_device_count={_os.cpu_count() or 1}"
+# The mjx backend shards a batch across XLA host devices when there are
+# several (XLA_FLAGS=--xla_force_host_platform_device_count=N). Not forced:
+# with 2 host devices a 1024-lane batch stalled with every thread idle here
+# (docs/engine.md), while one device never did.
 
 __version__ = "0.1.0"
