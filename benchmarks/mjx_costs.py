@@ -25,8 +25,8 @@ VARIANTS = {
     "pyramidal cone": lambda x: x.replace('cone="elliptic"', 'cone="pyramidal"'),
     "no body-body collision": lambda x: x.replace("</contact>", '<exclude body1="r0" body2="r1"/></contact>'),
     "solver 1 iteration": lambda x: x.replace('iterations="20" ls_iterations="10"', 'iterations="1" ls_iterations="1"'),
-    "no contacts at all": lambda x: x.replace("<option ", '<option ><flag contact="disable"/></option><option ', 1)
-    .replace("<option ><flag", "<option><flag"),
+    # (disabling contacts altogether crashes MJX 3.17's solver on an empty
+    # constraint set, so the contact cost is bounded by the rows above)
 }
 
 
