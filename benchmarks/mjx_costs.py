@@ -14,7 +14,6 @@ import time
 import jax
 import jax.numpy as jnp
 import mujoco
-import numpy as np
 from mujoco import mjx
 
 from smarticle_mjx import scene as S

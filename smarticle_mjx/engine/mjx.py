@@ -12,7 +12,6 @@ is known ahead of time (``_pair_matrix``).
 
 from __future__ import annotations
 
-import functools
 
 import jax
 import jax.numpy as jnp
