@@ -52,10 +52,7 @@ def simulate(
             raise UserError("--periods and --track-stride must be positive")
         if out.exists() and not overwrite:
             raise UserError(f"{out} exists; pass --overwrite to replace it")
-        if out.suffix.lower() not in (".csv", ".h5", ".hdf5"):
-            raise UserError(f"--out must end in .csv, .h5 or .hdf5, got {out.name!r}")
-        if not out.parent.exists():
-            raise UserError(f"output directory {out.parent} does not exist")
+        tracks.check_output(out)  # before simulating, not after
         a0 = g.setpoints(0.0, params.robot.servo_speed)
         if config is not None:
             try:

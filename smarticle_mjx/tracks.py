@@ -27,6 +27,15 @@ def sidecar(n_robots: int, gait, plate_friction: float, frame_rate_hz: float) ->
     }
 
 
+def check_output(path) -> None:
+    """Raise ValueError unless ``path`` is a writable .csv/.h5/.hdf5 target."""
+    path = pathlib.Path(path)
+    if path.suffix.lower() not in (".csv", ".h5", ".hdf5"):
+        raise ValueError(f"output must end in .csv, .h5 or .hdf5, got {path.name!r}")
+    if not path.parent.is_dir():
+        raise ValueError(f"output directory {path.parent} does not exist")
+
+
 def write_track(path, t, poses, meta: dict, records: dict | None = None, trial: int = 0) -> list[pathlib.Path]:
     """Write a track [S, N, 5] sampled at times ``t`` [S] to ``path``.
 
@@ -40,11 +49,8 @@ def write_track(path, t, poses, meta: dict, records: dict | None = None, trial: 
     poses = np.asarray(poses, dtype=float)
     if poses.ndim != 3 or poses.shape[0] != t.shape[0] or poses.shape[2] != 5:
         raise ValueError("track must be [S, N, 5] with S times")
+    check_output(path)
     suffix = path.suffix.lower()
-    if suffix not in (".csv", ".h5", ".hdf5"):
-        raise ValueError(f"output must end in .csv, .h5 or .hdf5, got {path.name!r}")
-    if not path.parent.exists():
-        raise ValueError(f"output directory {path.parent} does not exist")
     tmp = path.with_name(path.name + ".part")
     written = [path]
     s, n = poses.shape[:2]
