@@ -7,7 +7,7 @@ go to the ``on_lanes`` callback at once and its slot takes the next queued
 lane, so the batch stays full. Memory is O(batch_size x periods), never
 lanes x steps.
 
-Why retiring quiet lanes is sound (and measured in benchmarks/engine.py):
+Why retiring quiet lanes is sound (and measured in benchmarks/early_exit.py):
 a lone robot does not drift (converged drift ~1e-5 W per period, see
 docs/timestep.md) and friction stops any coasting within ~0.05 s, so a pair
 that went ``quiet_periods`` whole periods without touching starts every
@@ -83,11 +83,14 @@ def _put_state(state, idx, new):
     return jax.tree_util.tree_map(lambda x, y: x.at[idx].set(y), state, new)
 
 
+def _blank(b, k, n, p):
+    """Records of lanes that did not run: poses NaN, no touch, no contact."""
+    return np.full((b, k, n, 5), np.nan), np.zeros((b, k, p), bool), np.full((b, k, p), np.inf)
+
+
 def _scatter_records(rec, idx, b):
     from .core import PeriodRecords
-    k, n = rec.poses.shape[1], rec.poses.shape[2]
-    p = rec.touched.shape[2]
-    out = PeriodRecords(np.full((b, k, n, 5), np.nan), np.zeros((b, k, p), bool), np.full((b, k, p), np.inf),
+    out = PeriodRecords(*_blank(b, rec.poses.shape[1], rec.poses.shape[2], rec.touched.shape[2]),
                         np.zeros(b, np.int32))
     out.poses[idx], out.touched[idx], out.min_dist[idx], out.status[idx] = rec.poses, rec.touched, rec.min_dist, rec.status
     return out
@@ -137,11 +140,9 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
 
     bad = np.flatnonzero(~valid)
     if len(bad):
-        emit(LaneResults(bad, np.full((len(bad), periods, n, 5), np.nan), np.zeros((len(bad), periods, p), bool),
-                         np.full((len(bad), periods, p), np.inf), np.full(len(bad), int(Status.INVALID), np.int32),
+        emit(LaneResults(bad, *_blank(len(bad), periods, n, p), np.full(len(bad), int(Status.INVALID), np.int32),
                          np.zeros(len(bad), np.int32)))
     queue = list(np.flatnonzero(valid))
-    qpos = 0
     b = min(batch_size, len(queue))
     if b == 0:
         return dict(lanes=m, lane_periods=0, full_lane_periods=0, backend_seconds=0.0)
@@ -153,9 +154,7 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
     state = backend.initial_state(slot_lanes)
     slot_done = np.zeros(b, np.int32)
     active = np.ones(b, bool)
-    buf_poses = np.full((b, periods, n, 5), np.nan)
-    buf_touch = np.zeros((b, periods, p), bool)
-    buf_dist = np.full((b, periods, p), np.inf)
+    buf_poses, buf_touch, buf_dist = _blank(b, periods, n, p)
     buf_status = np.zeros(b, np.int32)
     wall = 0.0
 

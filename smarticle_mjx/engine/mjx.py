@@ -75,21 +75,30 @@ class MjxBackend:
         d = jax.tree_util.tree_map(lambda x: jnp.broadcast_to(x, (b,) + x.shape), d0)
         return self._shard(d.replace(qpos=qpos), b)
 
+    def _lane_args(self, lanes: Lanes):
+        """Traced per-lane gait inputs (amplitude, chirality, kind, phase)."""
+        return self._shard((jnp.asarray(lanes.amplitude, jnp.float32), jnp.asarray(lanes.chirality, jnp.int32),
+                            jnp.asarray(lanes.kind, jnp.int32), jnp.asarray(lanes.phase, jnp.float32)), lanes.size)
+
+    def _gait_step(self, d, t, amplitude, chirality, kind, phase, period):
+        """One mjx.step of one lane with the gait's controls at time ``t``."""
+        ctrl = gait_mod.setpoints_and_rates(t, amplitude, period, self.scene.params.robot.servo_speed,
+                                            chirality, kind, phase).reshape(-1)
+        return mjx.step(self.mx, d.replace(ctrl=ctrl.astype(d.ctrl.dtype)))
+
     def _period_fn(self, nstep: int):
         """jit(vmap(one lane, one period)) for ``nstep`` steps per period."""
         if nstep in self._compiled:
             return self._compiled[nstep]
-        mx, slots, speed = self.mx, self.slots, self.scene.params.robot.servo_speed
+        slots = self.slots
         dt = float(self.model.opt.timestep)
         n_pairs = self.scene.n_pairs
 
-        def one_lane(d, amplitude, chirality, kind, phase, period, t_start):
+        def one_lane(d, amplitude, chirality, kind, phase, period):
             def body(carry, i):
                 d, touched, mind, finite = carry
-                t = t_start + dt * i
-                ctrl = gait_mod.setpoints_and_rates(t, amplitude, period, speed, chirality, kind, phase).reshape(-1)
-                d = d.replace(ctrl=ctrl.astype(d.ctrl.dtype))
-                d = mjx.step(mx, d)
+                # gait time is period-relative: lanes may have different clocks
+                d = self._gait_step(d, dt * i, amplitude, chirality, kind, phase, period)
                 # contacts of this step's forward pass (state at time t)
                 dist = d._impl.contact.dist
                 hit = (dist < 0)[:, None] & slots
@@ -102,7 +111,7 @@ class MjxBackend:
             (d, touched, mind, finite), _ = jax.lax.scan(body, init, jnp.arange(nstep))
             return d, touched, mind, finite
 
-        fn = jax.jit(jax.vmap(one_lane, in_axes=(0, 0, 0, 0, 0, None, None)))
+        fn = jax.jit(jax.vmap(one_lane, in_axes=(0, 0, 0, 0, 0, None)))
         self._compiled[nstep] = fn
         return fn
 
@@ -114,15 +123,13 @@ class MjxBackend:
         nstep = steps_per_period(lanes.period, float(self.model.opt.timestep))
         fn = self._period_fn(nstep)
         b = lanes.size
-        args = self._shard((jnp.asarray(lanes.amplitude, jnp.float32), jnp.asarray(lanes.chirality, jnp.int32),
-                            jnp.asarray(lanes.kind, jnp.int32), jnp.asarray(lanes.phase, jnp.float32)), b)
+        args = self._lane_args(lanes)
         poses = np.empty((b, n_periods, self.scene.n_robots, 5))
         touched = np.zeros((b, n_periods, self.scene.n_pairs), dtype=bool)
         min_dist = np.full((b, n_periods, self.scene.n_pairs), np.inf)
         status = np.zeros(b, dtype=np.int32)
         for k in range(n_periods):
-            # period-relative gait time: lanes may have different clocks
-            state, tch, mind, finite = fn(state, *args, jnp.float32(lanes.period), jnp.float32(0.0))
+            state, tch, mind, finite = fn(state, *args, jnp.float32(lanes.period))
             touched[:, k] = np.asarray(tch)
             min_dist[:, k] = np.asarray(mind)
             poses[:, k] = self.scene.poses_from_qpos(np.asarray(state.qpos, dtype=np.float64))
@@ -137,18 +144,15 @@ class MjxBackend:
         lanes = on_step_grid(lanes, float(self.model.opt.timestep))
         key = ("steps", nsteps)
         if key not in self._compiled:
-            mx, speed = self.mx, self.scene.params.robot.servo_speed
             dt = float(self.model.opt.timestep)
 
             def one_lane(d, amplitude, chirality, kind, phase, period):
                 def body(d, i):
-                    ctrl = gait_mod.setpoints_and_rates(dt * i, amplitude, period, speed, chirality, kind, phase)
-                    d = mjx.step(mx, d.replace(ctrl=ctrl.reshape(-1).astype(d.ctrl.dtype)))
+                    d = self._gait_step(d, dt * i, amplitude, chirality, kind, phase, period)
                     return d, d.qpos
                 return jax.lax.scan(body, d, jnp.arange(nsteps))[1]
 
             self._compiled[key] = jax.jit(jax.vmap(one_lane, in_axes=(0, 0, 0, 0, 0, None)))
-        args = self._shard((jnp.asarray(lanes.amplitude, jnp.float32), jnp.asarray(lanes.chirality, jnp.int32),
-                            jnp.asarray(lanes.kind, jnp.int32), jnp.asarray(lanes.phase, jnp.float32)), lanes.size)
+        args = self._lane_args(lanes)
         out = self._compiled[key](self.initial_state(lanes), *args, jnp.float32(lanes.period))
         return np.asarray(jax.block_until_ready(out), dtype=np.float64)
