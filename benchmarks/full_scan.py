@@ -27,21 +27,26 @@ def main():
     ap.add_argument("--periods", type=int, default=75)
     ap.add_argument("--backend", default="native")
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "full_scan.json"))
+    ap.add_argument("--store", default=None, help="keep the scan's store at this path (default: a temporary one)")
     args = ap.parse_args()
     cfg = ScanConfig(n=args.n, periods=args.periods, backend=args.backend)
     with tempfile.TemporaryDirectory() as tmp:
+        path = pathlib.Path(args.store) if args.store else pathlib.Path(tmp) / "scan.h5"
         t = time.perf_counter()
-        s = run_scan(cfg, pathlib.Path(tmp) / "scan.h5")
+        s = run_scan(cfg, path)
         wall = time.perf_counter() - t
-        size = (pathlib.Path(tmp) / "scan.h5").stat().st_size
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        size = path.stat().st_size
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    rss = usage.ru_maxrss / 1024
+    cpu = usage.ru_utime + usage.ru_stime
     run = next(iter(s["runs"].values()))
     out = dict(n=args.n, periods=args.periods, backend=args.backend, wall_s=wall, steps=s["steps"],
                steps_per_s=s["steps_per_s"], valid=run["valid"], bound_end_fraction=run["bound_end_fraction"],
-               peak_rss_mib=rss, store_mib=size / 2 ** 20)
+               peak_rss_mib=rss, store_mib=size / 2 ** 20, cpu_s=cpu, cpu_per_wall=cpu / wall)
     print(f"{args.n} configurations ({run['valid']} valid) x {args.periods} periods, {args.backend}: "
           f"{wall:.0f} s wall, {s['steps']:,} steps ({s['steps_per_s']:,.0f}/s), peak RSS {rss:.0f} MiB, "
-          f"store {size / 2 ** 20:.1f} MiB, bound at end {run['bound_end_fraction']:.1%}")
+          f"store {size / 2 ** 20:.1f} MiB, bound at end {run['bound_end_fraction']:.1%}, "
+          f"CPU {cpu:.0f} s ({cpu / wall:.2f} cores busy on average)")
     ee = pathlib.Path(__file__).parent / "results" / "early_exit.json"
     if ee.exists() and args.periods < 75:
         e = json.loads(ee.read_text())

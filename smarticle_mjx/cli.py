@@ -219,6 +219,65 @@ def phase_diagram(
     typer.echo("wrote " + ", ".join(map(str, written)))
 
 
+def _out_dir(out: pathlib.Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise UserError(f"{out} exists and is not a directory")
+
+
+@app.command("pb")
+def pb(
+    store: pathlib.Path = typer.Argument(..., help="a sweep store (.h5), one run per amplitude"),
+    out: pathlib.Path = typer.Option(pathlib.Path("figures"), help="output folder"),
+):
+    """P_b(alpha_max): bound at the end and bound throughout, 95% Clopper-Pearson intervals (PNG + SVG)."""
+    from . import plots
+    from .reduce import binding
+    from .store import Store, StoreError
+    try:
+        st = Store(store)
+        _out_dir(out)
+        rows = []
+        for run in st.runs:
+            d = st.run(run, fields=("valid", "touched"))
+            p = binding.binding_probability(d["touched"][:, :, 0], d["valid"])
+            rows.append((st.run_attrs[run]["amplitude_deg"], p))
+    except (UserError, StoreError) as e:
+        _fail(str(e))
+    typer.echo(f"{'alpha_max':>9}  {'valid':>6}  {'P_b end [95% CI]':>24}  {'P_b throughout [95% CI]':>24}")
+    for a, p in rows:
+        e, t = p["end"], p["throughout"]
+        typer.echo(f"{a:>9g}  {p['n']:>6}  {e[0]:.3f} [{e[1]:.3f}, {e[2]:.3f}]".ljust(44)
+                   + f"  {t[0]:.3f} [{t[1]:.3f}, {t[2]:.3f}]")
+    written = plots.pb_curve([a for a, _ in rows], [p["end"][:3] for _, p in rows],
+                             [p["throughout"][:3] for _, p in rows], out)
+    typer.echo("wrote " + ", ".join(map(str, written)))
+
+
+@app.command("report")
+def report(
+    store: pathlib.Path = typer.Argument(..., help="a scan or sweep store (.h5)"),
+    out: pathlib.Path = typer.Option(pathlib.Path("report"), help="output folder"),
+    burn_in: Optional[int] = typer.Option(None, help="periods before steady state (default min(30, K/3))"),
+    glider_min_periods: Optional[int] = typer.Option(None, help="shortest bound run counted as a glider"),
+):
+    """Every figure and the summary table of a store: report.md, report.json and PNGs in one folder."""
+    from .report import ReportOptions, write_report
+    from .store import Store, StoreError
+    try:
+        Store(store)
+        _out_dir(out)
+        if (burn_in is not None and burn_in < 0) or (glider_min_periods is not None and glider_min_periods < 2):
+            raise UserError("--burn-in must be >= 0 and --glider-min-periods >= 2")
+        rep = write_report(store, out, ReportOptions(burn_in=burn_in, glider_min_periods=glider_min_periods))
+    except (UserError, StoreError) as e:
+        _fail(str(e))
+    for s in rep["runs"]:
+        b = (s.get("beta") or {}).get("value")
+        typer.echo(f"{s['run']}: P_b end {s['pb_end'][0]}, C1 basin {(s.get('C1') or {}).get('basin_fraction')}, "
+                   f"C2 basin {(s.get('C2') or {}).get('basin_fraction')}, gliders {s['gliders']}, beta {b}")
+    typer.echo(f"wrote {out / 'report.md'}")
+
+
 def main():  # pragma: no cover
     app()
 

@@ -67,3 +67,119 @@ def phase_diagram(store_path, out_dir, run: str | None = None, formats=("png", "
         written.append(path)
     plt.close(fig)
     return written
+
+
+KIND_COLOURS = {"C1": "#1f77b4", "C2": "#ff7f0e"}
+
+
+def _save(fig, out_dir, stem, formats=("png",)) -> list[pathlib.Path]:
+    plt = _mpl()
+    out_dir = pathlib.Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    paths = []
+    for fmt in formats:
+        p = out_dir / f"{stem}.{fmt}"
+        fig.savefig(p, dpi=130)
+        paths.append(p)
+    plt.close(fig)
+    return paths
+
+
+def pb_curve(amplitudes, end, throughout, out_dir, stem="pb", formats=("png", "svg")):
+    """P_b(alpha_max): bound at the end (blue) and throughout (red), with intervals.
+
+    ``end`` and ``throughout``: [A, 3] rows (p, lo, hi).
+    """
+    plt = _mpl()
+    a = np.asarray(amplitudes, float)
+    fig, ax = plt.subplots(figsize=(4.8, 3.6))
+    for rows, colour, label in ((end, "#1f77b4", "bound at the end"), (throughout, "#d62728", "bound throughout")):
+        rows = np.asarray(rows, float)
+        ax.errorbar(a, rows[:, 0], yerr=[rows[:, 0] - rows[:, 1], rows[:, 2] - rows[:, 0]], color=colour,
+                    marker="o", ms=4, capsize=3, label=label)
+    ax.set(xlabel=r"$\alpha_{max}$ (deg)", ylabel=r"$P_b$", ylim=(0, 1), xlim=(0, 95))
+    ax.legend(fontsize=8)
+    ax.set_title("probability to bind (95% Clopper–Pearson)", fontsize=9)
+    return _save(fig, out_dir, stem, formats)
+
+
+def msd_curves(curves: dict, out_dir, stem="msd", formats=("png",)):
+    """MSD vs delay (log-log) per amplitude; ``curves[label] = (lags, msd)`` in periods, W^2."""
+    plt = _mpl()
+    fig, ax = plt.subplots(figsize=(4.8, 3.6))
+    for label, (lags, m) in curves.items():
+        ok = np.isfinite(m) & (m > 0)
+        ax.loglog(np.asarray(lags)[ok], np.asarray(m)[ok], marker=".", label=label)
+    ax.set(xlabel="delay (gait periods)", ylabel=r"$\langle\sigma^2\rangle$ (W$^2$)")
+    if curves:
+        ax.legend(fontsize=7)
+    return _save(fig, out_dir, stem, formats)
+
+
+def relative_coordinates(rel, kinds, clusters, out_dir, stem, title="", formats=("png",)):
+    """Histograms of per-period |r|, theta, phi of bound pairs, C1 and C2 stacked,
+    and the (theta, phi) plane with the cluster centres."""
+    from .reduce import gliders as GL
+    plt = _mpl()
+    rel, kinds = np.asarray(rel, float), np.asarray(kinds)
+    fig, axes = plt.subplots(1, 4, figsize=(15, 3.4))
+    bins = (np.linspace(np.nanmin(rel[:, 0]) if len(rel) else 0, np.nanmax(rel[:, 0]) if len(rel) else 1, 31),
+            np.linspace(0, 360, 37), np.linspace(0, 360, 37))
+    for i, (ax, xl) in enumerate(zip(axes[:3], ("|r| (W)", r"$\theta$ (deg)", r"$\phi$ (deg)"))):
+        x = rel[:, i] if i == 0 else np.degrees(rel[:, i]) % 360
+        ax.hist([x[kinds == GL.C1], x[kinds == GL.C2]], bins=bins[i], stacked=True,
+                color=[KIND_COLOURS["C1"], KIND_COLOURS["C2"]],
+                label=[f"C1 ({(kinds == GL.C1).sum()})", f"C2 ({(kinds == GL.C2).sum()})"])
+        ax.set(xlabel=xl, ylabel="bound periods")
+    axes[0].legend(fontsize=7)
+    ax = axes[3]
+    for k, name in ((GL.C1, "C1"), (GL.C2, "C2")):
+        s = kinds == k
+        ax.scatter(np.degrees(rel[s, 1]) % 360, np.degrees(rel[s, 2]) % 360, s=2, alpha=0.3,
+                   color=KIND_COLOURS[name])
+    c = np.degrees(clusters.centers[:, 1:]) % 360
+    ax.scatter(c[:, 0], c[:, 1], marker="x", s=60, c="k", label="k-means centres")
+    ax.set(xlim=(0, 360), ylim=(0, 360), xlabel=r"$\theta$ (deg)", ylabel=r"$\phi$ (deg)")
+    ax.legend(fontsize=7)
+    fig.suptitle(title, fontsize=9)
+    return _save(fig, out_dir, stem, formats)
+
+
+def lifetimes(runs: dict, periods: int, out_dir, stem, title="", formats=("png",)):
+    """Lifetime distributions of bound runs by glider type (censored runs hatched)."""
+    from .reduce import gliders as GL
+    plt = _mpl()
+    fig, ax = plt.subplots(figsize=(4.8, 3.6))
+    bins = np.linspace(0.5, periods + 0.5, min(periods, 25) + 1)
+    for k, name in ((GL.C1, "C1"), (GL.C2, "C2")):
+        s = runs["kind"] == k
+        ax.hist(runs["length"][s], bins=bins, histtype="step", lw=1.5, color=KIND_COLOURS[name],
+                label=f"{name}: {s.sum()} runs, {runs['censored'][s].sum()} still bound at the end")
+    ax.set(xlabel="lifetime (consecutive bound periods)", ylabel="bound runs", yscale="log")
+    ax.legend(fontsize=7)
+    ax.set_title(title, fontsize=9)
+    return _save(fig, out_dir, stem, formats)
+
+
+def versus_amplitude(amplitudes, panels: dict, out_dir, stem="vs_amplitude", formats=("png",)):
+    """One panel per quantity vs alpha_max; ``panels[ylabel] = (values, errors)``."""
+    plt = _mpl()
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.4), squeeze=False)
+    for ax, (yl, (v, e)) in zip(axes[0], panels.items()):
+        ax.errorbar(amplitudes, v, yerr=e, marker="o", ms=4, capsize=3)
+        ax.set(xlabel=r"$\alpha_{max}$ (deg)", ylabel=yl)
+    return _save(fig, out_dir, stem, formats)
+
+
+def tracks(xy_list, labels, out_dir, stem, title="", formats=("png",)):
+    """Tracks (x, y in W) side by side on equal axes."""
+    plt = _mpl()
+    fig, ax = plt.subplots(figsize=(4.8, 4.4))
+    for xy, lab in zip(xy_list, labels):
+        xy = np.asarray(xy, float)
+        ax.plot(xy[:, 0] - xy[0, 0], xy[:, 1] - xy[0, 1], lw=1, label=lab)
+    ax.set(xlabel="x (W)", ylabel="y (W)", aspect="equal")
+    ax.legend(fontsize=6)
+    ax.set_title(title, fontsize=9)
+    return _save(fig, out_dir, stem, formats)

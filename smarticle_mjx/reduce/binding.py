@@ -37,3 +37,56 @@ def labels(touched, valid):
     valid = np.asarray(valid, bool)
     out = np.where(bound_end(touched), ATTRACTED, REPELLED)
     return np.where(valid, out, INVALID)
+
+
+def bound_runs(touched):
+    """Every maximal run of consecutive bound periods.
+
+    Args:
+      touched: [M, K] bool, bound in period k.
+
+    Returns:
+      dict of [R] arrays: ``lane``, ``start`` (first period), ``length``
+      (periods), ``censored`` (the run reaches the last period, so the
+      pair's true lifetime is at least ``length``).
+    """
+    t = np.asarray(touched, bool)
+    m, k = t.shape
+    pad = np.zeros((m, k + 2), np.int8)
+    pad[:, 1:-1] = t
+    d = np.diff(pad, axis=1)
+    lane_s, start = np.nonzero(d == 1)
+    lane_e, stop = np.nonzero(d == -1)  # both sorted lane-major, so they pair up
+    assert np.array_equal(lane_s, lane_e)
+    length = stop - start
+    return {"lane": lane_s, "start": start, "length": length, "censored": stop == k}
+
+
+def binomial_interval(k, n, level: float = 0.95):
+    """Clopper-Pearson (exact) interval of a binomial proportion k/n."""
+    from scipy.stats import beta
+    k, n = np.asarray(k, float), np.asarray(n, float)
+    a = (1 - level) / 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lo = np.where(k > 0, beta.ppf(a, k, n - k + 1), 0.0)
+        hi = np.where(k < n, beta.ppf(1 - a, k + 1, n - k), 1.0)
+    return lo, hi
+
+
+def binding_probability(touched, valid, level: float = 0.95) -> dict:
+    """P_b from one run: bound at the end and bound throughout, with intervals.
+
+    Args:
+      touched: [M, K] bool; valid: [M] bool (invalid starts are excluded).
+
+    Returns:
+      {"n": valid count, "end": (p, lo, hi, k), "throughout": (p, lo, hi, k)}.
+    """
+    t = np.asarray(touched, bool)[np.asarray(valid, bool)]
+    n = len(t)
+    out = {"n": n}
+    for name, k in (("end", int(bound_end(t).sum()) if n else 0),
+                    ("throughout", int(bound_throughout(t).sum()) if n else 0)):
+        lo, hi = binomial_interval(k, n, level) if n else (np.nan, np.nan)
+        out[name] = (k / n if n else np.nan, float(lo), float(hi), k)
+    return out

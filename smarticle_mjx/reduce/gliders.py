@@ -1,0 +1,177 @@
+"""Glider anatomy: C1/C2 clusters of per-period (|r|, theta, phi), basins,
+lifetimes, glider tracks and steady-state separation. numpy/scipy only.
+
+C1 is the anti-aligned glider (phi near 180 deg), C2 the aligned one (phi
+near 0 deg). The clusters are found, not imposed: k-means on the
+per-period relative coordinates of bound pairs, in features that respect
+the angles' periodicity; each cluster is then named C1 or C2 by its
+circular-mean phi (C1 if within 90 deg of 180 deg).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from . import binding
+
+NONE, C1, C2 = 0, 1, 2
+NAMES = {NONE: "none", C1: "C1", C2: "C2"}
+
+
+def _features(rel, r_scale: float):
+    r, th, ph = np.asarray(rel, float).T
+    return np.column_stack([np.cos(ph), np.sin(ph), np.cos(th), np.sin(th), r / r_scale])
+
+
+def circular_mean(a, axis=None):
+    return np.angle(np.exp(1j * np.asarray(a, float)).mean(axis=axis))
+
+
+@dataclasses.dataclass(frozen=True)
+class Clusters:
+    """k-means clusters of per-period relative coordinates.
+
+    Attributes:
+      centers: [k, 3] cluster centres as (|r| W, theta, phi rad).
+      kind: [k] C1 or C2 per cluster.
+      sizes: [k] samples per cluster.
+      r_scale: |r| scale of the features (W).
+      features_centers: [k, 5] centres in feature space (for classifying).
+      radius: [k] a sample farther than this from every centre (feature
+        units; 3x the cluster's RMS spread) is a transient, not a glider.
+    """
+
+    centers: np.ndarray
+    kind: np.ndarray
+    sizes: np.ndarray
+    r_scale: float
+    features_centers: np.ndarray
+    radius: np.ndarray
+
+    def assign(self, rel) -> np.ndarray:
+        """Cluster index of each (|r|, theta, phi) sample [S, 3] -> [S], -1 if
+        it lies outside every cluster's radius."""
+        f = _features(np.reshape(rel, (-1, 3)), self.r_scale)
+        dist = np.sqrt(((f[:, None] - self.features_centers[None]) ** 2).sum(-1))
+        j = np.argmin(dist, axis=1)
+        return np.where(dist[np.arange(len(f)), j] <= self.radius[j], j, -1)
+
+    def classify(self, rel) -> np.ndarray:
+        """C1 / C2 (NONE for transients) of each sample [..., 3] -> [...]."""
+        rel = np.asarray(rel, float)
+        j = self.assign(rel)
+        return np.where(j >= 0, self.kind[j], NONE).reshape(rel.shape[:-1])
+
+
+def find_clusters(samples, k: int = 4, r_scale: float = 0.25, seed: int = 0) -> Clusters:
+    """Cluster per-period (|r|, theta, phi) samples of bound pairs.
+
+    Args:
+      samples: [S, 3] (|r| W, theta, phi rad).
+      k: number of k-means clusters (several per glider type, since the C1
+        attractor has two mirror-related lobes in the paper).
+      r_scale: |r| difference (W) that counts as much as a unit of
+        cos/sin; 0.25 W separates the paper's glider separations.
+    """
+    from scipy.cluster.vq import kmeans2
+    samples = np.asarray(samples, float)
+    samples = samples[np.isfinite(samples).all(-1)]
+    if len(samples) < k:
+        raise ValueError(f"need at least {k} bound samples to find clusters, got {len(samples)}")
+    f = _features(samples, r_scale)
+    centers, lab = kmeans2(f, k, minit="++", seed=seed)
+    keep = np.array([(lab == j).any() for j in range(k)])
+    centers = centers[keep]
+    lab = np.searchsorted(np.nonzero(keep)[0], lab)
+    sizes = np.bincount(lab, minlength=len(centers))
+    rel_c = np.array([[samples[lab == j, 0].mean(), circular_mean(samples[lab == j, 1]),
+                       circular_mean(samples[lab == j, 2])] for j in range(len(centers))])
+    kind = np.where(np.cos(rel_c[:, 2]) < 0, C1, C2)
+    rms = np.array([np.sqrt(((f[lab == j] - centers[j]) ** 2).sum(-1).mean()) for j in range(len(centers))])
+    return Clusters(rel_c, kind, sizes, r_scale, centers, 3 * np.maximum(rms, 1e-3))
+
+
+def period_kinds(clusters: Clusters, rel, touched) -> np.ndarray:
+    """[M, K] glider type of every period: C1/C2 if bound, else NONE."""
+    rel, t = np.asarray(rel, float), np.asarray(touched, bool)
+    ok = t & np.isfinite(rel).all(-1)
+    out = np.full(t.shape, NONE, int)
+    if ok.any():
+        out[ok] = clusters.classify(rel[ok])
+    return out
+
+
+def steady_mask(touched, burn_in: int) -> np.ndarray:
+    """[M, K] bound periods at or after ``burn_in`` (steady-state samples)."""
+    t = np.asarray(touched, bool).copy()
+    t[:, :burn_in] = False
+    return t
+
+
+def final_type(kinds, touched, window: int = 10) -> np.ndarray:
+    """Glider type at the end of each trial [M]: the majority type over the
+    last ``window`` periods if the pair is bound in all of them, else NONE.
+    """
+    kinds, t = np.asarray(kinds), np.asarray(touched, bool)
+    last_k, last_t = kinds[:, -window:], t[:, -window:]
+    n1 = ((last_k == C1) & last_t).sum(1)
+    n2 = ((last_k == C2) & last_t).sum(1)
+    out = np.where(n1 >= n2, C1, C2)
+    return np.where(last_t.all(1), out, NONE)
+
+
+def typed_lifetimes(kinds, touched) -> dict:
+    """Lifetimes of bound runs, each run typed by the majority of its periods
+    (NONE when most of them are transients outside both clusters).
+
+    Returns:
+      the :func:`binding.bound_runs` dict plus ``kind`` [R].
+    """
+    runs = binding.bound_runs(touched)
+    kinds = np.asarray(kinds)
+    kind = np.array([np.bincount(kinds[m, s:s + n], minlength=3).argmax()
+                     for m, s, n in zip(runs["lane"], runs["start"], runs["length"])], dtype=int)
+    runs["kind"] = kind
+    return runs
+
+
+def glider_tracks(com, touched, min_periods: int = 30) -> np.ndarray:
+    """Centre-of-mass tracks of gliders: each lane's longest bound run if it
+    lasts at least ``min_periods`` periods (the paper keeps gliders that
+    survive more than 30 cycles).
+
+    Args:
+      com: [M, K, 2] pair centre of mass at the end of each period.
+      touched: [M, K] bool.
+
+    Returns:
+      [G, L, 2] tracks, NaN-padded to the longest.
+    """
+    runs = binding.bound_runs(touched)
+    com = np.asarray(com, float)
+    best: dict[int, tuple[int, int]] = {}
+    for m, s, n in zip(runs["lane"], runs["start"], runs["length"]):
+        if n >= min_periods and n > best.get(m, (0, 0))[1]:
+            best[m] = (s, n)
+    if not best:
+        return np.zeros((0, 0, 2))
+    out = np.full((len(best), max(n for _, n in best.values()), 2), np.nan)
+    for g, (m, (s, n)) in enumerate(sorted(best.items())):
+        out[g, :n] = com[m, s:s + n, :2]
+    return out
+
+
+def steady_separation(rel, touched, window: int = 20) -> dict:
+    """Steady-state |r| of pairs bound in every one of the last ``window`` periods.
+
+    Returns:
+      {"mean", "std" (over pairs), "sem", "pairs", "per_pair" [G]}.
+    """
+    rel, t = np.asarray(rel, float), np.asarray(touched, bool)
+    sel = t[:, -window:].all(1)
+    per = rel[sel, -window:, 0].mean(1) if sel.any() else np.zeros(0)
+    n = len(per)
+    return {"mean": float(per.mean()) if n else np.nan, "std": float(per.std(ddof=1)) if n > 1 else np.nan,
+            "sem": float(per.std(ddof=1) / np.sqrt(n)) if n > 1 else np.nan, "pairs": n, "per_pair": per}

@@ -1,0 +1,158 @@
+"""Transport of tracks sampled once per gait period: MSD, exponent beta, speed.
+
+Tracks are ``[M, K, 2]`` positions (any length unit) with NaN where a track
+has no sample (before it starts, after it ends, or occluded). Every function
+here is numpy only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+
+def msd(xy, max_lag: int | None = None, centered: bool = False):
+    """Mean-square displacement vs delay, pooled over tracks and time origins.
+
+    Args:
+      xy: [M, K, 2] positions once per period (NaN = missing).
+      max_lag: largest delay in periods (default K - 1).
+      centered: subtract the squared mean displacement, the paper's
+        <sigma^2> = <x^2> - <x>^2 (the plain MSD otherwise).
+
+    Returns:
+      lags [L] (periods), msd [L], counts [L] (displacements averaged).
+    """
+    xy = np.asarray(xy, float)
+    if xy.ndim == 2:
+        xy = xy[None]
+    k = xy.shape[1]
+    max_lag = k - 1 if max_lag is None else min(max_lag, k - 1)
+    lags = np.arange(1, max_lag + 1)
+    out = np.full(len(lags), np.nan)
+    counts = np.zeros(len(lags), int)
+    for i, lag in enumerate(lags):
+        d = (xy[:, lag:] - xy[:, :-lag]).reshape(-1, xy.shape[-1])
+        d = d[np.isfinite(d).all(-1)]
+        counts[i] = len(d)
+        if len(d):
+            out[i] = (d ** 2).sum(-1).mean()
+            if centered:
+                out[i] -= (d.mean(0) ** 2).sum()
+    return lags, out, counts
+
+
+def fit_exponent(lags, values, lag_range):
+    """Least-squares slope of log(values) vs log(lags) over ``lag_range``.
+
+    Returns:
+      (beta, standard error of the slope, prefactor), NaN if < 3 points.
+    """
+    lags, values = np.asarray(lags, float), np.asarray(values, float)
+    lo, hi = lag_range
+    sel = (lags >= lo) & (lags <= hi) & np.isfinite(values) & (values > 0)
+    if sel.sum() < 3:
+        return np.nan, np.nan, np.nan
+    x, y = np.log(lags[sel]), np.log(values[sel])
+    slope, icpt = np.polyfit(x, y, 1)
+    resid = y - (slope * x + icpt)
+    se = np.sqrt((resid ** 2).sum() / (len(x) - 2) / ((x - x.mean()) ** 2).sum())
+    return float(slope), float(se), float(np.exp(icpt))
+
+
+@dataclasses.dataclass(frozen=True)
+class Exponent:
+    """MSD exponent beta and how it was measured.
+
+    Attributes:
+      beta: slope of log MSD vs log delay over ``lag_range`` (periods).
+      err: its uncertainty: the standard deviation over bootstrap resamples
+        of whole tracks when there are >= 5 tracks, else the regression
+        standard error (``method`` says which).
+      tracks: number of tracks used.
+    """
+
+    beta: float
+    err: float
+    tracks: int
+    lag_range: tuple[int, int]
+    method: str
+
+
+def msd_exponent(xy, lag_range=(5, 25), centered: bool = False, n_boot: int = 200, seed: int = 0) -> Exponent:
+    """beta from the long-delay slope of the MSD, with an uncertainty.
+
+    Args:
+      xy: [M, K, 2] tracks (NaN = missing).
+      lag_range: delays (periods) over which the slope is fitted.
+      centered: see :func:`msd`.
+      n_boot: bootstrap resamples of whole tracks.
+    """
+    xy = np.asarray(xy, float)
+    if xy.ndim == 2:
+        xy = xy[None]
+    hi = int(lag_range[1])
+    lags, m, _ = msd(xy, hi, centered)
+    beta, se, _ = fit_exponent(lags, m, lag_range)
+    if len(xy) < 5:
+        return Exponent(beta, se, len(xy), tuple(lag_range), "regression")
+    rng = np.random.default_rng(seed)
+    boots = []
+    for _ in range(n_boot):
+        idx = rng.integers(0, len(xy), len(xy))
+        b = fit_exponent(*msd(xy[idx], hi, centered)[:2], lag_range)[0]
+        if np.isfinite(b):
+            boots.append(b)
+    err = float(np.std(boots, ddof=1)) if len(boots) > 1 else np.nan
+    return Exponent(beta, err, len(xy), tuple(lag_range), "bootstrap over tracks")
+
+
+def step_lengths(xy):
+    """[M, K-1] distance moved in each period (NaN where a sample is missing)."""
+    xy = np.asarray(xy, float)
+    return np.linalg.norm(np.diff(xy, axis=-2), axis=-1)
+
+
+def speed(xy, period_s: float) -> dict:
+    """Speeds of tracks sampled once per period.
+
+    Returns:
+      {"per_period": mean distance per period (the drift per cycle),
+       "mean": that divided by the period (units/s),
+       "net": mean over tracks of |end - start| / duration (units/s),
+       "sem": standard error of ``per_period`` over tracks}.
+    """
+    xy = np.asarray(xy, float)
+    if xy.ndim == 2:
+        xy = xy[None]
+    steps = step_lengths(xy)
+    per_track = np.array([np.nanmean(s) if np.isfinite(s).any() else np.nan for s in steps])
+    per_track = per_track[np.isfinite(per_track)]
+    nets = []
+    for tr in xy:
+        ok = np.isfinite(tr).all(-1)
+        if ok.sum() >= 2:
+            i = np.nonzero(ok)[0]
+            nets.append(np.linalg.norm(tr[i[-1]] - tr[i[0]]) / ((i[-1] - i[0]) * period_s))
+    pp = float(per_track.mean()) if len(per_track) else np.nan
+    sem = float(per_track.std(ddof=1) / np.sqrt(len(per_track))) if len(per_track) > 1 else np.nan
+    return {"per_period": pp, "mean": pp / period_s, "net": float(np.mean(nets)) if nets else np.nan,
+            "sem": sem, "tracks": int(len(per_track))}
+
+
+def turning(heading) -> np.ndarray:
+    """[M, K-1] change of heading per period (rad, wrapped to (-pi, pi])."""
+    h = np.asarray(heading, float)
+    return np.angle(np.exp(1j * np.diff(h, axis=-1)))
+
+
+def track_turning(xy) -> np.ndarray:
+    """[M, K-2] signed turn of the direction of travel per period (rad).
+
+    Positive is counter-clockwise; NaN where the track stands still or a
+    sample is missing. Mirror-image trajectories have opposite turning.
+    """
+    d = np.diff(np.asarray(xy, float), axis=-2)
+    ang = np.arctan2(d[..., 1], d[..., 0])
+    return np.angle(np.exp(1j * np.diff(ang, axis=-1)))

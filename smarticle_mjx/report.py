@@ -1,0 +1,244 @@
+"""One report from a scan or sweep store: every reducer, every figure, one table.
+
+``analyse_run`` turns one run (one amplitude) into numbers; ``write_report``
+does it for every run of a store and writes ``report.md``, ``report.json``
+and the figures into a folder. numpy/h5py/scipy/matplotlib only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import pathlib
+
+import numpy as np
+
+from . import plots
+from .reduce import binding, gliders as GL, transport
+from .store import Store
+
+
+@dataclasses.dataclass(frozen=True)
+class ReportOptions:
+    """How the reducers cut the data (periods unless stated).
+
+    Attributes:
+      burn_in: periods skipped before per-period samples count as steady
+        state (default: a third of the trial, at most 30 as in the paper).
+      glider_min_periods: a glider track is a bound run at least this long
+        (paper: > 30 cycles; default: min(30, K // 2)).
+      steady_window: last periods over which steady |r| is averaged.
+      fit_lags: MSD delays fitted for beta (default: 5 .. half the shortest
+        glider track, at most 25).
+      clusters: k-means clusters of (|r|, theta, phi).
+    """
+
+    burn_in: int | None = None
+    glider_min_periods: int | None = None
+    steady_window: int | None = None
+    fit_lags: tuple[int, int] | None = None
+    clusters: int = 4
+
+    def resolve(self, k: int) -> "ReportOptions":
+        burn = self.burn_in if self.burn_in is not None else min(30, k // 3)
+        gmin = self.glider_min_periods if self.glider_min_periods is not None else max(2, min(30, k // 2))
+        win = self.steady_window if self.steady_window is not None else max(1, min(20, k // 3))
+        lags = self.fit_lags if self.fit_lags is not None else (min(5, max(1, gmin // 4)), max(3, min(25, gmin // 2)))
+        return dataclasses.replace(self, burn_in=burn, glider_min_periods=gmin, steady_window=win, fit_lags=lags)
+
+
+def _r(x, nd=4):
+    return None if x is None or not np.isfinite(x) else round(float(x), nd)
+
+
+def analyse_run(store: Store, run: str, opts: ReportOptions = ReportOptions()) -> dict:
+    """Numbers and per-period arrays of one run.
+
+    Returns:
+      ``summary`` (JSON-ready numbers) and ``arrays`` (for the figures).
+    """
+    d = store.run(run, fields=("config", "valid", "touched", "rel", "com", "status"))
+    attrs = store.run_attrs[run]
+    k = int(attrs["periods"])
+    o = opts.resolve(k)
+    w = float(store.config["scene"]["robot"]["body_length"])
+    period = float(attrs["period_s"])
+    valid = d["valid"]
+    touched = d["touched"][:, :, 0] & valid[:, None]
+    rel = d["rel"].astype(float)
+    com = d["com"][..., :2].astype(float) / w
+    s: dict = {"run": run, "amplitude_deg": float(attrs["amplitude_deg"]), "chirality": str(attrs["chirality"]),
+               "gait": str(attrs["gait"]), "period_s": period, "periods": k, "configs": int(len(valid)),
+               "valid": int(valid.sum()), "options": dataclasses.asdict(o)}
+    pb = binding.binding_probability(touched, valid)
+    s["pb_end"], s["pb_throughout"] = [list(map(_r, pb["end"][:3])), list(map(_r, pb["throughout"][:3]))]
+    s["bad_status"] = int(((d["status"] & 0b110) != 0).sum())
+    runs = binding.bound_runs(touched)
+    s["bound_runs"] = int(len(runs["length"]))
+    arrays: dict = {"touched": touched}
+    # glider anatomy
+    steady = GL.steady_mask(touched, o.burn_in) & np.isfinite(rel).all(-1)
+    samples = rel[steady]
+    s["steady_samples"] = int(len(samples))
+    if len(samples) >= max(o.clusters, 10):
+        cl = GL.find_clusters(samples, k=o.clusters)
+        kinds = GL.period_kinds(cl, rel, touched)
+        final = GL.final_type(kinds, touched, window=min(10, k))
+        typed = GL.typed_lifetimes(kinds, touched)
+        s["clusters"] = [{"kind": GL.NAMES[int(kd)], "r_W": _r(c[0]), "theta_deg": _r(np.degrees(c[1]) % 360, 1),
+                          "phi_deg": _r(np.degrees(c[2]) % 360, 1), "samples": int(n)}
+                         for c, kd, n in zip(cl.centers, cl.kind, cl.sizes)]
+        nv = max(int(valid.sum()), 1)
+        for kind in (GL.C1, GL.C2):
+            name = GL.NAMES[kind]
+            sel = typed["kind"] == kind
+            lt = typed["length"][sel]
+            s[name] = {"steady_samples": int((kinds[steady] == kind).sum()),
+                       "basin_fraction": _r((final == kind).sum() / nv),
+                       "basin_configs": int((final == kind).sum()),
+                       "runs": int(sel.sum()),
+                       "lifetime_mean": _r(lt.mean()) if len(lt) else None,
+                       "lifetime_median": _r(np.median(lt)) if len(lt) else None,
+                       "censored_fraction": _r(typed["censored"][sel].mean()) if len(lt) else None}
+        arrays.update(clusters=cl, kinds=kinds, samples=samples, sample_kinds=kinds[steady], typed=typed,
+                      final=final)
+    # transport of gliders
+    tracks = GL.glider_tracks(com, touched, min_periods=o.glider_min_periods)
+    s["gliders"] = int(len(tracks))
+    if len(tracks):
+        ex = transport.msd_exponent(tracks, lag_range=o.fit_lags)
+        sp = transport.speed(tracks, period)
+        lags, m, _ = transport.msd(tracks)
+        s["beta"] = {"value": _r(ex.beta, 3), "err": _r(ex.err, 3), "tracks": ex.tracks,
+                     "lag_range": list(ex.lag_range), "method": ex.method}
+        s["v_com"] = {"W_per_period": _r(sp["per_period"], 5), "W_per_s": _r(sp["mean"], 5),
+                      "net_W_per_s": _r(sp["net"], 5), "sem_W_per_period": _r(sp["sem"], 5)}
+        turn = transport.turning(d["com"][..., 2].astype(float))[touched[:, 1:] & touched[:, :-1]]
+        s["heading_turn_deg_per_period"] = _r(np.degrees(np.nanmean(turn)), 3) if turn.size else None
+        arrays.update(msd=(lags, m), tracks=tracks)
+    ss = GL.steady_separation(rel, touched, window=o.steady_window)
+    s["steady_r"] = {"mean_W": _r(ss["mean"]), "std_W": _r(ss["std"]), "sem_W": _r(ss["sem"]), "pairs": ss["pairs"]}
+    return {"summary": s, "arrays": arrays}
+
+
+def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> dict:
+    """All figures and the summary table of a store into ``out_dir``.
+
+    Returns:
+      the report as written to ``report.json``.
+    """
+    st = Store(store_path)
+    out = pathlib.Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figs: dict[str, list[str]] = {}
+    results = {}
+    for run in st.runs:
+        a = analyse_run(st, run, opts)
+        results[run] = a
+        s, arr = a["summary"], a["arrays"]
+        names = [p.name for p in plots.phase_diagram(store_path, out, run)]
+        if "clusters" in arr:
+            names += [p.name for p in plots.relative_coordinates(
+                arr["samples"], arr["sample_kinds"], arr["clusters"], out, f"relcoords_{run}",
+                title=f"bound pairs, periods >= {s['options']['burn_in']}, α_max = {s['amplitude_deg']:g}°")]
+            names += [p.name for p in plots.lifetimes(arr["typed"], s["periods"], out, f"lifetimes_{run}",
+                                                     title=f"α_max = {s['amplitude_deg']:g}°")]
+        if "tracks" in arr:
+            tr = arr["tracks"][:8]
+            names += [p.name for p in plots.tracks([t[np.isfinite(t).all(-1)] for t in tr],
+                                                   [f"glider {i}" for i in range(len(tr))], out, f"gliders_{run}",
+                                                   title=f"glider tracks, α_max = {s['amplitude_deg']:g}°")]
+        figs[run] = names
+    summaries = [results[r]["summary"] for r in st.runs]
+    curves = {f"{s['amplitude_deg']:g}° ({s['gliders']} gliders)": results[s["run"]]["arrays"]["msd"]
+              for s in summaries if "msd" in results[s["run"]]["arrays"]}
+    common = []
+    if curves:
+        common += [p.name for p in plots.msd_curves(curves, out)]
+    if len(summaries) > 1:
+        amps = [s["amplitude_deg"] for s in summaries]
+        common += [p.name for p in plots.pb_curve(amps, [s["pb_end"] for s in summaries],
+                                                   [s["pb_throughout"] for s in summaries], out)]
+        nan = float("nan")
+        panels = {
+            r"$\beta$": ([(s.get("beta") or {}).get("value") or nan for s in summaries],
+                         [(s.get("beta") or {}).get("err") or nan for s in summaries]),
+            r"$V_{com}$ (W/period)": ([(s.get("v_com") or {}).get("W_per_period") or nan for s in summaries],
+                                      [(s.get("v_com") or {}).get("sem_W_per_period") or nan for s in summaries]),
+            "steady |r| (W)": ([s["steady_r"]["mean_W"] or nan for s in summaries],
+                               [s["steady_r"]["std_W"] or nan for s in summaries]),
+        }
+        common += [p.name for p in plots.versus_amplitude(amps, panels, out)]
+    report = {"store": str(store_path), "versions": {k: st.attrs.get(k) for k in ("package", "mujoco", "jax")},
+              "scan": st.config["scan"], "runs": summaries, "figures": {"runs": figs, "common": common}}
+    (out / "report.json").write_text(json.dumps(report, indent=1, default=_json_default))
+    (out / "report.md").write_text(markdown(report))
+    return report
+
+
+def _json_default(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(type(x))
+
+
+def _fmt(x, nd=3):
+    return "–" if x is None else f"{x:.{nd}f}"
+
+
+def _pm(v, e, nd=3):
+    return "–" if v is None else f"{v:.{nd}f} ± {_fmt(e, nd)}"
+
+
+def markdown(report: dict) -> str:
+    """The summary table and figure links of a report."""
+    sc = report["scan"]
+    lines = [f"# Report: `{pathlib.Path(report['store']).name}`", "",
+             f"{report['runs'][0]['configs'] if report['runs'] else 0} configurations"
+             + (f" (random, |r| in {sc['r_range_W']} W)"
+                                                   if sc["configs"] == "random" else
+                                                   f" (|r| = {sc['radius_W']} W, {sc['positions']} × {sc['orientations']})")
+             + f", {sc['periods']} periods, gait {sc['gait']} {sc['chirality']}, backend {sc['backend']}; "
+             f"written by {report['versions'].get('package')}, mujoco {report['versions'].get('mujoco')}.", "",
+             "| α_max | valid | P_b end [95% CI] | P_b throughout [95% CI] | C1 basin | C2 basin | "
+             "C1 lifetime (mean, censored) | C2 lifetime | gliders | β (long delays) | V_com (W/period) | steady \\|r\\| (W) |",
+             "|" + "---|" * 12]
+    for s in report["runs"]:
+        def ci(p):
+            return "–" if p[0] is None else f"{p[0]:.3f} [{p[1]:.3f}, {p[2]:.3f}]"
+
+        c1, c2 = s.get("C1") or {}, s.get("C2") or {}
+
+        def life(c):
+            return "–" if not c.get("runs") else f"{c['lifetime_mean']:.1f} ({c['censored_fraction']:.0%})"
+
+        b, v = s.get("beta") or {}, s.get("v_com") or {}
+        lines.append(
+            f"| {s['amplitude_deg']:g}° | {s['valid']}/{s['configs']} | {ci(s['pb_end'])} | {ci(s['pb_throughout'])} | "
+            f"{_fmt(c1.get('basin_fraction'))} | {_fmt(c2.get('basin_fraction'))} | {life(c1)} | {life(c2)} | "
+            f"{s['gliders']} | {_pm(b.get('value'), b.get('err'), 2)} | "
+            f"{_pm(v.get('W_per_period'), v.get('sem_W_per_period'), 4)} | "
+            f"{_pm(s['steady_r']['mean_W'], s['steady_r']['std_W'], 2)} ({s['steady_r']['pairs']}) |")
+    o = report["runs"][0]["options"] if report["runs"] else {}
+    lines += ["", "Definitions: bound in a period = the robots touched in it; basin = fraction of valid starts that "
+              "end as that glider (bound in each of the last 10 periods, majority type); C1/C2 = k-means clusters "
+              f"({o.get('clusters')}) of per-period (|r|, θ, φ) of bound pairs after period {o.get('burn_in')}, named "
+              "by their mean φ (C1 anti-aligned); lifetime = length of a bound run, typed by its majority (censored = "
+              f"still bound at the end); gliders = bound runs ≥ {o.get('glider_min_periods')} periods; β = slope of "
+              f"log MSD over delays {o.get('fit_lags')} periods (± bootstrap over tracks); V_com = mean distance per "
+              f"period of glider centres of mass; steady |r| = mean over the last {o.get('steady_window')} periods of "
+              "pairs bound in all of them (± std over pairs, pair count).", ""]
+    for s in report["runs"]:
+        if s.get("clusters"):
+            lines.append(f"Clusters at {s['amplitude_deg']:g}°: " + "; ".join(
+                f"{c['kind']} |r| {c['r_W']:.2f} W, θ {c['theta_deg']:.0f}°, φ {c['phi_deg']:.0f}° ({c['samples']})"
+                for c in s["clusters"]))
+    lines += ["", "## Figures", ""]
+    for name in report["figures"]["common"]:
+        if name.endswith(".png"):
+            lines.append(f"![{name}]({name})")
+    for run, names in report["figures"]["runs"].items():
+        for name in names:
+            if name.endswith(".png"):
+                lines.append(f"![{name}]({name})")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,237 @@
+"""Reducers and the report, on synthetic data whose answers are known by construction."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from smarticle_mjx.cli import app
+from smarticle_mjx.reduce import binding, gliders as GL, transport
+from smarticle_mjx.report import ReportOptions, analyse_run
+from smarticle_mjx.scan import ScanConfig, _params_json, run_name
+from smarticle_mjx.scene import SceneParams
+from smarticle_mjx.store import Store, Writer
+
+W = SceneParams().robot.body_length
+
+
+# ----------------------------------------------------------------- binding
+
+def test_bound_runs_finds_every_run_and_marks_censored_ones():
+    t = np.array([[1, 1, 0, 1, 1, 1],
+                  [0, 0, 0, 0, 0, 0],
+                  [0, 1, 0, 1, 0, 0]], bool)
+    r = binding.bound_runs(t)
+    got = sorted(zip(r["lane"], r["start"], r["length"], r["censored"]))
+    assert got == [(0, 0, 2, False), (0, 3, 3, True), (2, 1, 1, False), (2, 3, 1, False)]
+    # the longest run per lane is the store's lifetime
+    longest = np.zeros(3, int)
+    np.maximum.at(longest, r["lane"], r["length"])
+    assert np.array_equal(longest, binding.lifetimes(t))
+
+
+def test_clopper_pearson_interval():
+    # textbook value: 5 of 10 -> [0.187, 0.813]
+    lo, hi = binding.binomial_interval(5, 10)
+    assert lo == pytest.approx(0.1871, abs=1e-3) and hi == pytest.approx(0.8129, abs=1e-3)
+    lo, hi = binding.binomial_interval(0, 20)
+    assert lo == 0 and 0 < hi < 0.2
+    # coverage: the exact interval covers the true p at least 95 % of the time
+    rng = np.random.default_rng(1)
+    k = rng.binomial(40, 0.3, 2000)
+    lo, hi = binding.binomial_interval(k, 40)
+    assert ((lo <= 0.3) & (0.3 <= hi)).mean() >= 0.95
+
+
+def test_binding_probability_ignores_invalid_starts():
+    t = np.zeros((6, 4), bool)
+    t[0] = True            # bound throughout
+    t[1, 2:] = True        # bound at the end only
+    t[5] = True            # invalid: must not count
+    p = binding.binding_probability(t, np.array([1, 1, 1, 1, 1, 0], bool))
+    assert p["n"] == 5 and p["end"][3] == 2 and p["throughout"][3] == 1
+    assert p["end"][0] == pytest.approx(0.4) and p["end"][1] < 0.4 < p["end"][2]
+
+
+# ----------------------------------------------------------------- transport
+
+def test_ballistic_track_has_beta_two_and_known_speed():
+    k = np.arange(60)
+    xy = np.stack([0.05 * k, 0.02 * k], -1)[None]      # v = |(0.05, 0.02)| W per period
+    lags, m, _ = transport.msd(xy)
+    assert np.allclose(m, (0.05 ** 2 + 0.02 ** 2) * lags ** 2)
+    ex = transport.msd_exponent(xy, (5, 25))
+    assert ex.beta == pytest.approx(2.0, abs=1e-9)
+    sp = transport.speed(xy, period_s=1.6)
+    v = np.hypot(0.05, 0.02)
+    assert sp["per_period"] == pytest.approx(v) and sp["net"] == pytest.approx(v / 1.6)
+
+
+def test_random_walks_are_diffusive():
+    rng = np.random.default_rng(0)
+    xy = np.cumsum(rng.normal(size=(200, 80, 2)), axis=1)
+    ex = transport.msd_exponent(xy, (5, 25), n_boot=100)
+    assert abs(ex.beta - 1.0) < max(3 * ex.err, 0.05) and ex.err < 0.1
+    assert ex.method.startswith("bootstrap")
+
+
+def test_centered_msd_removes_a_common_drift():
+    # every track moves the same way: the paper's <x^2> - <x>^2 sees no spread
+    k = np.arange(30)
+    xy = np.repeat(np.stack([0.1 * k, 0 * k], -1)[None], 5, 0)
+    assert np.allclose(transport.msd(xy, centered=True)[1], 0, atol=1e-12)
+    assert transport.msd(xy)[1][9] == pytest.approx((0.1 * 10) ** 2)
+
+
+def test_missing_samples_are_skipped_not_zero():
+    k = np.arange(20.0)
+    xy = np.stack([k, 0 * k], -1)[None].copy()
+    xy[0, 5:8] = np.nan
+    lags, m, counts = transport.msd(xy)
+    assert np.allclose(m, lags ** 2) and counts[0] == 19 - 4
+
+
+def test_mirror_tracks_turn_the_other_way():
+    t = np.linspace(0, np.pi, 40)
+    ccw = np.stack([np.cos(t), np.sin(t)], -1)
+    cw = ccw * [1, -1]
+    a, b = transport.track_turning(ccw), transport.track_turning(cw)
+    assert np.all(a > 0) and np.allclose(a, -b)
+
+
+# ----------------------------------------------------------------- gliders
+
+C1_REL = (1.6, np.radians(230), np.radians(190))
+C2_REL = (1.1, np.radians(275), np.radians(8))
+
+
+def _noisy(centre, n, rng, spread=0.03):
+    return np.asarray(centre) + rng.normal(scale=spread, size=(n, 3))
+
+
+def test_clusters_recover_c1_and_c2_and_name_them_by_phi():
+    rng = np.random.default_rng(2)
+    samples = np.concatenate([_noisy(C1_REL, 300, rng), _noisy(C2_REL, 120, rng)])
+    truth = np.r_[np.full(300, GL.C1), np.full(120, GL.C2)]
+    cl = GL.find_clusters(samples, k=4)
+    got = cl.classify(samples)
+    # no sample gets the wrong type; Gaussian tails beyond 3x a cluster's RMS spread may be left untyped
+    assert np.all((got == truth) | (got == GL.NONE)) and (got == truth).mean() > 0.99
+    # phi near 360 deg is aligned too (periodicity respected)
+    assert cl.classify(np.array([[1.1, np.radians(275), np.radians(355)]]))[0] == GL.C2
+    # a sample far from both attractors is a transient, not a glider
+    assert cl.classify(np.array([[2.4, np.radians(60), np.radians(90)]]))[0] == GL.NONE
+
+
+def test_final_type_and_typed_lifetimes():
+    kinds = np.array([[1, 1, 1, 1, 1, 1], [2, 2, 2, 0, 0, 0], [0, 0, 1, 2, 2, 2], [0, 0, 0, 0, 0, 0]])
+    t = kinds > 0
+    t[3, 1:3] = True   # a transient contact outside both clusters
+    assert list(GL.final_type(kinds, t, window=3)) == [GL.C1, GL.NONE, GL.C2, GL.NONE]
+    runs = GL.typed_lifetimes(kinds, t)
+    got = sorted(zip(runs["lane"], runs["length"], runs["kind"], runs["censored"]))
+    assert got == [(0, 6, GL.C1, True), (1, 3, GL.C2, False), (2, 4, GL.C2, True), (3, 2, GL.NONE, False)]
+
+
+def test_glider_tracks_keep_long_bound_runs_only():
+    com = np.cumsum(np.ones((3, 50, 2)), 1)
+    t = np.zeros((3, 50), bool)
+    t[0] = True
+    t[1, 10:25] = True          # 15 periods: too short
+    t[2, 5:45] = True
+    tr = GL.glider_tracks(com, t, min_periods=30)
+    assert tr.shape == (2, 50, 2) and np.isnan(tr[1, 40:]).all() and np.isfinite(tr[1, :40]).all()
+
+
+# ----------------------------------------------------------------- a synthetic store
+
+M, K = 40, 60
+
+
+def _synthetic_rows(rng, v=0.05):
+    """10 C1 gliders bound throughout (ballistic, v W/period), 5 C2 gliders
+    bound in periods 20-45 only, 20 pairs that touch twice and part, 5
+    invalid starts."""
+    touched = np.zeros((M, K), bool)
+    rel = np.full((M, K, 3), np.nan)
+    com = np.zeros((M, K, 3))
+    touched[:10] = True
+    rel[:10] = _noisy(C1_REL, 10 * K, rng, 0.02).reshape(10, K, 3)
+    ang = rng.uniform(0, 2 * np.pi, 10)
+    com[:10, :, 0] = np.cos(ang)[:, None] * v * np.arange(K)
+    com[:10, :, 1] = np.sin(ang)[:, None] * v * np.arange(K)
+    touched[10:15, 20:46] = True
+    rel[10:15] = _noisy(C2_REL, 5 * K, rng, 0.02).reshape(5, K, 3)
+    touched[15:35, :2] = True
+    rel[15:35] = (2.5, 1.0, 1.0)
+    valid = np.arange(M) < 35
+    touched[~valid] = False
+    rel[~valid] = np.nan
+    com[:, :, :2] *= W
+    return {"config": rng.uniform(size=(M, 3)), "valid": valid, "status": np.where(valid, 0, 1).astype(np.int32),
+            "periods_run": np.where(valid, K, 0).astype(np.int32), "touched": touched[..., None],
+            "min_dist": np.where(touched, -1e-4, np.inf)[..., None].astype(np.float32),
+            "poses": np.zeros((M, K, 2, 5), np.float32), "rel": rel.astype(np.float32),
+            "com": com.astype(np.float32), "lifetime": binding.lifetimes(touched).astype(np.int32)}
+
+
+@pytest.fixture
+def synthetic_store(tmp_path):
+    path = tmp_path / "synth.h5"
+    cfg = ScanConfig(n=M, periods=K, amplitudes_deg=(50.0, 90.0))
+    runs = {run_name(a): {"amplitude_deg": a, "period_s": 1.6 * a / 90, "chirality": "ccw", "gait": "square",
+                          "periods": K, "n_configs": M} for a in cfg.amplitudes_deg}
+    rng = np.random.default_rng(3)
+    with Writer(path, {"scan": cfg.to_json(), "scene": _params_json(SceneParams())}, runs) as w:
+        for i, run in enumerate(runs):
+            w.append(run, 0, _synthetic_rows(rng, v=0.05 * (i + 1)))
+        w.finalize()
+    return path
+
+
+def test_analyse_run_recovers_the_constructed_answers(synthetic_store):
+    st = Store(synthetic_store)
+    s = analyse_run(st, "a090.00", ReportOptions())["summary"]
+    assert s["valid"] == 35
+    assert s["pb_end"][0] == pytest.approx(10 / 35, abs=1e-4)  # the summary keeps 4 decimals
+    assert s["pb_throughout"][0] == pytest.approx(10 / 35, abs=1e-4)
+    assert s["C1"]["basin_configs"] == 10 and s["C2"]["basin_configs"] == 0
+    assert s["C1"]["lifetime_mean"] == K and s["C1"]["censored_fraction"] == 1.0
+    assert s["C2"]["lifetime_mean"] == 26 and s["C2"]["censored_fraction"] == 0.0
+    assert s["gliders"] == 10
+    assert s["beta"]["value"] == pytest.approx(2.0, abs=1e-3)
+    assert s["v_com"]["W_per_period"] == pytest.approx(0.10, rel=1e-3)
+    assert s["steady_r"]["mean_W"] == pytest.approx(1.6, abs=0.01) and s["steady_r"]["pairs"] == 10
+
+
+def test_smx_report_writes_every_figure_and_the_table(synthetic_store, tmp_path):
+    out = tmp_path / "rep"
+    r = CliRunner().invoke(app, ["report", str(synthetic_store), "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    rep = json.loads((out / "report.json").read_text())
+    assert [s["run"] for s in rep["runs"]] == ["a050.00", "a090.00"]
+    for name in ("msd.png", "pb.png", "pb.svg", "vs_amplitude.png", "phase_diagram_a090.00.png",
+                 "relcoords_a090.00.png", "lifetimes_a090.00.png", "gliders_a090.00.png"):
+        assert (out / name).stat().st_size > 1000, name
+    md = (out / "report.md").read_text()
+    assert "| 90° | 35/40 |" in md and "![pb.png](pb.png)" in md
+
+
+def test_smx_pb_prints_both_curves(synthetic_store, tmp_path):
+    r = CliRunner().invoke(app, ["pb", str(synthetic_store), "--out", str(tmp_path / "f")])
+    assert r.exit_code == 0, r.output
+    assert "0.286" in r.output and (tmp_path / "f" / "pb.png").exists()
+
+
+@pytest.mark.parametrize("cmd", ["report", "pb"])
+def test_reducer_commands_refuse_bad_input(tmp_path, cmd):
+    r = CliRunner().invoke(app, [cmd, str(tmp_path / "missing.h5"), "--out", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "no store" in r.output and not (tmp_path / "o").exists()
+    f = tmp_path / "afile"
+    f.write_text("keep me")
+    bad = tmp_path / "bad.h5"
+    bad.write_text("not hdf5")
+    r = CliRunner().invoke(app, [cmd, str(bad), "--out", str(f)])
+    assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1
+    assert f.read_text() == "keep me"
