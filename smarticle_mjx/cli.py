@@ -98,31 +98,38 @@ def models(
     typer.echo(("updated: " + ", ".join(stale)) if stale and not check else "models up to date")
 
 
-def _scan_common(cfg, out: pathlib.Path, resume: bool, overwrite: bool, quiet: bool, flush_rows: int = 64):
-    """Run a scan/sweep with a progress bar and print the summary."""
+def _progress(quiet: bool):
+    """A rich progress bar (one task per run) and the callback that feeds it."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
         TimeRemainingColumn
 
+    columns = [TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()]
+    bar = Progress(*columns, disable=quiet, transient=False)
+    tasks = {}
+
+    def progress(p):
+        if p["run"] not in tasks:
+            tasks[p["run"]] = bar.add_task(p["run"], total=p["total"], rate="")
+        rate = f"{p['steps'] / max(p['elapsed'], 1e-9):,.0f} steps/s"
+        bar.update(tasks[p["run"]], completed=p["done"], rate=rate)
+
+    return bar, progress
+
+
+def _scan_common(cfg, out: pathlib.Path, resume: bool, overwrite: bool, quiet: bool, flush_rows: int = 64):
+    """Run a scan/sweep with a progress bar and print the summary."""
     from .scan import run_scan
     from .store import StoreError
 
     if resume and overwrite:
         _fail("--resume and --overwrite exclude each other")
     mode = "resume" if resume else "overwrite" if overwrite else "new"
-    columns = [TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-               TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()]
     try:
-        with Progress(*columns, disable=quiet, transient=False) as bar:
-            tasks = {}
-
-            def progress(p):
-                if p["run"] not in tasks:
-                    tasks[p["run"]] = bar.add_task(p["run"], total=p["total"], rate="")
-                rate = f"{p['steps'] / max(p['elapsed'], 1e-9):,.0f} steps/s"
-                bar.update(tasks[p["run"]], completed=p["done"], rate=rate)
-
-            if flush_rows < 1:
-                raise ValueError("--flush-rows must be positive")
+        if flush_rows < 1:
+            raise ValueError("--flush-rows must be positive")
+        bar, progress = _progress(quiet)
+        with bar:
             summary = run_scan(cfg, out, mode=mode, on_progress=progress, flush_rows=flush_rows)
     except (ValueError, StoreError) as e:
         _fail(str(e))
@@ -276,6 +283,41 @@ def report(
         typer.echo(f"{s['run']}: P_b end {s['pb_end'][0]}, C1 basin {(s.get('C1') or {}).get('basin_fraction')}, "
                    f"C2 basin {(s.get('C2') or {}).get('basin_fraction')}, gliders {s['gliders']}, beta {b}")
     typer.echo(f"wrote {out / 'report.md'}")
+
+
+@app.command("validate")
+def validate(
+    data: pathlib.Path = typer.Option(pathlib.Path("validation-data"), help="folder of the studies' stores "
+                                      "(complete ones are reused, interrupted ones resumed)"),
+    out: pathlib.Path = typer.Option(pathlib.Path("docs/validation.md"), help="the page to write; figures go "
+                                     "into a folder of the same name"),
+    sweeps: Optional[pathlib.Path] = typer.Option(None, help="folder of the study files (default: the repo's sweeps/)"),
+    single_periods: int = typer.Option(75, help="periods of each lone-robot run"),
+    quiet: bool = typer.Option(False, help="no progress bar"),
+):
+    """Measure the paper's claims from the studies in sweeps/ and write docs/validation.md."""
+    from .store import StoreError
+    from .validation import STUDIES, SWEEPS, run_validation
+    sweeps = sweeps or SWEEPS
+    try:
+        missing = [f for f in STUDIES.values() if not (sweeps / f).is_file()]
+        if missing:
+            raise UserError(f"study files missing in {sweeps}: {', '.join(missing)}")
+        if not out.parent.is_dir():
+            raise UserError(f"output directory {out.parent} does not exist")
+        if data.exists() and not data.is_dir():
+            raise UserError(f"{data} exists and is not a directory")
+        if single_periods < 2:
+            raise UserError("--single-periods must be >= 2")
+        bar, progress = _progress(quiet)
+        with bar:
+            res = run_validation(data, out, sweeps, on_progress=progress, single_periods=single_periods,
+                                 command=f"smx validate --data {data} --out {out}")
+    except (UserError, ValueError, StoreError) as e:
+        _fail(str(e))
+    for r in res["rows"]:
+        typer.echo(f"{r['verdict']:>16}: {r['claim']}")
+    typer.echo(f"wrote {out}")
 
 
 def main():  # pragma: no cover
