@@ -73,6 +73,7 @@ class RobotParams:
     servo_speed: float = 8.727  # rad/s (0.12 s / 60 deg)
     servo_armature: float = 5e-5  # kg m^2
     joint_damping: float = 0.0
+    arm2_length: float | None = None  # None: as arm_length (a manufacturing asymmetry otherwise)
 
     def validate(self) -> None:
         positive = ("body_length", "body_thickness", "body_height", "arm_length",
@@ -89,6 +90,8 @@ class RobotParams:
             raise ValueError("robot.servo_armature must be >= 0")
         if self.arm_clearance < 0:
             raise ValueError("robot.arm_clearance must be >= 0")
+        if self.arm2_length is not None and not self.arm2_length > self.arm_thickness:
+            raise ValueError("arm2_length must exceed the arm thickness")
         if self.arm_clearance + self.arm_thickness > self.body_height:
             raise ValueError("arms must lie within the body's height (arm_clearance + arm_thickness <= body_height)")
         if not 0 < self.arm_limit_deg <= 180:
@@ -137,6 +140,10 @@ class SceneParams:
     tolerance: float = 1e-8
     boundary_radius: float | None = None  # optional circular wall (m)
     boundary_segments: int = 48
+    # Departures from the ideal plate, off by default (calibration's candidate effects):
+    plate_tilt_deg: tuple[float, float] = (0.0, 0.0)  # downhill slope along plate x and y
+    plate_friction_y_ratio: float = 1.0  # mu along plate y / mu along x (a brushed plate)
+    arm_plate_friction: float = 0.0  # > 0: the arms rest on the plate and slide with this mu
 
     def validate(self) -> None:
         self.robot.validate()
@@ -155,6 +162,26 @@ class SceneParams:
             raise ValueError("solver iterations must be >= 1")
         if self.boundary_radius is not None and self.boundary_radius <= 0:
             raise ValueError("boundary_radius must be positive")
+        tx, ty = self.plate_tilt_deg
+        if not (abs(tx) < 45 and abs(ty) < 45):
+            raise ValueError(f"plate tilt must be below 45 deg, got {self.plate_tilt_deg}")
+        if not self.plate_friction_y_ratio > 0:
+            raise ValueError("plate_friction_y_ratio must be positive")
+        if self.arm_plate_friction < 0:
+            raise ValueError("arm_plate_friction must be >= 0")
+        if self.arm_plate_friction > 0 and self.robot.arm_clearance > 0:
+            raise ValueError("arms on the plate (arm_plate_friction > 0) need robot.arm_clearance = 0")
+
+    @property
+    def gravity(self) -> tuple[float, float, float]:
+        """Gravity in plate coordinates (m/s^2): the plate tilts, gravity does not."""
+        gx, gy = (9.81 * math.sin(math.radians(a)) for a in self.plate_tilt_deg)
+        return gx, gy, -math.sqrt(9.81 ** 2 - gx ** 2 - gy ** 2)
+
+    @property
+    def explicit_plate_contacts(self) -> bool:
+        """Anisotropic plate friction or arms on the plate need explicit contact pairs."""
+        return self.plate_friction_y_ratio != 1.0 or self.arm_plate_friction > 0
 
     def replace(self, **changes) -> "SceneParams":
         return dataclasses.replace(self, **changes)
@@ -164,12 +191,13 @@ def _fmt(*values: float) -> str:
     return " ".join(f"{v:.9g}" for v in values)
 
 
-def _robot_xml(i: int, p: RobotParams, pose: Sequence[float]) -> str:
+def _robot_xml(i: int, p: RobotParams, pose: Sequence[float], plate_bits: int = 0) -> str:
     x, y, heading, a1, a2 = (float(v) for v in pose)
     hw, hd, hh = p.body_length / 2, p.body_thickness / 2, p.body_height / 2
     r = p.arm_radius
     arm_dz = p.arm_z - hh  # arm axis relative to the body centre
     tip = p.arm_length - r  # capsule ends exactly at the arm length
+    tip2 = (p.arm2_length if p.arm2_length is not None else p.arm_length) - r
     lim = p.arm_limit_deg
     quat = _fmt(math.cos(heading / 2), 0, 0, math.sin(heading / 2))
     rgba = "0.85 0.35 0.2 1" if i == 0 else "0.2 0.45 0.85 1"
@@ -177,7 +205,7 @@ def _robot_xml(i: int, p: RobotParams, pose: Sequence[float]) -> str:
     <body name="r{i}" pos="{_fmt(x, y, hh)}" quat="{quat}">
       <freejoint name="r{i}_free"/>
       <geom name="r{i}_body" type="box" size="{_fmt(hw, hd, hh)}" mass="{p.body_mass:.9g}"
-            contype="{_PLATE_BIT | _ROBOT_BIT}" conaffinity="{_PLATE_BIT | _ROBOT_BIT}" rgba="{rgba}"/>
+            contype="{plate_bits | _ROBOT_BIT}" conaffinity="{plate_bits | _ROBOT_BIT}" rgba="{rgba}"/>
       <body name="r{i}_arm1" pos="{_fmt(-hw, 0, arm_dz)}">
         <joint name="r{i}_a1" type="hinge" axis="0 0 -1" range="{-lim:.9g} {lim:.9g}"
                armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0"
@@ -189,7 +217,7 @@ def _robot_xml(i: int, p: RobotParams, pose: Sequence[float]) -> str:
         <joint name="r{i}_a2" type="hinge" axis="0 0 1" range="{-lim:.9g} {lim:.9g}"
                armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0"
                actuatorfrcrange="{-p.servo_torque:.9g} {p.servo_torque:.9g}"/>
-        <geom name="r{i}_arm2" type="capsule" fromto="{_fmt(0, 0, 0, tip, 0, 0)}" size="{r:.9g}"
+        <geom name="r{i}_arm2" type="capsule" fromto="{_fmt(0, 0, 0, tip2, 0, 0)}" size="{r:.9g}"
               mass="{p.arm_mass:.9g}" contype="{_ROBOT_BIT}" conaffinity="{_ROBOT_BIT}" rgba="0.3 0.3 0.3 1"/>
       </body>
     </body>""", (a1, a2)
@@ -238,8 +266,9 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
     rp = params.robot
     lim = math.radians(rp.arm_limit_deg)
     bodies, arms = [], []
+    explicit = params.explicit_plate_contacts
     for i, pose in enumerate(poses):
-        xml, a = _robot_xml(i, rp, pose)
+        xml, a = _robot_xml(i, rp, pose, plate_bits=0 if explicit else _PLATE_BIT)
         if max(abs(a[0]), abs(a[1])) > lim:
             raise ValueError(f"robot {i}: initial arm angles {a} exceed the hinge limit {rp.arm_limit_deg} deg")
         bodies.append(xml)
@@ -258,6 +287,22 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
         for j in range(i + 1, n):
             sensors.append(f'    <contact name="touch_{i}_{j}" subtree1="r{i}" subtree2="r{j}" data="found" num="1"/>')
     excludes = "\n".join(f'    <exclude body1="r{i}_arm1" body2="r{i}_arm2"/>' for i in range(n))
+    if explicit:
+        # body-plate contacts as explicit pairs: the plane's contact frame has its
+        # first tangent along plate y and its second along x (checked in
+        # tests/test_scene.py), so two sliding coefficients are an anisotropic
+        # plate; bodies no longer collide with it dynamically
+        mu = params.plate_friction
+        sol = f'solref="{_fmt(params.contact_timeconst, params.contact_dampratio)}" solimp="{_fmt(*params.contact_solimp)}"'
+        pairs = [f'    <pair geom1="plate" geom2="r{i}_body" condim="3" {sol} '
+                 f'friction="{_fmt(mu * params.plate_friction_y_ratio, mu, 0.005, 0.0001, 0.0001)}"/>'
+                 for i in range(n)]
+        if params.arm_plate_friction > 0:
+            pairs += [f'    <pair geom1="plate" geom2="r{i}_arm{k}" condim="3" {sol} '
+                      f'friction="{_fmt(params.arm_plate_friction, params.arm_plate_friction, 0.005, 0.0001, 0.0001)}"/>'
+                      for i in range(n) for k in (1, 2)]
+        excludes += "\n" + "\n".join(pairs)
+    gravity = "" if params.plate_tilt_deg == (0.0, 0.0) else f' gravity="{_fmt(*params.gravity)}"'
     qpos = []
     for i, pose in enumerate(poses):
         x, y, heading = (float(v) for v in pose[:3])
@@ -268,7 +313,7 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
     return f"""<mujoco model="{name}">
   <!-- generated by smarticle_mjx.scene.build_mjcf; do not edit by hand -->
   <compiler angle="radian" autolimits="true"/>
-  <option timestep="{params.timestep:.9g}" integrator="implicitfast" cone="elliptic" solver="Newton"
+  <option timestep="{params.timestep:.9g}" integrator="implicitfast" cone="elliptic" solver="Newton"{gravity}
           iterations="{params.iterations}" ls_iterations="{params.ls_iterations}" tolerance="{params.tolerance:.9g}"/>
   <default>
     <geom condim="3" friction="{params.robot_friction:.9g} 0.005 0.0001" solref="{solref}"

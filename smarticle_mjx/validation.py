@@ -46,6 +46,10 @@ def ensure_store(study: pathlib.Path, data: pathlib.Path, params: SceneParams,
     want = json.loads(json.dumps({"scan": cfg.to_json(), "scene": _params_json(params)}))
     if path.exists():
         have = Store(path).config
+        # stores written before a scene parameter existed used its default
+        defaults = json.loads(json.dumps(_params_json(params.__class__())))
+        have["scene"] = {**defaults, **have.get("scene", {}),
+                         "robot": {**defaults["robot"], **have.get("scene", {}).get("robot", {})}}
         if have != want:
             raise ValueError(f"{path} holds a different study than {study}; move it away or use another --data")
         return path

@@ -72,3 +72,51 @@ def test_boundary_wall_is_optional_and_collides_with_robots():
     assert len(walls) == 48
     arm = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "r0_arm1")
     assert _can_collide(m, walls[0], arm)
+
+
+# ------------------------------------------------------------ plate departures (calibration effects)
+
+def _rest(params, steps=2000):
+    import mujoco
+    from smarticle_mjx.scene import build_mjcf, compile_model
+    m = compile_model(build_mjcf(params, [(0, 0, 0, 1.5708, 1.5708)]))
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    d.ctrl[:] = m.key_ctrl[0]
+    for _ in range(steps):
+        mujoco.mj_step(m, d)
+    return m, d
+
+
+def test_tilted_plate_holds_below_the_friction_angle_and_slides_above():
+    from smarticle_mjx.scene import SceneParams
+    # friction angle atan(0.37) = 20.3 deg
+    _, d = _rest(SceneParams(plate_tilt_deg=(10.0, 0.0)))
+    assert abs(d.qpos[0]) < 1e-4
+    _, d = _rest(SceneParams(plate_tilt_deg=(30.0, 0.0)))
+    assert d.qpos[0] > 0.01 and abs(d.qpos[1]) < 0.1 * d.qpos[0]   # downhill is +x
+
+
+def test_anisotropic_plate_slides_only_along_its_slippery_axis():
+    from smarticle_mjx.scene import SceneParams
+    # mu_x = 0.37 holds a 10 deg slope; mu_y = 0.37 * 0.2 = 0.074 < tan(10 deg) = 0.176 does not.
+    # (MuJoCo's soft friction lets a held body creep; anisotropic cones creep more, ~3 mm in 0.5 s here.)
+    _, d = _rest(SceneParams(plate_friction_y_ratio=0.2, plate_tilt_deg=(10.0, 0.0)))
+    held = abs(d.qpos[0])
+    _, d = _rest(SceneParams(plate_friction_y_ratio=0.2, plate_tilt_deg=(0.0, 10.0)))
+    assert d.qpos[1] > 0.05 and d.qpos[1] > 10 * held
+
+
+def test_arms_on_the_plate_touch_it_only_when_asked():
+    import dataclasses
+    from smarticle_mjx.scene import RobotParams, SceneParams
+    with pytest.raises(ValueError, match="arm_clearance"):
+        SceneParams(arm_plate_friction=0.3).validate()
+    on = SceneParams(robot=dataclasses.replace(RobotParams(), arm_clearance=0.0), arm_plate_friction=0.3)
+    m, d = _rest(on, 200)
+    arm_geoms = {m.geom(f"r0_arm{k}").id for k in (1, 2)}
+    plate = m.geom("plate").id
+    touching = [c for c in d.contact[:d.ncon] if {c.geom1, c.geom2} & arm_geoms and plate in (c.geom1, c.geom2)]
+    assert touching
+    m, d = _rest(SceneParams(), 200)
+    assert not any({c.geom1, c.geom2} & arm_geoms and plate in (c.geom1, c.geom2) for c in d.contact[:d.ncon])
