@@ -320,6 +320,71 @@ def validate(
     typer.echo(f"wrote {out}")
 
 
+@app.command("synth")
+def synth(
+    out: pathlib.Path = typer.Argument(..., help="output folder (one CSV + JSON sidecar per amplitude)"),
+    robots: int = typer.Option(1, help="robots per trial"),
+    trials: int = typer.Option(6, help="trials per amplitude"),
+    periods: int = typer.Option(6, help="gait periods per trial"),
+    amplitudes: str = typer.Option("30,90", help="alpha_max values, e.g. '30,90' or '10:90:20'"),
+    effect: list[str] = typer.Option([], help="hidden effect, e.g. 'plate_tilt:tilt_x_deg=2' (repeatable)"),
+    noise_xy_mm: float = typer.Option(0.05, help="tracking noise on x, y (mm)"),
+    noise_theta_deg: float = typer.Option(0.05, help="tracking noise on the heading (deg)"),
+    arm_noise_deg: float = typer.Option(0.3, help="tracking noise on arm angles (deg)"),
+    no_arms: bool = typer.Option(False, help="leave arm angles untracked (empty columns)"),
+    frame_rate: float = typer.Option(30.0, help="camera frame rate (Hz)"),
+    occlusion: float = typer.Option(0.03, help="fraction of rows dropped"),
+    arm_bias_deg: float = typer.Option(0.0, help="an effect outside the library: robot arm 2 misread by this"),
+    separation: float = typer.Option(3.0, help="distance between robots at the start (W)"),
+    seed: int = typer.Option(0),
+):
+    """Measured-like data from the model with hidden effects, in the interchange format."""
+    from .calibrate.synth import parse_effect, synth as make
+    from .scan import parse_amplitudes
+    try:
+        effects = dict(parse_effect(e) for e in effect)
+        if "tracking_noise" in effects:
+            noise_xy_mm = effects["tracking_noise"]["noise_xy_mm"]
+            noise_theta_deg = effects["tracking_noise"]["noise_theta_deg"]
+        if out.exists() and any(out.glob("*.csv")):
+            raise UserError(f"{out} already holds data; choose an empty folder")
+        if not out.exists():
+            if not out.parent.is_dir():
+                raise UserError(f"output directory {out.parent} does not exist")
+            out.mkdir()
+        written = make(out, robots=robots, trials=trials, periods=periods, amplitudes=parse_amplitudes(amplitudes),
+                       effects=effects, noise_xy_mm=noise_xy_mm, noise_theta_deg=noise_theta_deg,
+                       arm_noise_deg=arm_noise_deg, arms_tracked=not no_arms, frame_rate_hz=frame_rate,
+                       occlusion=occlusion, arm_bias_deg=arm_bias_deg, separation_w=separation, seed=seed)
+    except (UserError, ValueError) as e:
+        _fail(str(e))
+    typer.echo("wrote " + ", ".join(map(str, written)))
+
+
+@app.command("calibrate")
+def calibrate(
+    data: pathlib.Path = typer.Argument(..., help="a CSV with its JSON sidecar, or a folder of them"),
+    out: pathlib.Path = typer.Option(pathlib.Path("calibration"), help="report folder"),
+    overwrite: bool = typer.Option(False, help="replace an existing report"),
+):
+    """Residuals of the model against measured tracks, ranked candidate effects, the fit, before/after."""
+    from .calibrate import fit, report
+    from .calibrate.data import load
+    try:
+        if out.exists() and not out.is_dir():
+            raise UserError(f"{out} exists and is not a directory")
+        if (out / "report.md").exists() and not overwrite:
+            raise UserError(f"{out} already holds a report; pass --overwrite to replace it")
+        if not out.exists() and not out.parent.is_dir():
+            raise UserError(f"output directory {out.parent} does not exist")
+        trials = load(data)
+        result = fit.calibrate(trials, on_step=typer.echo)
+        report.write(result, trials, out)
+    except (UserError, ValueError) as e:
+        _fail(str(e))
+    typer.echo(f"{result['verdict']}; wrote {out / 'report.md'}")
+
+
 def main():  # pragma: no cover
     app()
 

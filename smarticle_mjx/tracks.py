@@ -20,7 +20,8 @@ COLUMNS = ("trial", "t", "robot", "x", "y", "theta", "alpha1", "alpha2")
 def sidecar(n_robots: int, gait, plate_friction: float, frame_rate_hz: float) -> dict:
     return {
         "robots": n_robots,
-        "gait": {"kind": gait.kind, "amplitude_deg": gait.amplitude_deg, "period_s": gait.period(),
+        "gait": {"kind": "symmetric" if gait.kind == "diagonal" else gait.kind,
+                 "amplitude_deg": gait.amplitude_deg, "period_s": gait.period(),
                  "chirality": gait.chirality},
         "plate": {"friction": plate_friction},
         "frame_rate_hz": frame_rate_hz,

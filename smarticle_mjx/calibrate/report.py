@@ -1,0 +1,166 @@
+"""The calibration report: DIR/report.md, report.json and figures."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+
+import numpy as np
+
+from .data import Trial
+from .effects import BY_NAME, EffectSet
+from .residuals import BINS, DEG, metrics
+from .sim import simulate_trials
+
+
+def _mpl():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _num(x, spec=".3g"):
+    if x is None or (isinstance(x, float) and not np.isfinite(x)):
+        return "–"
+    return format(float(x), spec)
+
+
+def _figures(result, heldout: list[Trial], tracks_before, tracks_after, out: pathlib.Path) -> list[str]:
+    plt = _mpl()
+    names = []
+    # residual by block, before and after
+    b, a = result["before"]["where_heldout"], result["after"]["where_heldout"]
+    keys = list(b)
+    fig, ax = plt.subplots(figsize=(5, 3.2))
+    x = np.arange(len(keys))
+    ax.bar(x - 0.2, [b[k] for k in keys], 0.4, label="nominal model")
+    ax.bar(x + 0.2, [a.get(k, np.nan) for k in keys], 0.4, label="with added effects")
+    ax.axhline(1, color="k", lw=0.8, ls=":")
+    ax.set_xticks(x, keys)
+    ax.set(ylabel="held-out error (mean sq. normalised)", yscale="log")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "residual_blocks.png", dpi=130)
+    plt.close(fig)
+    names.append("residual_blocks.png")
+    # diagnosis ranking (first round)
+    rk = result["rounds"][0]["ranking"] if result["rounds"] else []
+    if rk:
+        fig, ax = plt.subplots(figsize=(5, 3.2))
+        ax.barh([r["effect"] for r in rk][::-1], [r["explained"] for r in rk][::-1])
+        ax.set(xlabel="fraction of the nominal residual its signature removes", xlim=(0, 1))
+        fig.tight_layout()
+        fig.savefig(out / "diagnosis.png", dpi=130)
+        plt.close(fig)
+        names.append("diagnosis.png")
+    # arm angles and body wobble of the first held-out trial
+    tr = heldout[0]
+    T = tr.gait.period()
+    ph = np.mod(tr.t / T, 1.0)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.4))
+    if tr.arms is not None:
+        for k, ax in zip((0, 1), axes[:2]):
+            ax.plot(ph, tr.arms[:, 0, k] * DEG, ".", ms=2, color="k", label="measured")
+            ax.plot(ph, tracks_before[0][:, 0, 3 + k] * DEG, ".", ms=2, color="#d62728", label="nominal")
+            ax.plot(ph, tracks_after[0][:, 0, 3 + k] * DEG, ".", ms=2, color="#1f77b4", label="fitted")
+            ax.set(xlabel="gait phase", ylabel=f"arm {k + 1} (deg)", title=tr.name)
+        axes[0].legend(fontsize=7, markerscale=4)
+    ax = axes[2]
+    for trk, c, lab in ((tr.pose, "k", "measured"), (tracks_before[0], "#d62728", "nominal"),
+                        (tracks_after[0], "#1f77b4", "fitted")):
+        ax.plot((trk[:, 0, 0] - tr.pose[0, 0, 0]) * 1e3, (trk[:, 0, 1] - tr.pose[0, 0, 1]) * 1e3, lw=0.8, color=c,
+                label=lab)
+    ax.set(xlabel="x (mm)", ylabel="y (mm)", aspect="equal", title="robot 0 body track")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "heldout_trial.png", dpi=130)
+    plt.close(fig)
+    names.append("heldout_trial.png")
+    return names
+
+
+def write(result: dict, trials: list[Trial], out_dir) -> dict:
+    """Write the report of a ``fit.calibrate`` result; returns the JSON written."""
+    out = pathlib.Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    held = [t for t in trials if t.name in set(result["trials"]["heldout"])]
+    final: EffectSet = result.pop("_effects")
+    before_tracks = simulate_trials(held, scene_for=lambda tr: tr.params)
+    after_tracks = simulate_trials(held, scene_for=lambda tr: final.scene(tr.params),
+                                   phase_for=lambda tr: final.phases(tr.robots))
+    result["metrics_heldout"] = {"before": metrics(held, before_tracks), "after": metrics(held, after_tracks)}
+    result["figures"] = _figures(result, held, before_tracks, after_tracks, out)
+    (out / "report.json").write_text(json.dumps(result, indent=1, default=_jd))
+    (out / "report.md").write_text(markdown(result))
+    return result
+
+
+def _jd(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    raise TypeError(type(x))
+
+
+def markdown(r: dict) -> str:
+    b, a = r["before"], r["after"]
+    lines = ["# Calibration report", "",
+             f"**Verdict: {r['verdict']}.** Held-out error (mean squared residual in units of its measurement "
+             f"error; about 1 = within error) {b['err_heldout']:.2f} → {a['err_heldout']:.2f} "
+             f"({1 - a['err_heldout'] / max(b['err_heldout'], 1e-12):+.0%}).", "",
+             f"{len(r['trials']['train'])} training trials, {len(r['trials']['heldout'])} held out; "
+             f"{r['model_runs']} batched model runs.", ""]
+    if r["added"]:
+        lines += ["## Added effects", "", "| effect | parameter | fitted | 95 % interval |", "|---|---|---|---|"]
+        for e in r["added"]:
+            for k, v in e["values"].items():
+                lo, hi = e["interval"][k]
+                lines.append(f"| {e['title']} | {k} ({e['units'][k]}) | {_num(v, '.4g')} | "
+                             f"[{_num(lo, '.4g')}, {_num(hi, '.4g')}] |")
+        lines.append("")
+    else:
+        lines += ["No effect from the library was added.", ""]
+    if a["err_heldout"] > r["criteria"]["unexplained_error"]:
+        where = sorted(a["where_heldout"].items(), key=lambda kv: -kv[1])
+        lines += ["## Unexplained residual", "",
+                  "No effect in the library explains what remains. Its signature (held-out mean squared normalised "
+                  "residual per block; 1 = measurement error): " + ", ".join(f"{k} {v:.1f}" for k, v in where) + ".", ""]
+    lines += ["## Diagnosis (first round)", "",
+              "Fraction of the nominal model's training residual that a least-squares step along each effect's "
+              "signature removes, then the fit of the leading candidates:", "",
+              "| effect | signature explains | what it moves | fitted alone: held-out change | accepted |",
+              "|---|---|---|---|---|"]
+    tried = {t["effect"]: t for rd in r["rounds"][:1] for t in rd["tried"]}
+    for row in (r["rounds"][0]["ranking"] if r["rounds"] else []):
+        t = tried.get(row["effect"])
+        gain = f"{t['heldout_gain']:+.0%}" if t else "–"
+        lines.append(f"| {row['effect']} | {row['explained']:.0%} | {BY_NAME[row['effect']].signature} | {gain} | "
+                     f"{'yes' if t and t['accepted'] else 'no'} |")
+    lines += ["", f"Criteria: add an effect only if it lowers the training χ² by more than k ln n (BIC) and the "
+              f"held-out error by ≥ {r['criteria']['min_heldout_gain']:.0%}; call the residual unexplained above "
+              f"{r['criteria']['unexplained_error']}.", "", "## Metrics on held-out trials", "",
+              "| metric | measured | nominal model | with effects |", "|---|---|---|---|"]
+    mb, ma = r["metrics_heldout"]["before"], r["metrics_heldout"]["after"]
+    lines.append(f"| arm-angle RMS error (deg) | – | {_num(mb['arm_rms_deg'])} | {_num(ma['arm_rms_deg'])} |")
+    lines.append(f"| trajectory error at the end (mm) | – | {_num(mb['trajectory_error_mm'])} | "
+                 f"{_num(ma['trajectory_error_mm'])} |")
+    for key, label in (("step_mm", "per-cycle step (mm)"), ("rotation_deg", "per-cycle rotation (deg)")):
+        lines.append(f"| {label}: mean | {_num(mb[key]['measured'])} | {_num(mb[key]['model'])} | "
+                     f"{_num(ma[key]['model'])} |")
+        lines.append(f"| {label}: Wasserstein to measured / KS p | – | {_num(mb[key]['wasserstein'])} / "
+                     f"{_num(mb[key]['ks_p'], '.2g')} | {_num(ma[key]['wasserstein'])} / {_num(ma[key]['ks_p'], '.2g')} |")
+    for key, label in (("drift_mm_per_s", "drift speed (mm/s)"), ("heading_drift_deg_per_cycle", "heading drift (deg/cycle)"),
+                       ("msd_beta", "MSD exponent β (per-cycle positions)")):
+        lines.append(f"| {label} | {_num(mb[key]['measured'])} | {_num(mb[key]['model'])} | {_num(ma[key]['model'])} |")
+    if "pair_wasserstein" in mb:
+        for k in ("r_W", "theta_deg", "phi_deg"):
+            lines.append(f"| pair {k}: Wasserstein to measured | – | {_num(mb['pair_wasserstein'][k])} | "
+                         f"{_num(ma['pair_wasserstein'][k])} |")
+    lines += ["", "Error per block, held-out (mean squared normalised residual): " + ", ".join(
+        f"{k} {b['where_heldout'][k]:.2f} → {a['where_heldout'].get(k, float('nan')):.2f}" for k in b["where_heldout"]),
+        "", f"Blocks: arms = arm angle by gait phase ({BINS} bins); wobble = body motion within a cycle in the body "
+        "frame; step = per-cycle step in the plate frame; increments = frame-to-frame jitter.", ""]
+    lines += [f"![{n}]({n})" for n in r["figures"]]
+    return "\n".join(lines) + "\n"
