@@ -59,20 +59,13 @@ def phase_diagram(store_path, out_dir, run: str | None = None, formats=("png", "
                          color=COLOURS[code], alpha=0.7, label="attracted" if code == 1 else "repelled")
             ax2.set(xlabel=xl, ylabel="initial conditions")
             ax2.legend(fontsize=7)
-    fig.tight_layout()
-    written = []
-    for fmt in formats:
-        path = out_dir / f"phase_diagram_{run}.{fmt}"
-        fig.savefig(path, dpi=150)
-        written.append(path)
-    plt.close(fig)
-    return written
+    return _save(fig, out_dir, f"phase_diagram_{run}", formats, dpi=150)
 
 
 KIND_COLOURS = {"C1": "#1f77b4", "C2": "#ff7f0e"}
 
 
-def _save(fig, out_dir, stem, formats=("png",)) -> list[pathlib.Path]:
+def _save(fig, out_dir, stem, formats=("png",), dpi=130) -> list[pathlib.Path]:
     plt = _mpl()
     out_dir = pathlib.Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -80,7 +73,7 @@ def _save(fig, out_dir, stem, formats=("png",)) -> list[pathlib.Path]:
     paths = []
     for fmt in formats:
         p = out_dir / f"{stem}.{fmt}"
-        fig.savefig(p, dpi=130)
+        fig.savefig(p, dpi=dpi)
         paths.append(p)
     plt.close(fig)
     return paths

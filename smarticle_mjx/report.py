@@ -171,14 +171,17 @@ def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> 
         common += [p.name for p in plots.versus_amplitude(amps, panels, out)]
     report = {"store": str(store_path), "versions": {k: st.attrs.get(k) for k in ("package", "mujoco", "jax")},
               "scan": st.config["scan"], "runs": summaries, "figures": {"runs": figs, "common": common}}
-    (out / "report.json").write_text(json.dumps(report, indent=1, default=_json_default))
+    (out / "report.json").write_text(json.dumps(report, indent=1, default=json_default))
     (out / "report.md").write_text(markdown(report))
     return report
 
 
-def _json_default(x):
+def json_default(x):
+    """``json.dumps`` default for numpy scalars and arrays."""
     if isinstance(x, np.generic):
         return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
     raise TypeError(type(x))
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from . import plots
 from .configs import TWO_PI
 from .reduce import binding, gliders as GL, transport
-from .report import analyse_run
+from .report import analyse_run, json_default
 from .scan import _params_json, load_study, run_scan
 from .scene import SceneParams
 from .store import Store, _journal
@@ -315,19 +315,7 @@ def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathli
     lines += [f"![{n}]({rel}/{n})" for n in result["figures"]]
     out_md.write_text("\n".join(lines) + "\n")
     (figures / "validation.json").write_text(json.dumps(
-        {"rows": result["rows"], "extra": _jsonable(result["extra"])}, indent=1))
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, np.generic):
-        return x.item()
-    return x
+        {"rows": result["rows"], "extra": result["extra"]}, indent=1, default=json_default))
 
 
 def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Path = SWEEPS,
