@@ -72,6 +72,27 @@ def single_robots(params: SceneParams, amplitudes=SINGLE_AMPLITUDES, periods: in
     return out
 
 
+# How each claim is measured and what was tried; shown beside the verdict.
+NOTES = {
+    "lone": "Time step converged (docs/timestep.md: 1.1e-5 W/cycle at dt and dt/4). The lab robot's motor noise, "
+            "backlash and marker jitter are not modelled, and on a μ = 0.37 plate friction holds the model's body "
+            "through most of the gait. Not tuned.",
+    "forms": "k-means (4 clusters) on per-period (\|r\|, θ, φ) of bound pairs after the first third of the trial, "
+             "each cluster named by its mean φ.",
+    "basin": "Basin = valid starts that end as that glider (bound in each of the last 10 periods, majority type).",
+    "lives": "Lifetime = length of a bound run typed by its majority; long runs are cut by the trial's end "
+             "(censored fractions shown).",
+    "polar": "Reduced study (72 positions × 5 orientations, 40 periods; the paper: 1000 positions, 75 periods).",
+    "beta": "Gliders = bound runs ≥ 30 periods; MSD pooled over gliders and time origins; β ± bootstrap over gliders.",
+    "beta_sym": "Random starts under the diagonal gait (300 starts, 40 periods); gliders = bound runs ≥ 20 periods.",
+    "mirror": "Clockwise study (300 random starts, 40 periods) against the 5000-start counter-clockwise scan; a "
+              "mirror maps θ to 180° − θ and φ to −φ.",
+    "steady": "Pairs found bound in the last 10 periods of the amplitude sweep (random starts; the paper started "
+              "pairs bound), 200 starts per amplitude, 30 periods.",
+    "pb": "200 random starts × 9 amplitudes × 30 periods (the paper: 5000 × 75); exact binomial intervals.",
+}
+
+
 def _f(x, spec=".2f") -> str:
     """A number for the table; a dash for missing or NaN."""
     return "–" if x is None or not np.isfinite(x) else format(x, spec)
@@ -107,7 +128,7 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
     extra["single"] = sing
     extra["single_periods"] = len(next(iter(singles.values()))["xy"]) - 1
     d90 = sing[90.0]["drift_W_per_cycle"]
-    rows.append({"claim": "a lone robot drifts about 0.0015 W per cycle at 90°", "paper": "0.0015 W/cycle (text)",
+    rows.append({"claim": "a lone robot drifts about 0.0015 W per cycle at 90°", "note": NOTES["lone"], "paper": "0.0015 W/cycle (text)",
                  "measured": f"{_f(d90, '.2g')} W/cycle ({extra['single_periods']} cycles, dt 0.25 ms)",
                  "test": "within a factor 3 of 0.0015 W", "verdict": _verdict(0.0005 <= d90 <= 0.0045)})
     amps = sorted(sing)
@@ -130,17 +151,17 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
         _, hi2 = binding.binomial_interval(c2["basin_configs"], n)
         basin_ok = bool(lo1 > hi2)
         life_ok = (c1["lifetime_mean"] or 0) > (c2["lifetime_mean"] or 0)
-        rows.append({"claim": "both C1 (φ ≈ 180°) and C2 (φ ≈ 0°) gliders form", "paper": "Fig. 2C–D, 4D",
+        rows.append({"claim": "both C1 (φ ≈ 180°) and C2 (φ ≈ 0°) gliders form", "note": NOTES["forms"], "paper": "Fig. 2C–D, 4D",
                      "measured": "; ".join(f"{c['kind']} at |r| {c['r_W']:.2f} W, θ {c['theta_deg']:.0f}°, "
                                            f"φ {c['phi_deg']:.0f}° ({c['samples']} samples)" for c in s90["clusters"]),
                      "test": "each type holds > 5 % of the steady bound samples (k-means, named by φ)",
                      "verdict": _verdict(both)})
-        rows.append({"claim": "C1's basin is larger than C2's", "paper": "Fig. 4C–D (text)",
+        rows.append({"claim": "C1's basin is larger than C2's", "note": NOTES["basin"], "paper": "Fig. 4C–D (text)",
                      "measured": f"C1 {_f(c1['basin_fraction'], '.3f')}, C2 {_f(c2['basin_fraction'], '.3f')} "
                                  f"of {n} valid starts",
                      "test": "95 % intervals of the two basin fractions do not overlap, C1 above",
                      "verdict": _verdict(basin_ok)})
-        rows.append({"claim": "C1 lives longer than C2", "paper": "Fig. 6B",
+        rows.append({"claim": "C1 lives longer than C2", "note": NOTES["lives"], "paper": "Fig. 6B",
                      "measured": f"mean bound-run length C1 {_f(c1['lifetime_mean'], '.1f')}, "
                                  f"C2 {_f(c2['lifetime_mean'], '.1f')} periods (still bound at the end: "
                                  f"C1 {_f(c1['censored_fraction'], '.0%')}, C2 {_f(c2['censored_fraction'], '.0%')}; "
@@ -148,10 +169,11 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
                      "test": "mean C1 lifetime > mean C2 lifetime", "verdict": _verdict(life_ok)})
     else:
         why = f"too few steady bound samples to cluster ({s90['steady_samples']})"
-        for claim, paper in (("both C1 (φ ≈ 180°) and C2 (φ ≈ 0°) gliders form", "Fig. 2C–D, 4D"),
-                             ("C1's basin is larger than C2's", "Fig. 4C–D (text)"),
-                             ("C1 lives longer than C2", "Fig. 6B")):
-            rows.append({"claim": claim, "paper": paper, "measured": why, "test": "–", "verdict": _verdict(None)})
+        for claim, paper, key in (("both C1 (φ ≈ 180°) and C2 (φ ≈ 0°) gliders form", "Fig. 2C–D, 4D", "forms"),
+                                  ("C1's basin is larger than C2's", "Fig. 4C–D (text)", "basin"),
+                                  ("C1 lives longer than C2", "Fig. 6B", "lives")):
+            rows.append({"claim": claim, "paper": paper, "measured": why, "test": "–", "verdict": _verdict(None),
+                         "note": NOTES[key]})
     arr = a90["arrays"]
     if "clusters" in arr:
         made += fig(plots.relative_coordinates(arr["samples"], arr["sample_kinds"], arr["clusters"], figures,
@@ -178,7 +200,7 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
     corr = float(np.corrcoef(frac[good], fm[good])[0, 1]) if good.sum() > 3 else float("nan")
     extra["polar"] = {"axis_deg": axis, "mirror_correlation": corr, "attracted": int(att.sum()),
                       "valid": int(ok.sum()), "periods": int(sp_.run_attrs[sp_.runs[0]]["periods"])}
-    rows.append({"claim": "at |r| = 1.3 W the attracted region is nearly symmetric about θ ≈ 270°",
+    rows.append({"claim": "at |r| = 1.3 W the attracted region is nearly symmetric about θ ≈ 270°", "note": NOTES["polar"],
                  "paper": "Fig. 7C",
                  "measured": f"circular mean θ of attracted starts {_f(axis, '.0f')}°; correlation of the attracted "
                              f"fraction with its mirror image about 270°: {_f(corr)} ({int(att.sum())} of "
@@ -192,13 +214,13 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
     adiag = analyse_run(sd, sd.runs[0])["summary"]
     b90, bd = s90.get("beta") or {}, adiag.get("beta") or {}
     extra["diagonal_90"] = adiag
-    rows.append({"claim": "gliders at 90° move nearly ballistically (β ≈ 1.8)", "paper": "Fig. 3A, 3C",
+    rows.append({"claim": "gliders at 90° move nearly ballistically (β ≈ 1.8)", "note": NOTES["beta"], "paper": "Fig. 3A, 3C",
                  "measured": (f"β = {_f(b90['value'])} ± {_f(b90['err'])} ({b90['tracks']} gliders ≥ "
                               f"{s90['options']['glider_min_periods']} periods, delays {b90['lag_range']})")
                  if b90 else "no gliders",
                  "test": "|β − 1.8| < 0.3",
                  "verdict": _verdict(abs(b90["value"] - 1.8) < 0.3 if _finite(b90.get("value")) else None)})
-    rows.append({"claim": "under the time-symmetric gait β ≈ 1", "paper": "Fig. 3C (black)",
+    rows.append({"claim": "under the time-symmetric gait β ≈ 1", "note": NOTES["beta_sym"], "paper": "Fig. 3C (black)",
                  "measured": (f"β = {_f(bd['value'])} ± {_f(bd['err'])} ({bd['tracks']} gliders, "
                               f"diagonal gait, {adiag['periods']} periods)") if bd else
                  f"no pair stayed bound {adiag['options']['glider_min_periods']} periods "
@@ -226,7 +248,7 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
     ok5 = None
     if turn_ccw is not None and turn_cw is not None and np.isfinite(dth):
         ok5 = bool(np.sign(turn_ccw) == -np.sign(turn_cw) and dth < 15)
-    rows.append({"claim": "opposite chirality gives mirror-image glider trajectories", "paper": "Fig. 4E(i–ii)",
+    rows.append({"claim": "opposite chirality gives mirror-image glider trajectories", "note": NOTES["mirror"], "paper": "Fig. 4E(i–ii)",
                  "measured": f"mean heading turn of bound pairs: ccw {turn_ccw}°/period, cw {turn_cw}°/period; "
                              f"C1 mean θ: ccw {_f(th_ccw, '.0f')}°, cw mirrored (180° − θ) {_f(mirrored, '.0f')}°",
                  "test": "turns of opposite sign and C1 θ equal to the mirrored θ within 15°",
@@ -245,7 +267,7 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
     rho, p = spearmanr(x[okr], y[okr]) if okr.sum() >= 3 else (np.nan, np.nan)
     drops = -np.diff(y)
     where = f"{x[np.nanargmax(drops)]:g}→{x[np.nanargmax(drops) + 1]:g}°" if np.isfinite(drops).any() else "–"
-    rows.append({"claim": "steady-state |r| decreases with α_max above 45°, with a sharp drop near 85°",
+    rows.append({"claim": "steady-state |r| decreases with α_max above 45°, with a sharp drop near 85°", "note": NOTES["steady"],
                  "paper": "Fig. 3E",
                  "measured": ", ".join(f"{a:g}°: {_f(r)}" for a, r in zip(x, y)) + f" W; Spearman ρ = {_f(rho)} "
                              f"(p = {_f(p, '.2g')}); largest drop {where}",
@@ -257,7 +279,7 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
     low, high = np.array(amps) <= 30, np.array(amps) >= 70
     okp = bool(pe[mid, 0].max() < pe[low, 0].mean() and pe[mid, 0].max() < pe[high, 0].mean()) \
         if mid.any() and low.any() and high.any() else None
-    rows.append({"claim": "P_b(α_max) is lower at intermediate amplitudes (40–60°)", "paper": "Fig. 3B",
+    rows.append({"claim": "P_b(α_max) is lower at intermediate amplitudes (40–60°)", "note": NOTES["pb"], "paper": "Fig. 3B",
                  "measured": ", ".join(f"{a:g}°: {_f(p0)} [{_f(lo)}, {_f(hi)}]" for a, (p0, lo, hi) in zip(amps, pe)),
                  "test": "every P_b(end) at 40–60° below the means at 10–30° and at 70–90°",
                  "verdict": _verdict(okp)})
@@ -290,11 +312,11 @@ def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathli
              "studies; the 5000 × 75 scan alone takes over an hour on 2 cores).", "",
              "Every row states its test before the number. A claim that does not hold is reported as such; the "
              "model was not tuned to any row.", "",
-             "| claim | paper | measured | test | verdict |", "|---|---|---|---|---|"]
+             "| claim | paper | measured | test | verdict | how measured, what was tried |", "|---|---|---|---|---|---|"]
     cell = lambda x: str(x).replace("|", "\\|")  # noqa: E731
     for r in result["rows"]:
         lines.append(f"| {cell(r['claim'])} | {cell(r['paper'])} | {cell(r['measured'])} | {cell(r['test'])} | "
-                     f"**{r['verdict']}** |")
+                     f"**{r['verdict']}** | {r['note']} |")
     lines += ["", "## Studies", "", "| study | file | store |", "|---|---|---|"]
     for name, path in stores.items():
         st = Store(path)
