@@ -20,6 +20,7 @@ import numpy as np
 from smarticle_mjx import configs as C
 from smarticle_mjx import scene as S
 from smarticle_mjx.engine import Lanes, Scene, make_backend
+from smarticle_mjx.engine.core import Status
 from smarticle_mjx.gait import GaitSpec
 
 
@@ -37,7 +38,7 @@ def main():
     lanes = Lanes.from_gait(poses, gait)
     scene = Scene.build(params, 2)
     out = {"configs": len(poses), "periods": args.periods}
-    touched = {}
+    touched, status = {}, {}
     for name in ("native", "mjx"):
         be = make_backend(name, scene)
         t = time.perf_counter()
@@ -45,16 +46,28 @@ def main():
         out[f"{name}_wall_s"] = time.perf_counter() - t
         touched[name] = rec.touched[:, :, 0]
         out[f"{name}_bad_status"] = int((rec.status != 0).sum())
+        status[name] = np.asarray(rec.status)
+        out[f"{name}_status_bits"] = {b.name: int(((status[name] & int(b)) != 0).sum())
+                                      for b in (Status.NONFINITE, Status.PENETRATION)}
         print(f"{name}: {out[f'{name}_wall_s']:.0f} s", flush=True)
     a, b = touched["native"], touched["mjx"]
     out["agree_per_period"] = [float(x) for x in (a == b).mean(0)]
     out["agree_bound_end"] = float((a[:, -1] == b[:, -1]).mean())
     out["agree_attracted"] = float((a[:, -5:].any(1) == b[:, -5:].any(1)).mean())
     out["bound_end_native"], out["bound_end_mjx"] = float(a[:, -1].mean()), float(b[:, -1].mean())
+    # is the disagreement in lanes one backend flagged (non-finite, deep penetration)?
+    ok = (status["native"] == 0) & (status["mjx"] == 0)
+    out["lanes_ok_on_both"] = int(ok.sum())
+    out["agree_bound_end_ok_lanes"] = float((a[ok, -1] == b[ok, -1]).mean()) if ok.any() else None
+    out["disagreements_in_flagged_lanes"] = int(((a[:, -1] != b[:, -1]) & ~ok).sum())
+    out["disagreements"] = int((a[:, -1] != b[:, -1]).sum())
     print(f"{len(poses)} configurations, {args.periods} periods")
     print("agreement per period:", " ".join(f"{x:.2f}" for x in out["agree_per_period"]))
     print(f"bound at the end: agree {out['agree_bound_end']:.3f} (native {out['bound_end_native']:.3f}, "
           f"mjx {out['bound_end_mjx']:.3f}); attracted: agree {out['agree_attracted']:.3f}")
+    print(f"flagged lanes: native {out['native_status_bits']}, mjx {out['mjx_status_bits']}; "
+          f"{out['disagreements_in_flagged_lanes']} of {out['disagreements']} disagreements are in flagged lanes; "
+          f"agreement on the {out['lanes_ok_on_both']} lanes unflagged on both: {out['agree_bound_end_ok_lanes']}")
     pathlib.Path(args.out).write_text(json.dumps(out, indent=2))
 
 

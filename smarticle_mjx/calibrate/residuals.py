@@ -39,7 +39,6 @@ class Features:
       step: [N, 3] mean per-cycle (dx, dy in mm, plate frame; dtheta deg).
       incr: [N, 2] variance of frame increments (xy in mm^2, theta in deg^2).
       in_contact: robots came within CONTACT_W of each other.
-      counts: dict of sample counts per block.
     """
 
     arms: tuple | None
@@ -88,7 +87,6 @@ def features(t, pose, arms, period) -> Features:
     """
     f, n = pose.shape[:2]
     phase_bin = np.minimum((np.mod(t / period, 1.0) * BINS).astype(int), BINS - 1)
-    cyc = np.floor(t / period + 1e-9).astype(int)
     arm_m = arm_s = None
     if arms is not None:
         m = np.full((n, 2, BINS), np.nan)
@@ -139,7 +137,6 @@ def features(t, pose, arms, period) -> Features:
             for j in range(i + 1, n):
                 r = np.hypot(pose[:, i, 0] - pose[:, j, 0], pose[:, i, 1] - pose[:, j, 1])
                 in_contact |= bool(np.nanmin(r) < CONTACT_W * 0.05)
-    _ = cyc
     return Features((arm_m, arm_s) if arms is not None else None, (wob_m, wob_s), (step_m, step_s),
                     (inc_m, inc_s), in_contact)
 

@@ -18,10 +18,6 @@ from .data import Trial
 SIM_SAMPLE_S = 0.004  # the model is sampled every 4 ms and interpolated to the frames
 
 
-def _group_key(tr: Trial, params):
-    return (tr.robots, tr.gait, params)
-
-
 def _interp_track(t_sim, track, t_frames):
     """Linear interpolation of [S, N, 5] samples to frame times (headings unwrapped)."""
     out = np.empty((len(t_frames),) + track.shape[1:])
@@ -47,7 +43,7 @@ def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int
     """
     groups: dict = {}
     for k, tr in enumerate(trials):
-        groups.setdefault(_group_key(tr, scene_for(tr)), []).append(k)
+        groups.setdefault((tr.robots, tr.gait, scene_for(tr)), []).append(k)
     out: list[np.ndarray | None] = [None] * len(trials)
     for (n, gait, params), idx in groups.items():
         scene = Scene.build(params, n)
