@@ -11,3 +11,4 @@ $PY benchmarks/timestep_convergence.py --configs 100 --periods 20
 $PY benchmarks/label_sensitivity.py
 $PY benchmarks/early_exit.py --configs 850 --periods 75
 $PY benchmarks/full_scan.py --n 5000 --periods 75
+$PY benchmarks/calibration.py

@@ -63,6 +63,22 @@ def main():
                "clean_runs": len(clean)}
     pathlib.Path(args.out).write_text(json.dumps({"rows": rows, "summary": summary}, indent=1, default=float))
     print(summary)
+    print(markdown(rows))
+
+
+def markdown(rows) -> str:
+    """The table quoted in docs/calibration.md."""
+    out = ["| case | hidden (true) | verdict | fitted [95 % interval] | truth inside | held-out error before → after |",
+           "|---|---|---|---|---|---|"]
+    for r in rows:
+        truth = "; ".join(f"{k} = {v:g}" for e in r["truth"].values() for k, v in e.items()) or "none"
+        fit = "; ".join(f"{k} = {v:.3g} [{r['intervals'][e][k][0]:.3g}, {r['intervals'][e][k][1]:.3g}]"
+                        for e, vals in r["fitted"].items() for k, v in vals.items()) or "–"
+        inside = "yes" if r["truth_inside"] and all(r["truth_inside"].values()) else (
+            "–" if not r["truth_inside"] else "no")
+        out.append(f"| {r['case']} (seed {r['seed']}) | {truth} | {r['verdict']} | {fit} | {inside} | "
+                   f"{r['heldout_before']:.3g} → {r['heldout_after']:.3g} ({r['heldout_drop']:+.0%}) |")
+    return "\n".join(out)
 
 
 if __name__ == "__main__":
