@@ -77,8 +77,9 @@ NOTES = {
     "lone": "Time step converged (docs/timestep.md: 1.1e-5 W/cycle at dt and dt/4). The lab robot's motor noise, "
             "backlash and marker jitter are not modelled, and on a μ = 0.37 plate friction holds the model's body "
             "through most of the gait. Not tuned.",
-    "forms": "k-means (4 clusters) on per-period (\|r\|, θ, φ) of bound pairs after the first third of the trial, "
-             "each cluster named by its mean φ.",
+    "forms": "k-means (8 clusters) on per-period (\\|r\\|, θ, φ) of bound pairs after the first third of the trial, "
+             "each cluster named by its mean φ. A first run with 4 clusters found no C2: C1's four lobes took every "
+             "centre and the aligned minority got none.",
     "basin": "Basin = valid starts that end as that glider (bound in each of the last 10 periods, majority type).",
     "lives": "Lifetime = length of a bound run typed by its majority; long runs are cut by the trial's end "
              "(censored fractions shown).",
@@ -216,7 +217,9 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
     extra["diagonal_90"] = adiag
     rows.append({"claim": "gliders at 90° move nearly ballistically (β ≈ 1.8)", "note": NOTES["beta"], "paper": "Fig. 3A, 3C",
                  "measured": (f"β = {_f(b90['value'])} ± {_f(b90['err'])} ({b90['tracks']} gliders ≥ "
-                              f"{s90['options']['glider_min_periods']} periods, delays {b90['lag_range']})")
+                              f"{s90['options']['glider_min_periods']} periods, delays {b90['lag_range']}); they step "
+                              f"{_f((s90.get('v_com') or {}).get('W_per_period'), '.3f')} W per period but turn "
+                              f"{_f(s90.get('heading_turn_deg_per_period'), '.1f')}° per period")
                  if b90 else "no gliders",
                  "test": "|β − 1.8| < 0.3",
                  "verdict": _verdict(abs(b90["value"] - 1.8) < 0.3 if _finite(b90.get("value")) else None)})
