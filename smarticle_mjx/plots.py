@@ -20,7 +20,8 @@ def _mpl():
     return plt
 
 
-def phase_diagram(store_path, out_dir, run: str | None = None, formats=("png", "svg")) -> list[pathlib.Path]:
+def phase_diagram(store_path, out_dir, run: str | None = None, formats=("png", "svg"),
+                  stem: str | None = None) -> list[pathlib.Path]:
     """(theta, phi) phase diagram of one run, plus |r| projections for random scans.
 
     Returns the files written.
@@ -59,7 +60,7 @@ def phase_diagram(store_path, out_dir, run: str | None = None, formats=("png", "
                          color=COLOURS[code], alpha=0.7, label="attracted" if code == 1 else "repelled")
             ax2.set(xlabel=xl, ylabel="initial conditions")
             ax2.legend(fontsize=7)
-    return _save(fig, out_dir, f"phase_diagram_{run}", formats, dpi=150)
+    return _save(fig, out_dir, stem or f"phase_diagram_{run}", formats, dpi=150)
 
 
 KIND_COLOURS = {"C1": "#1f77b4", "C2": "#ff7f0e"}

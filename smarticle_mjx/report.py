@@ -82,7 +82,7 @@ def analyse_run(store: Store, run: str, opts: ReportOptions = ReportOptions()) -
     steady = GL.steady_mask(touched, o.burn_in) & np.isfinite(rel).all(-1)
     samples = rel[steady]
     s["steady_samples"] = int(len(samples))
-    if len(samples) >= max(o.clusters, 10):
+    if len(samples) >= 5 * o.clusters:  # fewer samples than this would be clustered into noise
         cl = GL.find_clusters(samples, k=o.clusters)
         kinds = GL.period_kinds(cl, rel, touched)
         final = GL.final_type(kinds, touched, window=min(10, k))

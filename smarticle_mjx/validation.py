@@ -180,7 +180,8 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
         made += fig(plots.relative_coordinates(arr["samples"], arr["sample_kinds"], arr["clusters"], figures,
                                                "relcoords_90", title="random scan, 90°, bound periods ≥ 25"))
         made += fig(plots.lifetimes(arr["typed"], s90["periods"], figures, "lifetimes_90", title="random scan, 90°"))
-    made += fig(plots.phase_diagram(stores["random_90"], figures, st.runs[0], formats=("png",)))
+    made += fig(plots.phase_diagram(stores["random_90"], figures, st.runs[0], formats=("png",),
+                                    stem="phase_diagram_random_90"))
 
     # 3. polar scan symmetry about 270 deg
     sp_ = Store(stores["polar"])
@@ -208,7 +209,8 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
                              f"{int(ok.sum())} valid starts attracted)",
                  "test": "mean θ within 20° of 270° and mirror correlation > 0.7",
                  "verdict": _verdict(bool(abs(axis - 270) < 20 and corr > 0.7))})
-    made += fig(plots.phase_diagram(stores["polar"], figures, sp_.runs[0], formats=("png",)))
+    made += fig(plots.phase_diagram(stores["polar"], figures, sp_.runs[0], formats=("png",),
+                                    stem="phase_diagram_polar_1p3"))
 
     # 4. transport exponents: square gait at 90 deg and the time-symmetric gait
     sd = Store(stores["diagonal_90"])

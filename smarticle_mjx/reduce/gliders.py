@@ -11,6 +11,7 @@ circular-mean phi (C1 if within 90 deg of 180 deg).
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 
@@ -81,7 +82,9 @@ def find_clusters(samples, k: int = 4, r_scale: float = 0.25, seed: int = 0) -> 
     if len(samples) < k:
         raise ValueError(f"need at least {k} bound samples to find clusters, got {len(samples)}")
     f = _features(samples, r_scale)
-    centers, lab = kmeans2(f, k, minit="++", seed=seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # empty clusters are dropped below
+        centers, lab = kmeans2(f, k, minit="++", seed=seed)
     keep = np.array([(lab == j).any() for j in range(k)])
     centers = centers[keep]
     lab = np.searchsorted(np.nonzero(keep)[0], lab)
