@@ -146,7 +146,8 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
     The estimate is the parabola's vertex; the 95 % interval is where the
     parabola rises by max(3.84 x reduced chi^2, 2 x the points' scatter
     about it): the statistical interval, widened to the objective's
-    roughness. Two-parameter effects get two passes.
+    roughness; of several passes over a parameter the widest counts.
+    Two-parameter effects get two passes.
     """
     params = [(e, p) for e in effects for p in e.params]
     new = len(params) - len(effects[-1].params)
@@ -178,7 +179,7 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
     half = {}
     # earlier effects get one pass to settle with the new one; the new
     # parameters get passes over a shrinking range (rough, asymmetric valleys)
-    plan = [(j, cell / 2) for j in range(new)]
+    plan = [(j, 1.0 / (grid - 1)) for j in range(new)]  # a coarse-grid cell, whatever the new effect's grid
     for width in (cell, cell / 2):
         plan += [(j, width) for j in range(new, len(params))]
     if m == 2:
@@ -195,7 +196,8 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
         u[j] = min(max(vtx, xs[0]), xs[-1])
         red = max(1.0, float(ys.min()) / max(n - len(params), 1))
         thresh = max(3.84 * red, 2 * scatter)
-        half[j] = min(math.sqrt(thresh / a), 1.0) if a > 0 else 1.0
+        # the widest of the passes: a narrow scan of a rough valley understates it
+        half[j] = max(half.get(j, 0.0), min(math.sqrt(thresh / a), 1.0) if a > 0 else 1.0)
     c0 = chi2(u)
     interval: dict = {}
     for j, (e, p) in enumerate(params):
