@@ -343,16 +343,13 @@ def synth(
     from .scan import parse_amplitudes
     try:
         effects = dict(parse_effect(e) for e in effect)
+        amps = parse_amplitudes(amplitudes)
         if "tracking_noise" in effects:
             noise_xy_mm = effects["tracking_noise"]["noise_xy_mm"]
             noise_theta_deg = effects["tracking_noise"]["noise_theta_deg"]
         if out.exists() and any(out.glob("*.csv")):
             raise UserError(f"{out} already holds data; choose an empty folder")
-        if not out.exists():
-            if not out.parent.is_dir():
-                raise UserError(f"output directory {out.parent} does not exist")
-            out.mkdir()
-        written = make(out, robots=robots, trials=trials, periods=periods, amplitudes=parse_amplitudes(amplitudes),
+        written = make(out, robots=robots, trials=trials, periods=periods, amplitudes=amps,
                        effects=effects, noise_xy_mm=noise_xy_mm, noise_theta_deg=noise_theta_deg,
                        arm_noise_deg=arm_noise_deg, arms_tracked=not no_arms, frame_rate_hz=frame_rate,
                        occlusion=occlusion, arm_bias_deg=arm_bias_deg, separation_w=separation, seed=seed)

@@ -161,21 +161,29 @@ def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> 
         amps = [s["amplitude_deg"] for s in summaries]
         common += [p.name for p in plots.pb_curve(amps, [s["pb_end"] for s in summaries],
                                                    [s["pb_throughout"] for s in summaries], out)]
-        nan = float("nan")
-        panels = {
-            r"$\beta$": ([(s.get("beta") or {}).get("value") or nan for s in summaries],
-                         [(s.get("beta") or {}).get("err") or nan for s in summaries]),
-            r"$V_{com}$ (W/period)": ([(s.get("v_com") or {}).get("W_per_period") or nan for s in summaries],
-                                      [(s.get("v_com") or {}).get("sem_W_per_period") or nan for s in summaries]),
-            "steady |r| (W)": ([s["steady_r"]["mean_W"] or nan for s in summaries],
-                               [s["steady_r"]["std_W"] or nan for s in summaries]),
-        }
-        common += [p.name for p in plots.versus_amplitude(amps, panels, out)]
+        common += [p.name for p in plots.versus_amplitude(amps, amplitude_panels(summaries), out)]
     report = {"store": str(store_path), "versions": {k: st.attrs.get(k) for k in ("package", "mujoco", "jax")},
               "scan": st.config["scan"], "runs": summaries, "figures": {"runs": figs, "common": common}}
     (out / "report.json").write_text(json.dumps(report, indent=1, default=json_default))
     (out / "report.md").write_text(markdown(report))
     return report
+
+
+def amplitude_panels(summaries: list[dict]) -> dict:
+    """beta, V_com and steady |r| of run summaries, as ``plots.versus_amplitude`` panels (NaN if missing)."""
+    nan = float("nan")
+
+    def get(s, block, key):
+        v = (s.get(block) or {}).get(key)
+        return nan if v is None else v
+
+    return {
+        r"$\beta$ (gliders)": ([get(s, "beta", "value") for s in summaries], [get(s, "beta", "err") for s in summaries]),
+        r"$V_{com}$ (W/period)": ([get(s, "v_com", "W_per_period") for s in summaries],
+                                  [get(s, "v_com", "sem_W_per_period") for s in summaries]),
+        "steady |r| (W)": ([get(s, "steady_r", "mean_W") for s in summaries],
+                           [get(s, "steady_r", "std_W") for s in summaries]),
+    }
 
 
 def json_default(x):

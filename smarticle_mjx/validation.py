@@ -18,7 +18,7 @@ import numpy as np
 from . import plots
 from .configs import TWO_PI
 from .reduce import binding, gliders as GL, transport
-from .report import analyse_run, json_default
+from .report import amplitude_panels, analyse_run, json_default
 from .scan import _params_json, load_study, run_scan
 from .scene import SceneParams
 from .store import Store, _journal
@@ -108,7 +108,7 @@ def _verdict(ok) -> str:
 
 
 def _circ_mean_deg(a):
-    return float(np.degrees(np.angle(np.exp(1j * np.asarray(a, float)).mean())) % 360)
+    return float(np.degrees(GL.circular_mean(a)) % 360)
 
 
 def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Path) -> dict:
@@ -190,7 +190,7 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
     th = d["config"][:, 1]
     att = lab == binding.ATTRACTED
     axis = _circ_mean_deg(th[att]) if att.any() else float("nan")
-    # mirror score: fraction of theta bins whose attracted fraction matches the bin mirrored about 270
+    # mirror score: correlation of the attracted fraction per theta bin with that of the bin mirrored about 270
     bins = np.linspace(0, TWO_PI, 37)
     idx = np.clip(np.digitize(th, bins) - 1, 0, 35)
     ok = lab != binding.INVALID
@@ -214,7 +214,8 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
 
     # 4. transport exponents: square gait at 90 deg and the time-symmetric gait
     sd = Store(stores["diagonal_90"])
-    adiag = analyse_run(sd, sd.runs[0])["summary"]
+    adiag_full = analyse_run(sd, sd.runs[0])
+    adiag = adiag_full["summary"]
     b90, bd = s90.get("beta") or {}, adiag.get("beta") or {}
     extra["diagonal_90"] = adiag
     rows.append({"claim": "gliders at 90° move nearly ballistically (β ≈ 1.8)", "note": NOTES["beta"], "paper": "Fig. 3A, 3C",
@@ -261,7 +262,8 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
 
     # 6-7. amplitude sweep: steady |r| and P_b
     sa = Store(stores["amplitude"])
-    sums = [analyse_run(sa, r)["summary"] for r in sa.runs]
+    amp_runs = [analyse_run(sa, r) for r in sa.runs]
+    sums = [a["summary"] for a in amp_runs]
     extra["amplitude"] = sums
     amps = [s["amplitude_deg"] for s in sums]
     r_ss = np.array([s["steady_r"]["mean_W"] if s["steady_r"]["mean_W"] is not None else np.nan for s in sums])
@@ -289,23 +291,14 @@ def evaluate(stores: dict[str, pathlib.Path], singles: dict, figures: pathlib.Pa
                  "test": "every P_b(end) at 40–60° below the means at 10–30° and at 70–90°",
                  "verdict": _verdict(okp)})
     made += fig(plots.pb_curve(amps, [s["pb_end"] for s in sums], [s["pb_throughout"] for s in sums], figures))
-    nan = float("nan")
-    made += fig(plots.versus_amplitude(amps, {
-        r"$\beta$ (gliders)": ([(s.get("beta") or {}).get("value") or nan for s in sums],
-                               [(s.get("beta") or {}).get("err") or nan for s in sums]),
-        r"$V_{com}$ (W/period)": ([(s.get("v_com") or {}).get("W_per_period") or nan for s in sums],
-                                  [(s.get("v_com") or {}).get("sem_W_per_period") or nan for s in sums]),
-        "steady |r| (W)": (r_ss, [s["steady_r"]["std_W"] or nan for s in sums])}, figures, "vs_amplitude"))
+    made += fig(plots.versus_amplitude(amps, amplitude_panels(sums), figures, "vs_amplitude"))
     curves = {}
-    for label, store, run in (("90° square", st, st.runs[0]), ("90° diagonal", sd, sd.runs[0])):
-        a = analyse_run(store, run)["arrays"]
-        if "msd" in a:
-            curves[label] = a["msd"]
-    for s, r in zip(sums, sa.runs):
-        if s["amplitude_deg"] in (10, 50, 90):
-            a = analyse_run(sa, r)["arrays"]
-            if "msd" in a:
-                curves[f"{s['amplitude_deg']:g}° (sweep)"] = a["msd"]
+    for label, a in (("90° square", a90), ("90° diagonal", adiag_full)):
+        if "msd" in a["arrays"]:
+            curves[label] = a["arrays"]["msd"]
+    for a in amp_runs:
+        if a["summary"]["amplitude_deg"] in (10, 50, 90) and "msd" in a["arrays"]:
+            curves[f"{a['summary']['amplitude_deg']:g}° (sweep)"] = a["arrays"]["msd"]
     made += fig(plots.msd_curves(curves, figures))
     return {"rows": rows, "extra": extra, "figures": made}
 

@@ -133,6 +133,9 @@ def test_smx_synth_and_calibrate_write_the_report_and_refuse_to_clobber(tmp_path
     assert r.exit_code == 2 and "already holds data" in r.output
     r = run.invoke(app, ["synth", str(tmp_path / "d2"), "--effect", "plate_tilt:tilt_x_deg=9"])
     assert r.exit_code == 2 and "outside" in r.output and not (tmp_path / "d2").exists()
+    for bad in (["--amplitudes", "95"], ["--amplitudes", "ten"], ["--trials", "0"]):
+        r = run.invoke(app, ["synth", str(tmp_path / "d3"), *bad])
+        assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and not (tmp_path / "d3").exists()
 
 
 def test_cases_cover_the_whole_library():

@@ -85,7 +85,7 @@ def _gait(meta: dict, where: str) -> GaitSpec:
     return spec
 
 
-def _params(meta: dict, where: str) -> SceneParams:
+def _params(meta: dict, gait: GaitSpec, where: str) -> SceneParams:
     robot = RobotParams()
     over = meta.get("robot") or {}
     fields = {f.name for f in dataclasses.fields(RobotParams)}
@@ -99,7 +99,7 @@ def _params(meta: dict, where: str) -> SceneParams:
         params = params.replace(plate_friction=float(plate["friction"]))
     try:
         params.validate()
-        _gait(meta, where).validate(robot.servo_speed, robot.arm_limit_deg)
+        gait.validate(robot.servo_speed, robot.arm_limit_deg)
     except ValueError as e:
         raise DataError(f"{where}: {e}") from None
     return params
@@ -124,7 +124,8 @@ def load_csv(path) -> list[Trial]:
     path = pathlib.Path(path)
     where = path.name
     meta = _sidecar(path)
-    gait, params = _gait(meta, where), _params(meta, where)
+    gait = _gait(meta, where)
+    params = _params(meta, gait, where)
     n = int(meta["robots"])
     if n < 1:
         raise DataError(f"{where}: robots must be >= 1")

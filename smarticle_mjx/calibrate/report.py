@@ -7,18 +7,12 @@ import pathlib
 
 import numpy as np
 
+from ..plots import _mpl
 from ..report import json_default
 from .data import Trial
 from .effects import BY_NAME, EffectSet
 from .residuals import BINS, DEG, metrics
 from .sim import simulate_trials
-
-
-def _mpl():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
 
 
 def _num(x, spec=".3g"):

@@ -68,7 +68,7 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
           jitter_s: float = 0.002, occlusion: float = 0.03, arm_bias_deg: float = 0.0,
           separation_w: float = 3.0, chirality: str = "ccw", seed: int = 0,
           params: SceneParams = SceneParams()) -> list[pathlib.Path]:
-    """Write trials per amplitude into ``out_dir``; returns the CSV paths.
+    """Write trials per amplitude into ``out_dir`` (created if absent); returns the CSV paths.
 
     Trials of every amplitude are interleaved in the files' trial ids so
     that a held-out split sees every amplitude.
@@ -80,14 +80,18 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
         raise ValueError("frame rate must be positive, occlusion in [0, 0.5), jitter below half a frame")
     if min(noise_xy_mm, noise_theta_deg, arm_noise_deg) < 0:
         raise ValueError("noise levels must be >= 0")
-    if not out_dir.is_dir():
-        raise ValueError(f"output directory {out_dir} does not exist")
+    gaits = [GaitSpec(amplitude_deg=float(a), chirality=chirality) for a in amplitudes]
+    for gait in gaits:
+        gait.validate(params.robot.servo_speed, params.robot.arm_limit_deg)
+    if not out_dir.parent.is_dir():
+        raise ValueError(f"output directory {out_dir.parent} does not exist")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"{out_dir} exists and is not a directory")
+    out_dir.mkdir(exist_ok=True)  # only once every input is known to be good
     rng = np.random.default_rng(seed)
     eff = EffectSet.of({k: v for k, v in (effects or {}).items() if k != "tracking_noise"})
     written = []
-    for amp in amplitudes:
-        gait = GaitSpec(amplitude_deg=float(amp), chirality=chirality)
-        gait.validate(params.robot.servo_speed, params.robot.arm_limit_deg)
+    for amp, gait in zip(amplitudes, gaits):
         T = gait.period()
         templates = []
         for k in range(trials):
