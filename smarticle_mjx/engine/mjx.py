@@ -8,6 +8,9 @@ Amplitude, chirality, gait kind and phase offsets are traced per lane.
 MJX has no subtree contact sensor, so touches are read from the contact list
 directly: MJX's contact slots are fixed per model, so each slot's robot pair
 is known ahead of time (``_pair_matrix``).
+
+Capsule–box (arm–body) contacts use smarticle_mjx's own collider
+(:mod:`.mjx_collision`): MJX's misses contacts at the robots' millimetre scale.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy as np
 from mujoco import mjx
 
 from .. import gait as gait_mod
+from . import mjx_collision
 from .core import Lanes, PeriodRecords, Scene, Status, on_step_grid, steps_per_period
 
 
@@ -50,6 +54,7 @@ class MjxBackend:
 
     def __init__(self, scene: Scene, penetration_limit: float = 0.002):
         self.scene = scene
+        mjx_collision.install()  # before any trace: MJX's capsule-box misses contacts at this scale
         self.model = mujoco.MjModel.from_xml_string(_strip_sensors(scene.xml))
         self.mx = mjx.put_model(self.model)
         self.slots = jnp.asarray(_contact_slots(scene, self.model, self.mx))

@@ -1,0 +1,123 @@
+"""smarticle_mjx's capsule–box collider for MJX (arm against body)."""
+
+import jax
+import mujoco
+import numpy as np
+import pytest
+
+from smarticle_mjx.engine import mjx_collision as mc
+from smarticle_mjx.engine.core import Scene
+from smarticle_mjx.scene import SceneParams
+
+BOX = np.array([0.025, 0.011, 0.0125])  # the robot body's half-sizes
+R, H = 0.0015, 0.02625                  # arm radius and half-length
+contacts = jax.jit(mc.capsule_box_contacts)
+
+
+def _capsule_along(direction, centre):
+    """Capsule frame whose z axis (the capsule axis) is ``direction``."""
+    z = np.asarray(direction, float) / np.linalg.norm(direction)
+    x = np.cross([0.0, 0.0, 1.0], z) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x /= np.linalg.norm(x)
+    mat = np.stack([x, np.cross(z, x), z], axis=1)
+    return np.asarray(centre, float), mat, np.array([R, H, 0.0])
+
+
+def _run(centre, direction, box_pos=np.zeros(3), box_mat=np.eye(3)):
+    pos, mat, size = _capsule_along(direction, centre)
+    d, p, n = contacts(pos, mat, size, box_pos, box_mat, BOX)
+    return np.asarray(d), np.asarray(p), np.asarray(n)
+
+
+def test_arm_lying_along_a_face_gets_two_separate_contacts_at_the_true_depth():
+    """An arm parallel to the +y face, 0.4 mm into it, presses along its
+    length: two contacts far apart, each 0.4 mm deep, pushing along +y
+    (normal from capsule to box is -y, to 1 mrad: the depth is flat along the
+    face, so in float32 a contact may sit at the face's end, where the
+    52.5 mm arm overhangs the 50 mm body)."""
+    d, p, n = _run([0.0, BOX[1] + R - 0.0004, 0.0], [1.0, 0.0, 0.0])
+    np.testing.assert_allclose(d, -0.0004, atol=1e-7)
+    assert abs(p[0, 0] - p[1, 0]) > 0.02 and np.abs(p[:, 0]).max() <= BOX[0] + 1e-6
+    np.testing.assert_allclose(n, [[0, -1, 0], [0, -1, 0]], atol=1e-3)
+
+
+def test_corner_touch_is_one_contact_at_the_distance_to_the_edge():
+    """An arm crossing the body's vertical edge at (+x, +y) diagonally, its
+    axis 1.0 mm from the edge: the nearest body point is on the edge, so the
+    contact is 0.5 mm deep (radius 1.5 mm minus 1.0 mm), pushes along the
+    diagonal, and there is no second one."""
+    gap = R - 0.0005                                  # axis 1.0 mm from the edge: 0.5 mm deep
+    corner = np.array([BOX[0], BOX[1], 0.0])
+    out = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
+    d, p, n = _run(corner + out * gap, [1.0, -1.0, 0.0])
+    assert d[0] == pytest.approx(gap - R, abs=1e-7)
+    assert d[1] > 0, "a corner touch is counted once"
+    np.testing.assert_allclose(n[0], -out, atol=1e-5)
+
+
+def test_separated_arm_reports_its_gap_and_no_contact():
+    d, _, _ = _run([0.0, BOX[1] + R + 0.002, 0.0], [1.0, 0.0, 0.0])
+    assert d.min() == pytest.approx(0.002, abs=1e-7)
+
+
+def _brute(cap_pos, cap_mat, box_pos, box_mat):
+    t = np.linspace(-1, 1, 20001)[:, None]
+    x = (cap_pos + t * H * cap_mat[:, 2] - box_pos) @ box_mat
+    q = np.abs(x) - BOX
+    return (np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(1), 0)).min() - R
+
+
+def test_random_near_contact_poses_match_brute_force_and_mujoco():
+    """Over random arm-vs-body poses of the pair scene near contact, the
+    deepest distance equals a brute-force one (20001 points along the axis)
+    within 0.01 mm, and MuJoCo's own collision within 0.01 mm."""
+    scene = Scene.build(SceneParams(), 2)
+    m = scene.model
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(3)
+    box = next(g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX)
+    root = m.body_rootid
+    caps = [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_CAPSULE
+            and root[m.geom_bodyid[g]] != root[m.geom_bodyid[box]]]
+    assert len(caps) == 2
+    checked = 0
+    for _ in range(4000):
+        poses = np.zeros((2, 5))
+        ang = rng.uniform(-np.pi, np.pi)
+        poses[1, :2] = rng.uniform(0.02, 0.07) * np.array([np.cos(ang), np.sin(ang)])
+        poses[:, 2] = rng.uniform(-np.pi, np.pi, 2)
+        poses[:, 3:] = rng.uniform(-np.pi / 2, np.pi / 2, (2, 2))
+        d.qpos[:] = scene.qpos_from_poses(poses[None])[0]
+        mujoco.mj_kinematics(m, d)
+        for cap in caps:
+            args = (d.geom_xpos[cap], d.geom_xmat[cap].reshape(3, 3), d.geom_xpos[box], d.geom_xmat[box].reshape(3, 3))
+            truth = _brute(*args)
+            if abs(truth) > 0.001:
+                continue
+            dist = float(np.asarray(contacts(args[0], args[1], m.geom_size[cap], args[2], args[3], BOX)[0]).min())
+            assert dist == pytest.approx(truth, abs=1e-5)
+            ft = np.zeros(6)
+            assert mujoco.mj_geomDistance(m, d, cap, box, 0.01, ft) == pytest.approx(truth, abs=1e-5)
+            checked += 1
+    assert checked >= 20
+
+
+def test_install_replaces_mjx_capsule_box_once_and_uninstall_restores_it():
+    from mujoco.mjx._src import collision_driver as cd
+    from mujoco.mjx._src.collision_convex import capsule_convex
+    from mujoco.mjx._src.types import GeomType
+    key = (GeomType.CAPSULE, GeomType.BOX)
+    try:
+        mc.uninstall()
+        assert cd._COLLISION_FUNC[key] is capsule_convex
+        mc.install()
+        ours = cd._COLLISION_FUNC[key]
+        assert getattr(ours, "smarticle_mjx", False) and ours.ncon == 2
+        mc.install()
+        assert cd._COLLISION_FUNC[key] is ours
+        cd._COLLISION_FUNC[key] = cd._COLLISION_FUNC[(GeomType.CAPSULE, GeomType.CAPSULE)]
+        with pytest.raises(RuntimeError, match="not the one smarticle_mjx replaces"):
+            mc.install()
+    finally:
+        mc.uninstall()
+        mc.install()
