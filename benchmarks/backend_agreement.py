@@ -30,6 +30,7 @@ def main():
     ap.add_argument("--periods", type=int, default=20)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "backend_agreement.json"))
+    ap.add_argument("--raw", default=None, help="also save per-lane records (.npz) here")
     args = ap.parse_args()
     params, gait = S.SceneParams(), GaitSpec(90.0)
     a0 = gait.setpoints(0.0, params.robot.servo_speed)
@@ -38,7 +39,7 @@ def main():
     lanes = Lanes.from_gait(poses, gait)
     scene = Scene.build(params, 2)
     out = {"configs": len(poses), "periods": args.periods}
-    touched, status = {}, {}
+    touched, status, raw = {}, {}, {}
     for name in ("native", "mjx"):
         be = make_backend(name, scene)
         t = time.perf_counter()
@@ -47,6 +48,8 @@ def main():
         touched[name] = rec.touched[:, :, 0]
         out[f"{name}_bad_status"] = int((rec.status != 0).sum())
         status[name] = np.asarray(rec.status)
+        raw.update({f"{name}_touched": rec.touched, f"{name}_min_dist": rec.min_dist,
+                    f"{name}_status": status[name], f"{name}_poses": rec.poses})
         out[f"{name}_status_bits"] = {b.name: int(((status[name] & int(b)) != 0).sum())
                                       for b in (Status.NONFINITE, Status.PENETRATION)}
         print(f"{name}: {out[f'{name}_wall_s']:.0f} s", flush=True)
@@ -69,6 +72,8 @@ def main():
           f"{out['disagreements_in_flagged_lanes']} of {out['disagreements']} disagreements are in flagged lanes; "
           f"agreement on the {out['lanes_ok_on_both']} lanes unflagged on both: {out['agree_bound_end_ok_lanes']}")
     pathlib.Path(args.out).write_text(json.dumps(out, indent=2))
+    if args.raw:
+        np.savez_compressed(args.raw, initial_poses=poses, **raw)
 
 
 if __name__ == "__main__":

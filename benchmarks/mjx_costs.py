@@ -1,5 +1,7 @@
 """Where MJX's time goes on this CPU: the pair scene with one cost removed at
-a time, same batch, same steps, ratios against the full model in one run.
+a time, same batch, same steps, ratios against the full model in one run
+(the full model uses smarticle_mjx's capsule-box collider, as the engine does;
+one row puts MJX's own back).
 
     python benchmarks/mjx_costs.py --batch 128 --steps 100
 """
@@ -17,6 +19,7 @@ import mujoco
 from mujoco import mjx
 
 from smarticle_mjx import scene as S
+from smarticle_mjx.engine import mjx_collision
 from smarticle_mjx.engine.mjx import _strip_sensors
 
 VARIANTS = {
@@ -24,6 +27,8 @@ VARIANTS = {
     "pyramidal cone": lambda x: x.replace('cone="elliptic"', 'cone="pyramidal"'),
     "no body-body collision": lambda x: x.replace("</contact>", '<exclude body1="r0" body2="r1"/></contact>'),
     "solver 1 iteration": lambda x: x.replace('iterations="20" ls_iterations="10"', 'iterations="1" ls_iterations="1"'),
+    # the same full model with MJX's own capsule-box routine (see engine/mjx_collision.py)
+    "MJX's capsule-box": lambda x: x,
     # (disabling contacts altogether crashes MJX 3.17's solver on an empty
     # constraint set, so the contact cost is bounded by the rows above)
 }
@@ -57,6 +62,7 @@ def main():
     rows = {}
     print(f"MJX on {jax.devices()[0].device_kind}, pair scene, batch {args.batch}, {args.steps} steps")
     for name, edit in VARIANTS.items():
+        (mjx_collision.uninstall if name == "MJX's capsule-box" else mjx_collision.install)()
         r, c = rate(edit(base), args.batch, args.steps)
         rows[name] = {"steps_per_s": r, "compile_s": c}
         print(f"{name:>24}: {r:9,.0f} steps/s  (x{r / rows['full model']['steps_per_s']:.2f})  compile {c:.0f} s",

@@ -121,3 +121,12 @@ def test_install_replaces_mjx_capsule_box_once_and_uninstall_restores_it():
     finally:
         mc.uninstall()
         mc.install()
+
+
+def test_the_mjx_backend_runs_with_this_collider():
+    from mujoco.mjx._src import collision_driver as cd
+    from mujoco.mjx._src.types import GeomType
+    from smarticle_mjx.engine import make_backend
+    mc.uninstall()
+    make_backend("mjx", Scene.build(SceneParams(), 2))
+    assert getattr(cd._COLLISION_FUNC[(GeomType.CAPSULE, GeomType.BOX)], "smarticle_mjx", False)
