@@ -26,7 +26,7 @@ VARIANTS = {
     "full model": lambda x: x,
     "pyramidal cone": lambda x: x.replace('cone="elliptic"', 'cone="pyramidal"'),
     "no body-body collision": lambda x: x.replace("</contact>", '<exclude body1="r0" body2="r1"/></contact>'),
-    "solver 1 iteration": lambda x: x.replace('iterations="20" ls_iterations="10"', 'iterations="1" ls_iterations="1"'),
+    "solver 1 iteration": lambda x: x.replace('iterations="20" ls_iterations="50"', 'iterations="1" ls_iterations="1"'),
     # the same full model with MJX's own capsule-box routine (see engine/mjx_collision.py)
     "MJX's capsule-box": lambda x: x,
     # (disabling contacts altogether crashes MJX 3.17's solver on an empty

@@ -136,7 +136,12 @@ class SceneParams:
     contact_solimp: tuple[float, float, float] = (0.95, 0.99, 0.001)
     timestep: float = 2.5e-4  # chosen by benchmarks/timestep_convergence.py (docs/timestep.md)
     iterations: int = 20
-    ls_iterations: int = 10
+    # MuJoCo's default. At the impact of an arm on a body the C solver's line
+    # search needs up to ~23 evaluations; capped at 10 it stopped early with
+    # the gradient still large on ~1 % of a colliding pair's steps, qacc off
+    # by up to 2.5x (benchmarks/solver_convergence.py). MJX converged anyway,
+    # so this was the seed of most MJX-vs-native label differences.
+    ls_iterations: int = 50
     tolerance: float = 1e-8
     boundary_radius: float | None = None  # optional circular wall (m)
     boundary_segments: int = 48
