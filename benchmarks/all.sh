@@ -7,6 +7,7 @@ PY=${PY:-.venv/bin/python}
 $PY benchmarks/engine.py
 $PY benchmarks/mjx_costs.py
 $PY benchmarks/mjx_collision.py
+$PY benchmarks/solver_convergence.py
 $PY benchmarks/backend_agreement.py --configs 200 --periods 20
 $PY benchmarks/timestep_convergence.py --configs 100 --periods 20
 $PY benchmarks/label_sensitivity.py

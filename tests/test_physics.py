@@ -1,5 +1,6 @@
 """Physics the study depends on (native MuJoCo backend)."""
 
+import dataclasses
 import math
 
 import mujoco
@@ -191,3 +192,25 @@ def test_records_touch_matches_contacts_and_separation():
 def test_overlapping_start_is_refused():
     with pytest.raises(ValueError, match="overlap"):
         simulate(P, C.pair_poses(0.2, 0.0, 0.0, A0[0], A0[1]), GAIT, periods=1)
+
+
+def test_contact_forces_come_from_a_converged_solve():
+    """An arm striking its neighbour's body is the stiffest event a pair sees:
+    MuJoCo's Newton solver then needs up to ~25 line-search evaluations. With
+    the scene's solver settings, every step of two colliding pairs' first
+    period has the accelerations of a solve that cannot stop early (within
+    0.1 % of the largest). The same census does catch a solver that stops
+    early: capped at 10 evaluations (the setting before) the line search
+    ends short, the solver takes the small improvement for convergence and
+    some impacts come out wrong."""
+    from smarticle_mjx.engine import Lanes, Scene
+    from smarticle_mjx.engine.solver_check import solver_census
+
+    poses = C.sample_valid_pairs(2, np.random.default_rng(7), (0.8, 2.0), A0[0], A0[1])
+    lanes = Lanes.from_gait(poses, GAIT)
+    nsteps = int(round(GAIT.period() / P.timestep))
+    got = solver_census(Scene.build(P, 2), lanes, nsteps)
+    assert got.multi_iteration_solves > 50, "the pairs must collide"
+    assert got.unconverged == 0, got
+    capped = solver_census(Scene.build(dataclasses.replace(P, ls_iterations=10), 2), lanes, nsteps)
+    assert capped.unconverged > 0, capped

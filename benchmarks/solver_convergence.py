@@ -1,0 +1,84 @@
+"""Does MuJoCo's constraint solver converge at the impacts a pair sees?
+
+For each ``ls_iterations`` cap, steps colliding pairs through their first
+gait periods with MuJoCo C and, at every step where the solver ran more than
+one iteration, re-solves the same state (same warm start) with a tightly
+converged solver (1000 iterations, 1000 line-search evaluations). A step is
+*unconverged* when its accelerations differ from the reference by more than
+0.1 % of the largest one. Also times the native backend with each cap on the
+same lanes, interleaved, so the cost is a ratio measured in one run.
+
+    python benchmarks/solver_convergence.py --configs 8 --periods 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import pathlib
+import time
+
+import numpy as np
+
+from smarticle_mjx import configs as C
+from smarticle_mjx import scene as S
+from smarticle_mjx.engine import Lanes, Scene, make_backend
+from smarticle_mjx.engine.core import on_step_grid
+from smarticle_mjx.engine.solver_check import REL_TOL, solver_census
+from smarticle_mjx.gait import GaitSpec
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--configs", type=int, default=8)
+    ap.add_argument("--periods", type=int, default=1)
+    ap.add_argument("--caps", default="10,20,30,50")
+    ap.add_argument("--repeats", type=int, default=3, help="interleaved timing rounds")
+    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "solver_convergence.json"))
+    args = ap.parse_args()
+    caps = [int(c) for c in args.caps.split(",")]
+    base, gait = S.SceneParams(), GaitSpec(90.0)
+    a0 = gait.setpoints(0.0, base.robot.servo_speed)
+    # the agreement benchmark's sample (same seed and range): pairs that start close
+    poses = C.sample_valid_pairs(args.configs, np.random.default_rng(args.seed), (0.8, 2.0), a0[0], a0[1])
+    lanes = on_step_grid(Lanes.from_gait(poses, gait), base.timestep)
+    nsteps = args.periods * int(round(lanes.period / base.timestep))
+    scenes = {ls: Scene.build(dataclasses.replace(base, ls_iterations=ls), 2) for ls in caps}
+    rows = []
+    for ls in caps:
+        t = time.perf_counter()
+        row = dict(ls_iterations=ls, **dataclasses.asdict(solver_census(scenes[ls], lanes, nsteps)))
+        row["unconverged_fraction"] = row["unconverged"] / row["steps"]
+        row["census_s"] = time.perf_counter() - t
+        rows.append(row)
+        print(f"ls_iterations {ls:3d}: {row['unconverged']:4d} of {row['steps']} steps unconverged "
+              f"({row['unconverged_fraction']:.2%}), worst {row['worst_relative_error']:.1e} of max|qacc|, "
+              f"line search used up to {row['max_line_search_evals']} evaluations", flush=True)
+    # cost: the native backend on the same lanes, caps interleaved
+    backends = {ls: make_backend("native", scenes[ls]) for ls in caps}
+    wall = {ls: [] for ls in caps}
+    for _ in range(args.repeats):
+        for ls in caps:
+            be = backends[ls]
+            t = time.perf_counter()
+            be.advance(be.initial_state(lanes), lanes, args.periods)
+            wall[ls].append(time.perf_counter() - t)
+    ref_cap = base.ls_iterations
+    for row in rows:
+        ls = row["ls_iterations"]
+        row["native_steps_per_s"] = nsteps * lanes.size / min(wall[ls])
+        row["native_cost_vs_default"] = min(wall[ls]) / min(wall[ref_cap]) if ref_cap in wall else None
+    print("\n| ls_iterations | unconverged steps | worst error (of max |qacc|) | native steps/s | cost vs default |")
+    print("| --- | --- | --- | --- | --- |")
+    for r in rows:
+        cost = f"{r['native_cost_vs_default']:.2f}" if r["native_cost_vs_default"] else "—"
+        print(f"| {r['ls_iterations']} | {r['unconverged']} ({r['unconverged_fraction']:.2%}) | "
+              f"{r['worst_relative_error']:.1e} | {r['native_steps_per_s'] / 1e3:.1f}k | {cost} |")
+    out = dict(configs=lanes.size, periods=args.periods, iterations=base.iterations, default_cap=ref_cap,
+               rel_tol=REL_TOL, rows=rows)
+    pathlib.Path(args.out).write_text(json.dumps(out, indent=2))
+
+
+if __name__ == "__main__":
+    main()
