@@ -38,10 +38,12 @@ def main():
     poses = C.sample_valid_pairs(args.configs, rng, (0.8, 2.0), a0[0], a0[1])
     lanes = Lanes.from_gait(poses, gait)
     scene = Scene.build(params, 2)
-    out = {"configs": len(poses), "periods": args.periods}
+    out = {"configs": len(poses), "periods": args.periods, "native_ls_iterations": params.ls_iterations}
     touched, status, raw = {}, {}, {}
     for name in ("native", "mjx"):
         be = make_backend(name, scene)
+        if name == "mjx":
+            out["mjx_ls_iterations"] = int(be.model.opt.ls_iterations)
         t = time.perf_counter()
         _, rec, _ = be.advance(be.initial_state(lanes), lanes, args.periods)
         out[f"{name}_wall_s"] = time.perf_counter() - t

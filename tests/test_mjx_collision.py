@@ -1,4 +1,4 @@
-"""smarticle_mjx's capsule–box collider for MJX (arm against body)."""
+"""smarticle_mjx's capsule–box (arm against body) and capsule–capsule (arm against arm) colliders for MJX."""
 
 import jax
 import mujoco
@@ -102,22 +102,97 @@ def test_random_near_contact_poses_match_brute_force_and_mujoco():
     assert checked >= 20
 
 
-def test_install_replaces_mjx_capsule_box_once_and_uninstall_restores_it():
+def _arm_arm_contacts(n_poses: int, seed: int):
+    """MuJoCo C's arm-arm contacts of the pair scene over random poses:
+    (capsule 1 pos, mat, size, capsule 2 pos, mat, size, C's dist, C's normal)."""
+    scene = Scene.build(SceneParams(), 2)
+    m = scene.model
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(seed)
+    capsule = m.geom_type == mujoco.mjtGeom.mjGEOM_CAPSULE
+    out = []
+    for _ in range(n_poses):
+        poses = np.zeros((2, 5))
+        ang = rng.uniform(-np.pi, np.pi)
+        poses[1, :2] = rng.uniform(0.03, 0.08) * np.array([np.cos(ang), np.sin(ang)])
+        poses[:, 2] = rng.uniform(-np.pi, np.pi, 2)
+        poses[:, 3:] = rng.uniform(-np.pi / 2, np.pi / 2, (2, 2))
+        d.qpos[:] = scene.qpos_from_poses(poses[None])[0]
+        mujoco.mj_forward(m, d)
+        for c in d.contact[:d.ncon]:
+            g1, g2 = c.geom
+            if capsule[g1] and capsule[g2]:
+                out.append((d.geom_xpos[g1].copy(), d.geom_xmat[g1].reshape(3, 3).copy(), m.geom_size[g1].copy(),
+                            d.geom_xpos[g2].copy(), d.geom_xmat[g2].reshape(3, 3).copy(), m.geom_size[g2].copy(),
+                            float(c.dist), c.frame[:3].copy()))
+    return out
+
+
+def test_arm_arm_contacts_match_mujoco_where_mjx_tilts_the_normal():
+    """Two arms (capsules, 1.5 mm radius, 52.5 mm axis) touching: smarticle_mjx's
+    contact has MuJoCo's depth (within 1 µm) and MuJoCo's normal (within
+    0.1 mrad), so the contact force points the same way. MJX's own closest-
+    point routine divides by |ab|^2 + 1e-6 with |ab|^2 = 2.8e-3, which shifts
+    the closest point along the arm by up to ~20 µm and, beside a 3 mm centre
+    distance, tilts the normal by milliradians on the same contacts."""
+    from mujoco.mjx._src import math as mjx_math
+    # arms whose axes cross (overlap deeper than 2.9 mm of 3) have no
+    # meaningful normal; both libraries then use the axes' cross product
+    found = [c for c in _arm_arm_contacts(3000, seed=5) if c[6] > -0.0029]
+    assert len(found) >= 20, "the sample must contain arm-arm contacts"
+    ours = jax.jit(mc.capsule_capsule_contact)
+    theirs = jax.jit(mjx_math.closest_segment_to_segment_points)
+    worst_ours = worst_theirs = 0.0
+    for p1, m1, s1, p2, m2, s2, c_dist, c_normal in found:
+        dist, _, n = (np.asarray(x, float) for x in ours(p1, m1, s1, p2, m2, s2))
+        assert dist == pytest.approx(c_dist, abs=1e-6)
+        worst_ours = max(worst_ours, np.linalg.norm(n - c_normal))  # angle (rad), small-angle
+        h1, h2 = s1[1] * m1[:, 2], s2[1] * m2[:, 2]
+        a, b = (np.asarray(x, float) for x in theirs(p1 - h1, p1 + h1, p2 - h2, p2 + h2))
+        worst_theirs = max(worst_theirs, np.linalg.norm((b - a) / np.linalg.norm(b - a) - c_normal))
+    assert worst_ours < 1e-4, worst_ours
+    assert worst_theirs > 1e-3, worst_theirs
+
+
+def test_closest_points_of_crossing_parallel_nearly_parallel_and_end_to_end_segments():
+    """The exact closest points where shortcuts go wrong: segments crossing
+    at a gap (interior points), parallel segments overlapping (the middle of
+    the overlap, at the true gap), segments 1 mrad from parallel (the end of
+    the overlap where they are closest, not its middle: for two 52.5 mm arms
+    that is tens of micrometres deeper), and segments meeting end to end at
+    an angle (the two near ends)."""
+    f = jax.jit(mc.segment_closest_points)
+    a, b = f(np.array([-1.0, 0, 0]), np.array([1.0, 0, 0]), np.array([0.3, -1, 0.2]), np.array([0.3, 1, 0.2]))
+    np.testing.assert_allclose(np.stack([a, b]), [[0.3, 0, 0], [0.3, 0, 0.2]], atol=1e-6)
+    a, b = f(np.array([0.0, 0, 0]), np.array([1.0, 0, 0]), np.array([0.5, 0.1, 0]), np.array([1.5, 0.1, 0]))
+    np.testing.assert_allclose(np.stack([a, b]), [[0.75, 0, 0], [0.75, 0.1, 0]], atol=1e-6)
+    a, b = f(np.array([0.0, 0, 0]), np.array([1.0, 0, 0]), np.array([0.0, 0.1, 0]), np.array([1.0, 0.101, 0]))
+    np.testing.assert_allclose(np.stack([a, b]), [[0.0, 0, 0], [0.0, 0.1, 0]], atol=1e-6)
+    a, b = f(np.array([0.0, 0, 0]), np.array([1.0, 0, 0]), np.array([1.2, 0.1, 0]), np.array([2.0, 1.0, 0]))
+    np.testing.assert_allclose(np.stack([a, b]), [[1.0, 0, 0], [1.2, 0.1, 0]], atol=1e-6)
+
+
+def test_install_replaces_mjx_routines_once_and_uninstall_restores_them():
     from mujoco.mjx._src import collision_driver as cd
     from mujoco.mjx._src.collision_convex import capsule_convex
+    from mujoco.mjx._src.collision_primitive import capsule_capsule
     from mujoco.mjx._src.types import GeomType
-    key = (GeomType.CAPSULE, GeomType.BOX)
+    box_key, cap_key = (GeomType.CAPSULE, GeomType.BOX), (GeomType.CAPSULE, GeomType.CAPSULE)
     try:
         mc.uninstall()
-        assert cd._COLLISION_FUNC[key] is capsule_convex
+        assert cd._COLLISION_FUNC[box_key] is capsule_convex and cd._COLLISION_FUNC[cap_key] is capsule_capsule
         mc.install()
-        ours = cd._COLLISION_FUNC[key]
-        assert getattr(ours, "smarticle_mjx", False) and ours.ncon == 2
+        ours = cd._COLLISION_FUNC[box_key], cd._COLLISION_FUNC[cap_key]
+        assert all(getattr(f, "smarticle_mjx", False) for f in ours)
+        assert (ours[0].ncon, ours[1].ncon) == (2, 1)
         mc.install()
-        assert cd._COLLISION_FUNC[key] is ours
-        cd._COLLISION_FUNC[key] = cd._COLLISION_FUNC[(GeomType.CAPSULE, GeomType.CAPSULE)]
-        with pytest.raises(RuntimeError, match="not the one smarticle_mjx replaces"):
+        assert (cd._COLLISION_FUNC[box_key], cd._COLLISION_FUNC[cap_key]) == ours
+        # an MJX whose entry is not the routine replaced: refused, and nothing is changed
+        mc.uninstall()
+        cd._COLLISION_FUNC[cap_key] = cd._COLLISION_FUNC[(GeomType.SPHERE, GeomType.CAPSULE)]
+        with pytest.raises(RuntimeError, match="capsule-capsule collision entry is not the one smarticle_mjx"):
             mc.install()
+        assert cd._COLLISION_FUNC[box_key] is capsule_convex
     finally:
         mc.uninstall()
         mc.install()
@@ -130,3 +205,4 @@ def test_the_mjx_backend_runs_with_this_collider():
     mc.uninstall()
     make_backend("mjx", Scene.build(SceneParams(), 2))
     assert getattr(cd._COLLISION_FUNC[(GeomType.CAPSULE, GeomType.BOX)], "smarticle_mjx", False)
+    assert getattr(cd._COLLISION_FUNC[(GeomType.CAPSULE, GeomType.CAPSULE)], "smarticle_mjx", False)
