@@ -25,7 +25,7 @@ is 52.5 mm long, so ``|ab|^2`` is only 2.8e-3 and the point lands up to
 ~20 µm off along the arm. Beside a 3 mm centre distance that tilts the
 contact normal by up to ~0.4°, so every arm–arm contact's force came out in
 a slightly wrong direction: MJX's converged accelerations at arm–arm
-impacts differed from MuJoCo's by up to 0.5 % (float64 as well).
+impacts differed from MuJoCo's by up to 2 % of the largest (float64 as well).
 :func:`capsule_capsule_contact` computes the exact closest points of two
 segments (the smallest of six candidate pairs: the lines' solution and
 the four end projections cover every case; none is ill-conditioned near
