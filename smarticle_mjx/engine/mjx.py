@@ -50,9 +50,10 @@ def _contact_slots(scene: Scene, model: mujoco.MjModel, mx) -> np.ndarray:
 # MJX's line search is a fixed-length scan: under vmap every step pays for
 # all ls_iterations evaluations whether a lane needs them or not, so the cap
 # is MJX's cost. The scene's cap (50) is for MuJoCo C, whose search stops
-# when done. At every hard solve of colliding pairs (contact onsets, arm-body
-# impacts) MJX's solve with 6 evaluations is within 0.03 % of its own
-# converged one, with 10 within 1e-6 (benchmarks/solver_convergence.py).
+# when done. At all 14 055 hard solves of 8 colliding pairs' first period
+# (contact onsets, impacts) MJX's solve with 6 or 10 evaluations is within
+# 0.03 % of its own converged one, with 2 it is off at 1112; 20 costs 1.57x
+# of 10 (benchmarks/solver_convergence.py).
 LS_ITERATIONS = 10
 
 
