@@ -34,6 +34,18 @@ from smarticle_mjx.engine.core import on_step_grid
 from smarticle_mjx.engine.solver_check import MJX_REFERENCE, REL_TOL, mjx_solver_census, solver_census
 from smarticle_mjx.gait import GaitSpec
 
+def interleaved_walls(backends: dict, lanes, periods: int, repeats: int) -> dict:
+    """Wall seconds per backend, ``repeats`` rounds with the backends interleaved
+    (so a ratio is measured in one run on a noisy machine)."""
+    wall = {k: [] for k in backends}
+    for _ in range(repeats):
+        for k, be in backends.items():
+            t = time.perf_counter()
+            be.advance(be.initial_state(lanes), lanes, periods)
+            wall[k].append(time.perf_counter() - t)
+    return wall
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--configs", type=int, default=8)
@@ -63,14 +75,8 @@ def main():
               f"({row['unconverged_fraction']:.2%}), worst {row['worst_relative_error']:.1e} of max|qacc|, "
               f"line search used up to {row['max_line_search_evals']} evaluations", flush=True)
     # cost: the native backend on the same lanes, caps interleaved
-    backends = {ls: make_backend("native", scenes[ls]) for ls in caps}
-    wall = {ls: [] for ls in caps}
-    for _ in range(args.repeats):
-        for ls in caps:
-            be = backends[ls]
-            t = time.perf_counter()
-            be.advance(be.initial_state(lanes), lanes, args.periods)
-            wall[ls].append(time.perf_counter() - t)
+    wall = interleaved_walls({ls: make_backend("native", scenes[ls]) for ls in caps}, lanes, args.periods,
+                             args.repeats)
     ref_cap = base.ls_iterations
     for row in rows:
         ls = row["ls_iterations"]
@@ -100,13 +106,7 @@ def mjx_rows(base, lanes, nsteps, caps, args):
     backends = {c: make_backend("mjx", scene, ls_iterations=c) for c in caps}
     for be in backends.values():  # compile outside the timing
         be.advance(be.initial_state(lanes), lanes, 1)
-    wall = {c: [] for c in caps}
-    for _ in range(args.repeats):
-        for c in caps:
-            be = backends[c]
-            t = time.perf_counter()
-            be.advance(be.initial_state(lanes), lanes, 1)
-            wall[c].append(time.perf_counter() - t)
+    wall = interleaved_walls(backends, lanes, 1, args.repeats)
     period_steps = int(round(lanes.period / base.timestep)) * lanes.size
     ref = LS_ITERATIONS if LS_ITERATIONS in wall else caps[-1]
     rows = []

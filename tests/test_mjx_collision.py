@@ -67,6 +67,17 @@ def _brute(cap_pos, cap_mat, box_pos, box_mat):
     return (np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(1), 0)).min() - R
 
 
+def _random_pair_poses(rng, r_min: float, r_max: float) -> np.ndarray:
+    """Robot 1 at the origin, robot 2 at a random distance in [r_min, r_max] (m)
+    and direction; random headings and arm angles within +-90 deg."""
+    poses = np.zeros((2, 5))
+    ang = rng.uniform(-np.pi, np.pi)
+    poses[1, :2] = rng.uniform(r_min, r_max) * np.array([np.cos(ang), np.sin(ang)])
+    poses[:, 2] = rng.uniform(-np.pi, np.pi, 2)
+    poses[:, 3:] = rng.uniform(-np.pi / 2, np.pi / 2, (2, 2))
+    return poses
+
+
 def test_random_near_contact_poses_match_brute_force_and_mujoco():
     """Over random arm-vs-body poses of the pair scene near contact, the
     deepest distance equals a brute-force one (20001 points along the axis)
@@ -82,12 +93,7 @@ def test_random_near_contact_poses_match_brute_force_and_mujoco():
     assert len(caps) == 2
     checked = 0
     for _ in range(4000):
-        poses = np.zeros((2, 5))
-        ang = rng.uniform(-np.pi, np.pi)
-        poses[1, :2] = rng.uniform(0.02, 0.07) * np.array([np.cos(ang), np.sin(ang)])
-        poses[:, 2] = rng.uniform(-np.pi, np.pi, 2)
-        poses[:, 3:] = rng.uniform(-np.pi / 2, np.pi / 2, (2, 2))
-        d.qpos[:] = scene.qpos_from_poses(poses[None])[0]
+        d.qpos[:] = scene.qpos_from_poses(_random_pair_poses(rng, 0.02, 0.07)[None])[0]
         mujoco.mj_kinematics(m, d)
         for cap in caps:
             args = (d.geom_xpos[cap], d.geom_xmat[cap].reshape(3, 3), d.geom_xpos[box], d.geom_xmat[box].reshape(3, 3))
@@ -112,12 +118,7 @@ def _arm_arm_contacts(n_poses: int, seed: int):
     capsule = m.geom_type == mujoco.mjtGeom.mjGEOM_CAPSULE
     out = []
     for _ in range(n_poses):
-        poses = np.zeros((2, 5))
-        ang = rng.uniform(-np.pi, np.pi)
-        poses[1, :2] = rng.uniform(0.03, 0.08) * np.array([np.cos(ang), np.sin(ang)])
-        poses[:, 2] = rng.uniform(-np.pi, np.pi, 2)
-        poses[:, 3:] = rng.uniform(-np.pi / 2, np.pi / 2, (2, 2))
-        d.qpos[:] = scene.qpos_from_poses(poses[None])[0]
+        d.qpos[:] = scene.qpos_from_poses(_random_pair_poses(rng, 0.03, 0.08)[None])[0]
         mujoco.mj_forward(m, d)
         for c in d.contact[:d.ncon]:
             g1, g2 = c.geom

@@ -156,8 +156,8 @@ def capsule_capsule_contact(pos1, mat1, size1, pos2, mat2, size2):
     length = jnp.linalg.norm(v)
     # axes that cross (deep overlap): leave along their common perpendicular
     cross = jnp.cross(mat1[:, 2], mat2[:, 2])
-    fallback = jnp.where(jnp.linalg.norm(cross) > 0, cross / jnp.maximum(jnp.linalg.norm(cross), 1e-30),
-                         jnp.array([1.0, 0.0, 0.0], v.dtype))
+    cross_len = jnp.linalg.norm(cross)
+    fallback = jnp.where(cross_len > 0, cross / jnp.maximum(cross_len, 1e-30), jnp.array([1.0, 0.0, 0.0], v.dtype))
     n = jnp.where(length > 0, v / jnp.maximum(length, 1e-30), fallback)
     dist = length - size1[0] - size2[0]
     return dist, p1 + n * (size1[0] + 0.5 * dist), n
