@@ -22,6 +22,18 @@ def _fail(msg: str) -> None:
     raise typer.Exit(2)
 
 
+_MODEL_HELP = "model preset (smx models --list; default: the default preset, docs/model.md)"
+
+
+def _preset(name: Optional[str]):
+    """The named preset, or UserError with the known names."""
+    from . import presets
+    try:
+        return presets.get(name)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+
+
 def _gait(amplitude: float, chirality: str, gait: str, period: Optional[float]):
     from .gait import GaitSpec
     return GaitSpec(amplitude_deg=amplitude, chirality=chirality, kind=gait, period_s=period)
@@ -39,13 +51,15 @@ def simulate(
     track_stride: int = typer.Option(20, help="write every this many time steps"),
     out: pathlib.Path = typer.Option(pathlib.Path("track.csv"), help="output .csv (+ .json sidecar) or .h5"),
     overwrite: bool = typer.Option(False, help="replace an existing output file"),
+    model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
 ):
     """Simulate one scene and write its track (the measured-data format)."""
     from . import configs, scene as scene_mod, tracks
     from .engine.simulate import simulate as run
 
     try:
-        params = scene_mod.SceneParams()
+        preset = _preset(model)
+        params = preset.params
         g = _gait(amplitude, chirality, gait, period)
         g.validate(params.robot.servo_speed, params.robot.arm_limit_deg)
         if periods < 1 or track_stride < 1:
@@ -63,7 +77,8 @@ def simulate(
         else:
             poses = [(x, y, h, a0[0], a0[1]) for x, y, h, _, _ in scene_mod.standard_poses(scene, params.robot)]
         res = run(params, poses, g, periods, track_stride=track_stride)
-        meta = tracks.sidecar(len(poses), g, params.plate_friction, 1.0 / (track_stride * params.timestep))
+        meta = tracks.sidecar(len(poses), g, params.plate_friction, 1.0 / (track_stride * params.timestep),
+                              model=preset.name)
         t = [0.0, *res.track_t]
         track = [res.poses[0], *res.track]
         written = tracks.write_track(out, t, track, meta,
@@ -79,12 +94,25 @@ def simulate(
 def models(
     out: pathlib.Path = typer.Option(pathlib.Path("models"), help="directory for the reference scenes"),
     check: bool = typer.Option(False, help="only report whether the stored scenes are up to date"),
+    model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
+    list_: bool = typer.Option(False, "--list", help="list the model presets and where their values come from"),
 ):
-    """Regenerate (or --check) the reference MJCF scenes in models/."""
+    """Regenerate (or --check) the reference MJCF scenes in models/ (made by the default preset)."""
+    from . import presets
     from .scene import reference_models
 
+    if list_:
+        for p in presets.PRESETS.values():
+            typer.echo(f"{p.name}{' (default)' if p.name == presets.DEFAULT else ''}: {p.summary}")
+            for field, source in p.sources:
+                typer.echo(f"    {field}: {source}")
+        return
+    try:
+        preset = _preset(model)
+    except UserError as e:
+        _fail(str(e))
     stale = []
-    for name, xml in reference_models().items():
+    for name, xml in reference_models(preset.params).items():
         path = out / name
         if path.exists() and path.read_text() == xml:
             continue
@@ -165,12 +193,20 @@ def scan(
     overwrite: bool = typer.Option(False, help="replace an existing store"),
     quiet: bool = typer.Option(False, help="no progress bar"),
     flush_rows: int = typer.Option(64, help="journal finished configurations in blocks of this many"),
+    model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
+    collisions: bool = typer.Option(False, help="store the per-period collision record (native backend)"),
+    collision_bins: int = typer.Option(16, help="collision record: bins per gait period"),
 ):
     """One basin scan at one amplitude into an HDF5 store."""
     from .scan import ScanConfig
+    try:
+        name = _preset(model).name
+    except UserError as e:
+        _fail(str(e))
     cfg = ScanConfig(configs=configs, n=n, r_range_W=(r_min, r_max), radius_W=radius, positions=positions,
                      orientations=orientations, amplitudes_deg=(amplitude,), periods=periods, chirality=chirality,
-                     gait=gait, period_s=period, backend=backend, seed=seed, batch_size=batch_size)
+                     gait=gait, period_s=period, backend=backend, seed=seed, batch_size=batch_size, model=name,
+                     collisions=collisions, collision_bins=collision_bins)
     _scan_common(cfg, out, resume, overwrite, quiet, flush_rows)
 
 
@@ -188,6 +224,7 @@ def sweep_amplitude(
     overwrite: bool = typer.Option(False, help="replace an existing store"),
     quiet: bool = typer.Option(False, help="no progress bar"),
     flush_rows: int = typer.Option(64, help="journal finished configurations in blocks of this many"),
+    model: Optional[str] = typer.Option(None, help="model preset (default: the study file's, else the default preset)"),
 ):
     """The same scan over several amplitudes, one store, one group per amplitude."""
     import dataclasses
@@ -195,13 +232,14 @@ def sweep_amplitude(
     from .scan import ScanConfig, load_study, parse_amplitudes
     try:
         cfg = load_study(study) if study is not None else ScanConfig()
-        changes = {k: v for k, v in dict(configs=configs, n=n, periods=periods, backend=backend, seed=seed).items()
-                   if v is not None}
+        changes = {k: v for k, v in dict(configs=configs, n=n, periods=periods, backend=backend, seed=seed,
+                                         model=model).items() if v is not None}
         if amplitudes is not None:
             changes["amplitudes_deg"] = parse_amplitudes(amplitudes)
         elif study is None:
             raise UserError("give --amplitudes or --study")
         cfg = dataclasses.replace(cfg, **changes)
+        _preset(cfg.model)
     except (UserError, ValueError) as e:
         _fail(str(e))
     _scan_common(cfg, out, resume, overwrite, quiet, flush_rows)
@@ -294,12 +332,14 @@ def validate(
     sweeps: Optional[pathlib.Path] = typer.Option(None, help="folder of the study files (default: the repo's sweeps/)"),
     single_periods: int = typer.Option(75, help="periods of each lone-robot run"),
     quiet: bool = typer.Option(False, help="no progress bar"),
+    model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
 ):
     """Measure the paper's claims from the studies in sweeps/ and write docs/validation.md."""
     from .store import StoreError
     from .validation import STUDIES, SWEEPS, run_validation
     sweeps = sweeps or SWEEPS
     try:
+        preset = _preset(model)
         missing = [f for f in STUDIES.values() if not (sweeps / f).is_file()]
         if missing:
             raise UserError(f"study files missing in {sweeps}: {', '.join(missing)}")
@@ -311,8 +351,9 @@ def validate(
             raise UserError("--single-periods must be >= 2")
         bar, progress = _progress(quiet)
         with bar:
-            res = run_validation(data, out, sweeps, on_progress=progress, single_periods=single_periods,
-                                 command=f"smx validate --data {data} --out {out}")
+            res = run_validation(data, out, sweeps, model=preset.name, on_progress=progress,
+                                 single_periods=single_periods,
+                                 command=f"smx validate --data {data} --out {out} --model {preset.name}")
     except (UserError, ValueError, StoreError) as e:
         _fail(str(e))
     for r in res["rows"]:
@@ -337,11 +378,13 @@ def synth(
     arm_bias_deg: float = typer.Option(0.0, help="an effect outside the library: robot arm 2 misread by this"),
     separation: float = typer.Option(3.0, help="distance between robots at the start (W)"),
     seed: int = typer.Option(0),
+    model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
 ):
     """Measured-like data from the model with hidden effects, in the interchange format."""
     from .calibrate.synth import parse_effect, synth as make
     from .scan import parse_amplitudes
     try:
+        name = _preset(model).name
         effects = dict(parse_effect(e) for e in effect)
         amps = parse_amplitudes(amplitudes)
         if "tracking_noise" in effects:
@@ -352,7 +395,8 @@ def synth(
         written = make(out, robots=robots, trials=trials, periods=periods, amplitudes=amps,
                        effects=effects, noise_xy_mm=noise_xy_mm, noise_theta_deg=noise_theta_deg,
                        arm_noise_deg=arm_noise_deg, arms_tracked=not no_arms, frame_rate_hz=frame_rate,
-                       occlusion=occlusion, arm_bias_deg=arm_bias_deg, separation_w=separation, seed=seed)
+                       occlusion=occlusion, arm_bias_deg=arm_bias_deg, separation_w=separation, seed=seed,
+                       model=name)
     except (UserError, ValueError) as e:
         _fail(str(e))
     typer.echo("wrote " + ", ".join(map(str, written)))
@@ -363,18 +407,22 @@ def calibrate(
     data: pathlib.Path = typer.Argument(..., help="a CSV with its JSON sidecar, or a folder of them"),
     out: pathlib.Path = typer.Option(pathlib.Path("calibration"), help="report folder"),
     overwrite: bool = typer.Option(False, help="replace an existing report"),
+    model: Optional[str] = typer.Option(None, help="model preset to fit from (default: the sidecar's, else the "
+                                                   "default preset)"),
 ):
     """Residuals of the model against measured tracks, ranked candidate effects, the fit, before/after."""
     from .calibrate import fit, report
     from .calibrate.data import load
     try:
+        if model is not None:
+            _preset(model)
         if out.exists() and not out.is_dir():
             raise UserError(f"{out} exists and is not a directory")
         if (out / "report.md").exists() and not overwrite:
             raise UserError(f"{out} already holds a report; pass --overwrite to replace it")
         if not out.exists() and not out.parent.is_dir():
             raise UserError(f"output directory {out.parent} does not exist")
-        trials = load(data)
+        trials = load(data, model)
         result = fit.calibrate(trials, on_step=typer.echo)
         report.write(result, trials, out)
     except (UserError, ValueError) as e:

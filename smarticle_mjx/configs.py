@@ -92,37 +92,74 @@ def robot_outline(pose, robot: RobotParams = RobotParams()):
 
     Returns:
       ``corners`` [..., 4, 2] of the body rectangle (counter-clockwise) and
-      ``arms`` [..., 2, 2, 2]: for arm k, the segment (hinge, capsule end)
-      whose capsule has radius ``robot.arm_radius``.
+      ``arms`` [..., 2, V, 2]: arm k's convex outline. A capsule arm is its
+      axis segment (V = 2: hinge, end of the axis) to be widened by
+      ``arm_piece_radius(robot)``; a plate arm is its rectangle (V = 4,
+      counter-clockwise, radius 0). Hinges sit ``robot.hinge_x`` from the
+      body centre.
     """
     pose = np.asarray(pose, dtype=float)
     x, y, h, a1, a2 = (pose[..., k] for k in range(5))
     c, s = np.cos(h), np.sin(h)
     hw, hd = robot.body_length / 2, robot.body_thickness / 2
-    reach = robot.arm_length - robot.arm_radius
+    hx = robot.hinge_x
+    len2 = robot.arm2_length if robot.arm2_length is not None else robot.arm_length
 
     def world(bx, by):
         return np.stack([x + c * bx - s * by, y + s * bx + c * by], -1)
 
     corners = np.stack([world(-hw, -hd), world(hw, -hd), world(hw, hd), world(-hw, hd)], -2)
-    arm1 = np.stack([world(-hw, 0 * x), world(-hw - reach * np.cos(a1), reach * np.sin(a1))], -2)
-    arm2 = np.stack([world(hw, 0 * x), world(hw + reach * np.cos(a2), reach * np.sin(a2))], -2)
-    return corners, np.stack([arm1, arm2], -3)
+    zero = 0 * x
+    arms = []
+    # arm 1 points along -x at angle 0 and folds toward +y; arm 2 mirrors it
+    for sign, alpha, length in ((-1, a1, robot.arm_length), (1, a2, len2)):
+        ux, uy = sign * np.cos(alpha), np.sin(alpha)  # along the arm, body frame
+        if robot.arm_shape == "plate":
+            t = robot.arm_thickness / 2
+            nx, ny = -uy, ux  # across the arm, to its left: the corners run counter-clockwise
+            pts = [(sign * hx + u * length * ux + v * t * nx, u * length * uy + v * t * ny)
+                   for u, v in ((0, -1), (1, -1), (1, 1), (0, 1))]
+            arms.append(np.stack([world(px + zero, py + zero) for px, py in pts], -2))
+        else:
+            reach = length - robot.arm_radius
+            arms.append(np.stack([world(sign * hx + zero, zero), world(sign * hx + reach * ux, reach * uy)], -2))
+    return corners, np.stack(arms, -3)
 
 
-def _point_in_rect(pt, corners):
-    """pt [..., 2] strictly inside convex ccw quad corners [..., 4, 2]."""
+def arm_piece_radius(robot: RobotParams) -> float:
+    """Radius by which an arm outline of :func:`robot_outline` is widened."""
+    return 0.0 if robot.arm_shape == "plate" else robot.arm_radius
+
+
+def _point_in_convex(pt, poly):
+    """pt [..., 2] strictly inside the convex counter-clockwise polygon poly [..., V >= 3, 2]."""
     inside = np.ones(pt.shape[:-1], dtype=bool)
-    for k in range(4):
-        a, b = corners[..., k, :], corners[..., (k + 1) % 4, :]
+    v = poly.shape[-2]
+    for k in range(v):
+        a, b = poly[..., k, :], poly[..., (k + 1) % v, :]
         cross = (b[..., 0] - a[..., 0]) * (pt[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (pt[..., 0] - a[..., 0])
         inside &= cross > 0
     return inside
 
 
-def _seg_rect_dist(p, q, corners):
-    d = np.min(np.stack([_seg_seg_dist(p, q, corners[..., k, :], corners[..., (k + 1) % 4, :]) for k in range(4)]), 0)
-    inside = _point_in_rect(p, corners) | _point_in_rect(q, corners)
+def _edges(poly):
+    v = poly.shape[-2]
+    if v == 2:
+        return [(poly[..., 0, :], poly[..., 1, :])]
+    return [(poly[..., k, :], poly[..., (k + 1) % v, :]) for k in range(v)]
+
+
+def _convex_dist(p, q):
+    """Distance between convex polygons (or segments, V = 2) p [..., V, 2] and
+    q [..., U, 2]; 0 where they overlap."""
+    d = np.min(np.stack([_seg_seg_dist(a, b, c, e) for a, b in _edges(p) for c, e in _edges(q)]), 0)
+    inside = np.zeros(d.shape, dtype=bool)
+    if q.shape[-2] >= 3:
+        for k in range(p.shape[-2]):
+            inside |= _point_in_convex(p[..., k, :], q)
+    if p.shape[-2] >= 3:
+        for k in range(q.shape[-2]):
+            inside |= _point_in_convex(q[..., k, :], p)
     return np.where(inside, 0.0, d)
 
 
@@ -130,21 +167,18 @@ def pair_separation(pose1, pose2, robot: RobotParams = RobotParams()):
     """Smallest planar gap (m) between two robots; <= 0 means they overlap.
 
     Body-body, arm-body and arm-arm gaps are all considered; a capsule's gap is
-    its segment's distance minus its radius. Vectorised over leading axes.
+    its axis segment's distance minus its radius, a plate's its rectangle's.
+    Vectorised over leading axes.
     """
     c1, arms1 = robot_outline(pose1, robot)
     c2, arms2 = robot_outline(pose2, robot)
-    r = robot.arm_radius
-    gaps = []
-    # body-body: edge distances, zero if a corner of one lies inside the other
-    bb = np.min(np.stack([_seg_rect_dist(c1[..., k, :], c1[..., (k + 1) % 4, :], c2) for k in range(4)]), 0)
-    gaps.append(bb)
+    r = arm_piece_radius(robot)
+    gaps = [_convex_dist(c1, c2)]
     for k in range(2):
-        gaps.append(_seg_rect_dist(arms1[..., k, 0, :], arms1[..., k, 1, :], c2) - r)
-        gaps.append(_seg_rect_dist(arms2[..., k, 0, :], arms2[..., k, 1, :], c1) - r)
+        gaps.append(_convex_dist(arms1[..., k, :, :], c2) - r)
+        gaps.append(_convex_dist(arms2[..., k, :, :], c1) - r)
         for m in range(2):
-            gaps.append(_seg_seg_dist(arms1[..., k, 0, :], arms1[..., k, 1, :],
-                                      arms2[..., m, 0, :], arms2[..., m, 1, :]) - 2 * r)
+            gaps.append(_convex_dist(arms1[..., k, :, :], arms2[..., m, :, :]) - 2 * r)
     return np.min(np.stack(gaps), 0)
 
 

@@ -12,8 +12,10 @@ from typing import Callable
 import numpy as np
 
 from . import configs as C
+from . import presets
 from .engine import Lanes, Scene, make_backend, steps_per_period
 from .engine.batch import RetireRule, run_lanes
+from .engine.core import Record
 from .gait import GaitSpec
 from .scene import SceneParams
 from .store import Writer, longest_run
@@ -44,6 +46,13 @@ class ScanConfig:
     batch_size: int = 256
     chunk_periods: int = 5
     quiet_periods: int = 2
+    model: str = presets.DEFAULT  # model preset (smarticle_mjx/presets.py)
+    collisions: bool = False  # keep the per-period collision record (native backend)
+    collision_bins: int = 16  # its bins per gait period
+
+    def scene_params(self) -> SceneParams:
+        """The preset's parameters (ValueError naming the known presets if unknown)."""
+        return presets.params(self.model)
 
     def validate(self, params: SceneParams) -> None:
         if self.configs not in ("random", "polar"):
@@ -71,6 +80,10 @@ class ScanConfig:
             raise ValueError(f"--backend must be native or mjx, got {self.backend!r}")
         if self.batch_size <= 0 or self.chunk_periods <= 0 or self.quiet_periods < 0:
             raise ValueError("batch size and chunk periods must be positive, quiet periods >= 0")
+        if self.collisions and self.backend != "native":
+            raise ValueError("--collisions is recorded by the native backend only")
+        if self.collision_bins < 1:
+            raise ValueError(f"--collision-bins must be positive, got {self.collision_bins}")
 
     def gait_spec(self, amplitude_deg: float) -> GaitSpec:
         return GaitSpec(amplitude_deg=float(amplitude_deg), chirality=self.chirality, kind=self.gait,
@@ -136,6 +149,10 @@ def load_study(path) -> ScanConfig:
 
 def _rows(cfg: np.ndarray, valid: np.ndarray, res, body_length: float) -> dict:
     """Store rows from engine LaneResults (pair scenes)."""
+    extra = {}
+    if res.collisions is not None:
+        extra = {"coll_steps": res.collisions["steps"], "coll_impulse": res.collisions["impulse"],
+                 "coll_impulse_r": res.collisions["impulse_r"]}
     poses = res.poses
     p1, p2 = poses[:, :, 0], poses[:, :, 1]
     r, th, ph = C.relative_coordinates(p1, p2, body_length)
@@ -147,10 +164,11 @@ def _rows(cfg: np.ndarray, valid: np.ndarray, res, body_length: float) -> dict:
         "min_dist": res.min_dist.astype(np.float32), "poses": poses.astype(np.float32),
         "rel": np.stack([r, th, ph], -1).astype(np.float32), "com": com.astype(np.float32),
         "lifetime": longest_run(res.touched[:, :, 0]),
+        **extra,
     }
 
 
-def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams = SceneParams(),
+def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | None = None,
              flush_rows: int = 64, on_progress: Callable[[dict], None] | None = None) -> dict:
     """Run a scan or sweep into the store ``out``.
 
@@ -158,7 +176,9 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams = S
       config: what to scan.
       out: store path (.h5).
       mode: "new", "resume" or "overwrite" (see store.Writer).
-      params: scene parameters.
+      params: scene parameters; default: those of ``config.model``. Given
+        explicitly, the store records the model as "custom" (with every
+        parameter, as always).
       flush_rows: journal finished rows in blocks of at least this many.
       on_progress: receives dicts with run, done, total, lane_periods, elapsed.
 
@@ -166,6 +186,8 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams = S
       Summary: configurations, valid, bound-at-end fraction per run, wall
       time, simulated steps and steps per second.
     """
+    model = config.model if params is None else "custom"
+    params = config.scene_params() if params is None else params
     config.validate(params)
     params.validate()
     cfg = config.initial_configs()
@@ -175,8 +197,9 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams = S
         period = steps_per_period(g.period(), params.timestep) * params.timestep
         runs[run_name(a)] = {"amplitude_deg": float(a), "period_s": period, "chirality": g.chirality,
                              "gait": g.kind, "periods": config.periods, "n_configs": len(cfg)}
-    full = {"scan": config.to_json(), "scene": _params_json(params)}
-    scene = Scene.build(params, 2)
+    full = {"model": model, "scan": config.to_json(), "scene": _params_json(params)}
+    scene = Scene.build(params, 2, collisions=config.collisions)
+    record = Record(collisions=config.collisions, collision_bins=config.collision_bins)
     backend = make_backend(config.backend, scene)
     t0 = time.perf_counter()
     summary = {"configs": len(cfg), "runs": {}, "steps": 0}
@@ -222,7 +245,7 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams = S
                 if start < len(cfg):
                     run_lanes(backend, lanes, config.periods, batch_size=config.batch_size,
                               chunk_periods=config.chunk_periods, rule=rule, valid=valid[start:],
-                              on_lanes=on_lanes, on_progress=progress)
+                              on_lanes=on_lanes, on_progress=progress, record=record)
                     flush(force=True)
                 elif on_progress:
                     progress(0, 0, 0)
@@ -243,6 +266,6 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams = S
 
 
 def _params_json(params: SceneParams) -> dict:
-    d = dataclasses.asdict(params)
-    d["contact_solimp"] = list(params.contact_solimp)
-    return d
+    # through JSON: tuples become lists, as a resumed store's saved copy has them
+    import json
+    return json.loads(json.dumps(dataclasses.asdict(params)))

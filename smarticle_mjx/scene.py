@@ -52,6 +52,7 @@ import numpy as np
 # can never touch the plate, whatever their height.
 _PLATE_BIT = 1
 _ROBOT_BIT = 2
+ARM_SHAPES = ("capsule", "plate")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,6 +75,14 @@ class RobotParams:
     servo_armature: float = 5e-5  # kg m^2
     joint_damping: float = 0.0
     arm2_length: float | None = None  # None: as arm_length (a manufacturing asymmetry otherwise)
+    # Geometry beyond the paper's text (presets.py cites where each value comes from):
+    hinge_inset: float = 0.0  # hinge axis this far inside each end of the body (m)
+    arm_shape: str = "capsule"  # "capsule" (rounded rod) or "plate" (flat box, square tip)
+    arm_height: float | None = None  # plate height (m); None: the arm thickness (a capsule's diameter)
+    # First-order response lag of the servo (s): the commanded setpoint and its
+    # rate pass through a filter of this time constant; 0: the servo follows
+    # the command at once (within its gains and torque)
+    servo_timeconst: float = 0.0
 
     def validate(self) -> None:
         positive = ("body_length", "body_thickness", "body_height", "arm_length",
@@ -92,19 +101,39 @@ class RobotParams:
             raise ValueError("robot.arm_clearance must be >= 0")
         if self.arm2_length is not None and not self.arm2_length > self.arm_thickness:
             raise ValueError("arm2_length must exceed the arm thickness")
-        if self.arm_clearance + self.arm_thickness > self.body_height:
-            raise ValueError("arms must lie within the body's height (arm_clearance + arm_thickness <= body_height)")
+        if self.arm_clearance + self.arm_extent_z > self.body_height:
+            raise ValueError("arms must lie within the body's height (arm_clearance + arm height <= body_height)")
         if not 0 < self.arm_limit_deg <= 180:
             raise ValueError("robot.arm_limit_deg must be in (0, 180]")
+        if self.arm_shape not in ARM_SHAPES:
+            raise ValueError(f"robot.arm_shape must be one of {', '.join(ARM_SHAPES)}, got {self.arm_shape!r}")
+        if self.arm_height is not None and not self.arm_height > 0:
+            raise ValueError("robot.arm_height must be positive")
+        if self.arm_height is not None and self.arm_shape == "capsule" and self.arm_height != self.arm_thickness:
+            raise ValueError("a capsule arm's height is its thickness; set arm_shape='plate' for a taller arm")
+        if not 0 <= self.hinge_inset < self.body_length / 2:
+            raise ValueError("robot.hinge_inset must be in [0, body_length / 2)")
+        if self.servo_timeconst < 0:
+            raise ValueError("robot.servo_timeconst must be >= 0")
 
     @property
     def arm_radius(self) -> float:
         return 0.5 * self.arm_thickness
 
     @property
+    def arm_extent_z(self) -> float:
+        """Vertical extent of an arm: a plate's height, a capsule's diameter."""
+        return self.arm_height if self.arm_height is not None else self.arm_thickness
+
+    @property
     def arm_z(self) -> float:
-        """Height of the arm axis above the plate."""
-        return self.arm_clearance + self.arm_radius
+        """Height of the arm's centre line above the plate."""
+        return self.arm_clearance + self.arm_extent_z / 2
+
+    @property
+    def hinge_x(self) -> float:
+        """Distance of each hinge axis from the body centre, along the body."""
+        return self.body_length / 2 - self.hinge_inset
 
     @property
     def hinge_inertia(self) -> float:
@@ -196,34 +225,44 @@ def _fmt(*values: float) -> str:
     return " ".join(f"{v:.9g}" for v in values)
 
 
-def _robot_xml(i: int, p: RobotParams, pose: Sequence[float], plate_bits: int = 0) -> str:
+def _arm_geom_xml(name: str, p: RobotParams, sign: int, length: float) -> str:
+    """One arm's geom in its hinge frame; ``sign`` -1 points it along -x."""
+    common = f'name="{name}" mass="{p.arm_mass:.9g}" contype="{_ROBOT_BIT}" conaffinity="{_ROBOT_BIT}" rgba="0.3 0.3 0.3 1"'
+    if p.arm_shape == "plate":
+        half = length / 2
+        size = _fmt(half, p.arm_thickness / 2, p.arm_extent_z / 2)
+        return f'<geom {common} type="box" pos="{_fmt(sign * half, 0, 0)}" size="{size}"/>'
+    tip = length - p.arm_radius  # capsule ends exactly at the arm length
+    return f'<geom {common} type="capsule" fromto="{_fmt(0, 0, 0, sign * tip, 0, 0)}" size="{p.arm_radius:.9g}"/>'
+
+
+def _robot_xml(i: int, s: SceneParams, pose: Sequence[float], plate_bits: int = 0) -> str:
+    p = s.robot
     x, y, heading, a1, a2 = (float(v) for v in pose)
     hw, hd, hh = p.body_length / 2, p.body_thickness / 2, p.body_height / 2
-    r = p.arm_radius
-    arm_dz = p.arm_z - hh  # arm axis relative to the body centre
-    tip = p.arm_length - r  # capsule ends exactly at the arm length
-    tip2 = (p.arm2_length if p.arm2_length is not None else p.arm_length) - r
+    hx = p.hinge_x
+    arm_dz = p.arm_z - hh  # arm centre line relative to the body centre
+    len2 = p.arm2_length if p.arm2_length is not None else p.arm_length
     lim = p.arm_limit_deg
     quat = _fmt(math.cos(heading / 2), 0, 0, math.sin(heading / 2))
     rgba = "0.85 0.35 0.2 1" if i == 0 else "0.2 0.45 0.85 1"
+    # hinge stops are as stiff as the contacts (MuJoCo's default limit is 20 ms soft)
+    joint = (f'armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0" '
+             f'range="{-lim:.9g} {lim:.9g}" solreflimit="{_fmt(s.contact_timeconst, s.contact_dampratio)}" '
+             f'solimplimit="{_fmt(*s.contact_solimp)}" '
+             f'actuatorfrcrange="{-p.servo_torque:.9g} {p.servo_torque:.9g}"')
     return f"""
     <body name="r{i}" pos="{_fmt(x, y, hh)}" quat="{quat}">
       <freejoint name="r{i}_free"/>
       <geom name="r{i}_body" type="box" size="{_fmt(hw, hd, hh)}" mass="{p.body_mass:.9g}"
             contype="{plate_bits | _ROBOT_BIT}" conaffinity="{plate_bits | _ROBOT_BIT}" rgba="{rgba}"/>
-      <body name="r{i}_arm1" pos="{_fmt(-hw, 0, arm_dz)}">
-        <joint name="r{i}_a1" type="hinge" axis="0 0 -1" range="{-lim:.9g} {lim:.9g}"
-               armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0"
-               actuatorfrcrange="{-p.servo_torque:.9g} {p.servo_torque:.9g}"/>
-        <geom name="r{i}_arm1" type="capsule" fromto="{_fmt(0, 0, 0, -tip, 0, 0)}" size="{r:.9g}"
-              mass="{p.arm_mass:.9g}" contype="{_ROBOT_BIT}" conaffinity="{_ROBOT_BIT}" rgba="0.3 0.3 0.3 1"/>
+      <body name="r{i}_arm1" pos="{_fmt(-hx, 0, arm_dz)}">
+        <joint name="r{i}_a1" type="hinge" axis="0 0 -1" {joint}/>
+        {_arm_geom_xml(f"r{i}_arm1", p, -1, p.arm_length)}
       </body>
-      <body name="r{i}_arm2" pos="{_fmt(hw, 0, arm_dz)}">
-        <joint name="r{i}_a2" type="hinge" axis="0 0 1" range="{-lim:.9g} {lim:.9g}"
-               armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0"
-               actuatorfrcrange="{-p.servo_torque:.9g} {p.servo_torque:.9g}"/>
-        <geom name="r{i}_arm2" type="capsule" fromto="{_fmt(0, 0, 0, tip2, 0, 0)}" size="{r:.9g}"
-              mass="{p.arm_mass:.9g}" contype="{_ROBOT_BIT}" conaffinity="{_ROBOT_BIT}" rgba="0.3 0.3 0.3 1"/>
+      <body name="r{i}_arm2" pos="{_fmt(hx, 0, arm_dz)}">
+        <joint name="r{i}_a2" type="hinge" axis="0 0 1" {joint}/>
+        {_arm_geom_xml(f"r{i}_arm2", p, 1, len2)}
       </body>
     </body>""", (a1, a2)
 
@@ -244,6 +283,34 @@ def _boundary_xml(s: SceneParams) -> str:
             f'euler="0 0 {math.degrees(ang):.9g}" contype="{_ROBOT_BIT}" conaffinity="{_ROBOT_BIT}" '
             f'rgba="0.6 0.6 0.6 0.4"/>')
     return "\n".join(parts)
+
+
+def _servo_xml(i: int, rp: RobotParams, lim: float) -> list[str]:
+    """Actuators of robot i: per hinge a position loop (ctrl: setpoint) and a
+    velocity loop (ctrl: the setpoint's rate, the feed-forward), in that order.
+
+    With a response lag both controls pass through MuJoCo's exact first-order
+    filter (dyntype filterexact, time constant ``servo_timeconst``); the
+    filter state is the actuator's activation, which engines initialise to
+    the controls at t = 0.
+    """
+    out = []
+    tau = rp.servo_timeconst
+    for k in (1, 2):
+        if tau > 0:
+            out.append(f'    <general name="r{i}_p{k}" joint="r{i}_a{k}" dyntype="filterexact" dynprm="{tau:.9g}" '
+                       f'gainprm="{rp.servo_kp:.9g}" biastype="affine" biasprm="0 {-rp.servo_kp:.9g} 0" '
+                       f'ctrlrange="{-lim:.9g} {lim:.9g}"/>')
+        else:
+            out.append(f'    <position name="r{i}_p{k}" joint="r{i}_a{k}" kp="{rp.servo_kp:.9g}" '
+                       f'ctrlrange="{-lim:.9g} {lim:.9g}"/>')
+    for k in (1, 2):
+        if tau > 0:
+            out.append(f'    <general name="r{i}_v{k}" joint="r{i}_a{k}" dyntype="filterexact" dynprm="{tau:.9g}" '
+                       f'gainprm="{rp.kv:.9g}" biastype="affine" biasprm="0 0 {-rp.kv:.9g}"/>')
+        else:
+            out.append(f'    <velocity name="r{i}_v{k}" joint="r{i}_a{k}" kv="{rp.kv:.9g}"/>')
+    return out
 
 
 def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str = "smarticles") -> str:
@@ -273,7 +340,7 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
     bodies, arms = [], []
     explicit = params.explicit_plate_contacts
     for i, pose in enumerate(poses):
-        xml, a = _robot_xml(i, rp, pose, plate_bits=0 if explicit else _PLATE_BIT)
+        xml, a = _robot_xml(i, params, pose, plate_bits=0 if explicit else _PLATE_BIT)
         if max(abs(a[0]), abs(a[1])) > lim:
             raise ValueError(f"robot {i}: initial arm angles {a} exceed the hinge limit {rp.arm_limit_deg} deg")
         bodies.append(xml)
@@ -281,12 +348,7 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
     n = len(poses)
     acts = []
     for i in range(n):
-        for k in (1, 2):
-            acts.append(
-                f'    <position name="r{i}_p{k}" joint="r{i}_a{k}" kp="{rp.servo_kp:.9g}" '
-                f'ctrlrange="{-lim:.9g} {lim:.9g}"/>')
-        for k in (1, 2):
-            acts.append(f'    <velocity name="r{i}_v{k}" joint="r{i}_a{k}" kv="{rp.kv:.9g}"/>')
+        acts += _servo_xml(i, rp, lim)
     sensors = []
     for i in range(n):
         for j in range(i + 1, n):
@@ -313,6 +375,7 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
         x, y, heading = (float(v) for v in pose[:3])
         qpos += [x, y, rp.body_height / 2, math.cos(heading / 2), 0, 0, math.sin(heading / 2), *arms[i]]
     ctrl = [c for pair in arms for c in (*pair, 0.0, 0.0)]
+    act = f' act="{_fmt(*ctrl)}"' if rp.servo_timeconst > 0 else ""
     solref = _fmt(params.contact_timeconst, params.contact_dampratio)
     plate = 2.0 if params.boundary_radius is None else params.boundary_radius + 0.1
     return f"""<mujoco model="{name}">
@@ -341,7 +404,7 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
 {chr(10).join(sensors)}
   </sensor>
   <keyframe>
-    <key name="init" qpos="{_fmt(*qpos)}" ctrl="{_fmt(*ctrl)}"/>
+    <key name="init" qpos="{_fmt(*qpos)}" ctrl="{_fmt(*ctrl)}"{act}/>
   </keyframe>
 </mujoco>
 """
@@ -399,15 +462,13 @@ def standard_poses(kind: str, robot: RobotParams = RobotParams()) -> list[tuple[
     compressed relaxation start, 7 robots side by side on a hexagonal patch,
     arms at the gait's first corner.
     """
-    from .configs import pose_from_relative  # local: configs imports scene
-
     a = math.pi / 2
     if kind == "single":
         return [(0.0, 0.0, 0.0, a, a)]
     if kind == "pair":
         p1 = (0.0, 0.0, 0.0, a, a)
-        x, y, h = pose_from_relative(1.3, math.radians(270), math.pi, robot.body_length)
-        return [p1, (float(x), float(y), float(h), a, a)]
+        # |r| = 1.3 W at theta = 270 deg (robot 1's normal, -y), phi = 180 deg
+        return [p1, (0.0, -1.3 * robot.body_length, math.pi, a, a)]
     if kind == "seven":
         # Arms folded to (+90, +90): each robot is a U about W+2L... wide; pack
         # the U's in staggered rows with a small gap.

@@ -24,6 +24,10 @@ Schema (version 1; see docs/store.md)::
         rel       [M, K, 3] float32, (|r| W, theta, phi) of pair 0 per period
         com       [M, K, 3] float32, pair centre of mass (x, y) and mean heading
         lifetime  [M]      int32, longest run of consecutive bound periods
+      optional, when the scan asked for the collision record (``--collisions``):
+        coll_steps     [M, K, P, 9, B] int32, steps in contact per contact kind and bin
+        coll_impulse   [M, K, P, 9, B, 2] float32, contact impulse on robot i (N s)
+        coll_impulse_r [M, K, P, 9, B] float32, its component along r (> 0 attracts)
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ import numpy as np
 
 SCHEMA_VERSION = 1
 ROW_FIELDS = ("config", "valid", "status", "periods_run", "touched", "min_dist", "poses", "rel", "com", "lifetime")
+OPTIONAL_FIELDS = ("coll_steps", "coll_impulse", "coll_impulse_r")
 
 
 class StoreError(Exception):
@@ -183,12 +188,16 @@ class Writer:
             raise StoreError("all row fields must have the same length")
         if start != self.done_rows(run):
             raise StoreError(f"rows must be appended in order: expected start {self.done_rows(run)}, got {start}")
+        unknown = set(rows) - set(ROW_FIELDS) - set(OPTIONAL_FIELDS)
+        if unknown:
+            raise StoreError(f"rows have unknown fields {sorted(unknown)}")
         final = self.parts / f"{run}--{start:09d}.h5"
         tmp = final.with_name(final.name + ".tmp")
         with h5py.File(tmp, "w") as f:
             f.attrs["start"], f.attrs["stop"] = start, start + n
-            for k in ROW_FIELDS:
-                f.create_dataset(k, data=rows[k])
+            for k in ROW_FIELDS + OPTIONAL_FIELDS:
+                if k in rows:
+                    f.create_dataset(k, data=rows[k])
         os.replace(tmp, final)
         self._done[run] = start + n
 
@@ -213,9 +222,14 @@ class Writer:
                 parts = self._parts(run)
                 if not parts:
                     raise StoreError(f"run {run} has no results")
+                fields = None
                 for part in parts:
                     with h5py.File(part, "r") as f:
-                        for k in ROW_FIELDS:
+                        have = [k for k in ROW_FIELDS + OPTIONAL_FIELDS if k in f]
+                        if fields is not None and have != fields:
+                            raise StoreError(f"journal of run {run} mixes parts with fields {fields} and {have}")
+                        fields = have
+                        for k in have:
                             _append_rows(g, k, f[k][()])
             out.attrs["complete"] = True
         os.replace(tmp, self.path)
@@ -263,18 +277,25 @@ class Store:
                 self.attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
                 self.runs = list(f["runs"].keys()) if "runs" in f else []
                 self.run_attrs = {r: dict(f["runs"][r].attrs) for r in self.runs}
+                self.run_fields = {r: tuple(f["runs"][r].keys()) for r in self.runs}
         except OSError as e:
             raise StoreError(f"{self.path} is not a readable HDF5 store: {e}") from None
         if self.attrs.get("schema_version") != SCHEMA_VERSION:
             raise StoreError(f"{self.path}: schema version {self.attrs.get('schema_version')} "
                              f"(this reader knows {SCHEMA_VERSION})")
         self.config = json.loads(self.attrs["config"])
+        # the model preset that made the store (stores from before presets: "paper")
+        self.model = self.config.get("model", "paper")
 
     def run(self, name: str | None = None, fields=ROW_FIELDS) -> dict[str, np.ndarray]:
         """Named arrays of one run (default: the first)."""
         name = name or self.runs[0]
         if name not in self.runs:
             raise StoreError(f"{self.path} has no run {name!r} (runs: {', '.join(self.runs)})")
+        missing = [k for k in fields if k not in self.run_fields[name]]
+        if missing:
+            hint = " (run the scan with --collisions)" if set(missing) & set(OPTIONAL_FIELDS) else ""
+            raise StoreError(f"{self.path} run {name} has no {', '.join(missing)}{hint}")
         with h5py.File(self.path, "r") as f:
             g = f["runs"][name]
             return {k: g[k][()] for k in fields}

@@ -17,9 +17,11 @@ import numpy as np
 COLUMNS = ("trial", "t", "robot", "x", "y", "theta", "alpha1", "alpha2")
 
 
-def sidecar(n_robots: int, gait, plate_friction: float, frame_rate_hz: float) -> dict:
+def sidecar(n_robots: int, gait, plate_friction: float, frame_rate_hz: float, model: str | None = None) -> dict:
+    """The JSON sidecar of a track; ``model`` names the preset that simulated it."""
     return {
         "robots": n_robots,
+        **({"model": model} if model is not None else {}),
         "gait": {"kind": "symmetric" if gait.kind == "diagonal" else gait.kind,
                  "amplitude_deg": gait.amplitude_deg, "period_s": gait.period(),
                  "chirality": gait.chirality},

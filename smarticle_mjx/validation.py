@@ -8,6 +8,7 @@ test before the number is known; a claim that fails is reported as failing.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import pathlib
@@ -15,7 +16,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import plots
+from . import plots, presets
 from .configs import TWO_PI
 from .reduce import binding, gliders as GL, transport
 from .report import amplitude_panels, analyse_run, json_default
@@ -37,15 +38,19 @@ SINGLE_AMPLITUDES = (10, 20, 30, 40, 50, 60, 70, 80, 90)
 SINGLE_PERIODS = 75
 
 
-def ensure_store(study: pathlib.Path, data: pathlib.Path, params: SceneParams,
+def ensure_store(study: pathlib.Path, data: pathlib.Path, model: str = presets.DEFAULT,
                  on_progress: Callable[[dict], None] | None = None) -> pathlib.Path:
-    """The complete store of a study in ``data``: reused if present with the
-    same configuration, resumed if interrupted, else run."""
-    cfg = load_study(study)
+    """The complete store of a study in ``data``, made by model preset
+    ``model``: reused if present with the same configuration, resumed if
+    interrupted, else run."""
+    cfg = dataclasses.replace(load_study(study), model=model)
+    params = cfg.scene_params()
     path = data / f"{study.stem}.h5"
-    want = json.loads(json.dumps({"scan": cfg.to_json(), "scene": _params_json(params)}))
+    want = json.loads(json.dumps({"model": model, "scan": cfg.to_json(), "scene": _params_json(params)}))
     if path.exists():
         have = Store(path).config
+        have.setdefault("model", "paper")  # stores from before presets
+        have["scan"] = {**want["scan"], **have.get("scan", {}), "model": have["model"]}
         # stores written before a scene parameter existed used its default
         defaults = json.loads(json.dumps(_params_json(params.__class__())))
         have["scene"] = {**defaults, **have.get("scene", {}),
@@ -53,8 +58,7 @@ def ensure_store(study: pathlib.Path, data: pathlib.Path, params: SceneParams,
         if have != want:
             raise ValueError(f"{path} holds a different study than {study}; move it away or use another --data")
         return path
-    run_scan(cfg, path, mode="resume" if _journal(path).exists() else "new", params=params,
-             on_progress=on_progress)
+    run_scan(cfg, path, mode="resume" if _journal(path).exists() else "new", on_progress=on_progress)
     return path
 
 
@@ -339,12 +343,13 @@ def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathli
 
 
 def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Path = SWEEPS,
-                   params: SceneParams = SceneParams(), on_progress=None, command: str = "smx validate",
+                   model: str = presets.DEFAULT, on_progress=None, command: str = "smx validate",
                    single_periods: int = SINGLE_PERIODS) -> dict:
-    """Run or reuse every study, measure every claim, write the page."""
+    """Run or reuse every study with model preset ``model``, measure every claim, write the page."""
+    params = presets.params(model)
     data = pathlib.Path(data)
     data.mkdir(parents=True, exist_ok=True)
-    stores = {name: ensure_store(sweeps / f, data, params, on_progress) for name, f in STUDIES.items()}
+    stores = {name: ensure_store(sweeps / f, data, model, on_progress) for name, f in STUDIES.items()}
     singles = single_robots(params, periods=single_periods)
     figures = out_md.parent / out_md.stem
     result = evaluate(stores, singles, figures)

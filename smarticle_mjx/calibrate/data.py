@@ -17,6 +17,7 @@ import pathlib
 
 import numpy as np
 
+from .. import presets
 from ..gait import GaitSpec
 from ..scene import RobotParams, SceneParams
 from ..tracks import COLUMNS
@@ -85,15 +86,22 @@ def _gait(meta: dict, where: str) -> GaitSpec:
     return spec
 
 
-def _params(meta: dict, gait: GaitSpec, where: str) -> SceneParams:
-    robot = RobotParams()
+def _params(meta: dict, gait: GaitSpec, where: str, model: str | None = None) -> SceneParams:
+    """The model to compare the data with: preset ``model`` if given, else the
+    sidecar's ``model``, else the default preset; then the sidecar's robot and
+    plate overrides."""
+    try:
+        base = presets.params(model if model is not None else meta.get("model"))
+    except ValueError as e:
+        raise DataError(f"{where}: {e}") from None
+    robot = base.robot
     over = meta.get("robot") or {}
     fields = {f.name for f in dataclasses.fields(RobotParams)}
     unknown = set(over) - fields
     if unknown:
         raise DataError(f"{where}: unknown robot overrides {sorted(unknown)} (known: {', '.join(sorted(fields))})")
     robot = dataclasses.replace(robot, **over)
-    params = SceneParams(robot=robot)
+    params = base.replace(robot=robot)
     plate = meta.get("plate") or {}
     if "friction" in plate:
         params = params.replace(plate_friction=float(plate["friction"]))
@@ -119,13 +127,14 @@ def _num(text: str, row: int, col: str, where: str, allow_empty=False) -> float:
     return v
 
 
-def load_csv(path) -> list[Trial]:
-    """All trials of one CSV file with its sidecar."""
+def load_csv(path, model: str | None = None) -> list[Trial]:
+    """All trials of one CSV file with its sidecar, compared with preset
+    ``model`` (default: the sidecar's, else the default preset)."""
     path = pathlib.Path(path)
     where = path.name
     meta = _sidecar(path)
     gait = _gait(meta, where)
-    params = _params(meta, gait, where)
+    params = _params(meta, gait, where, model)
     n = int(meta["robots"])
     if n < 1:
         raise DataError(f"{where}: robots must be >= 1")
@@ -170,16 +179,16 @@ def load_csv(path) -> list[Trial]:
     return trials
 
 
-def load(path) -> list[Trial]:
-    """Trials from one CSV (with sidecar) or every CSV in a directory."""
+def load(path, model: str | None = None) -> list[Trial]:
+    """Trials from one CSV (with sidecar) or every CSV in a directory (see :func:`load_csv` for ``model``)."""
     path = pathlib.Path(path)
     if path.is_dir():
         files = sorted(path.glob("*.csv"))
         if not files:
             raise DataError(f"{path} holds no .csv files")
-        return [t for f in files for t in load_csv(f)]
+        return [t for f in files for t in load_csv(f, model)]
     if not path.exists():
         raise DataError(f"no data at {path}")
     if path.suffix.lower() != ".csv":
         raise DataError(f"measured data must be .csv with a .json sidecar, got {path.name}")
-    return load_csv(path)
+    return load_csv(path, model)

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from ..engine import Lanes, Scene, make_backend
-from ..engine.core import on_step_grid
+from ..engine.core import Record, on_step_grid
 from .data import Trial
 
 SIM_SAMPLE_S = 0.004  # the model is sampled every 4 ms and interpolated to the frames
@@ -70,7 +70,7 @@ def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int
             periods = max(1, math.ceil(dur / lanes.period + 1e-9))
             stride = max(1, int(round(SIM_SAMPLE_S / params.timestep)))
             state = be.initial_state(lanes)
-            _, _, track = be.advance(state, lanes, periods, track_stride=stride)
+            _, _, track = be.advance(state, lanes, periods, record=Record(track_stride=stride))
             t_sim = np.concatenate([[0.0], np.asarray(track["t"], float)])
             for j, k in enumerate(idx):
                 tr = trials[k]

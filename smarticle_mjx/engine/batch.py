@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 
 from .. import configs
-from .core import Lanes, Status
+from .core import Lanes, Record, Status, blank_collisions
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,6 +58,8 @@ class LaneResults:
       min_dist: [b, K, P]; inf after retiring or where no touch.
       status: [b] Status bits.
       periods_run: [b] periods actually simulated.
+      collisions: the collision record (see ``PeriodRecords``; zero after
+        retiring), or None when not asked for.
     """
 
     index: np.ndarray
@@ -66,6 +68,7 @@ class LaneResults:
     min_dist: np.ndarray
     status: np.ndarray
     periods_run: np.ndarray
+    collisions: dict | None = None
 
 
 def _take_state(state, idx):
@@ -93,13 +96,19 @@ def _scatter_records(rec, idx, b):
     out = PeriodRecords(*_blank(b, rec.poses.shape[1], rec.poses.shape[2], rec.touched.shape[2]),
                         np.zeros(b, np.int32))
     out.poses[idx], out.touched[idx], out.min_dist[idx], out.status[idx] = rec.poses, rec.touched, rec.min_dist, rec.status
+    if rec.collisions is not None:
+        k, p, _, bins = rec.collisions["steps"].shape[1:]
+        out.collisions = blank_collisions(b, k, p, bins)
+        for name, v in rec.collisions.items():
+            out.collisions[name][idx] = v
     return out
 
 
 def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chunk_periods: int = 5,
               rule: RetireRule = RetireRule(), valid: np.ndarray | None = None,
               on_lanes: Callable[[LaneResults], None] | None = None,
-              on_progress: Callable[[int, int, int], None] | None = None) -> dict:
+              on_progress: Callable[[int, int, int], None] | None = None,
+              record: Record | None = None) -> dict:
     """Run every lane of ``lanes`` for ``periods`` periods (or until retired).
 
     Args:
@@ -113,6 +122,8 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
         never simulated.
       on_lanes: receives each group of finished lanes (any order).
       on_progress: called as (lanes_done, lanes_total, lane_periods_run).
+      record: what to record beyond poses and touches (full-rate tracks are
+        not kept here; the collision record is).
 
     Returns:
       Summary dict: lanes, simulated lane-periods, full lane-periods, wall
@@ -121,6 +132,10 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
     import time
 
     rule.validate()
+    record = record or Record()
+    record.validate()
+    if record.track_stride:
+        raise ValueError("run_lanes keeps per-period records only; record full-rate tracks with advance()")
     if periods < 1 or batch_size < 1 or chunk_periods < 1:
         raise ValueError("periods, batch_size and chunk_periods must be positive")
     m = lanes.size
@@ -141,7 +156,8 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
     bad = np.flatnonzero(~valid)
     if len(bad):
         emit(LaneResults(bad, *_blank(len(bad), periods, n, p), np.full(len(bad), int(Status.INVALID), np.int32),
-                         np.zeros(len(bad), np.int32)))
+                         np.zeros(len(bad), np.int32),
+                         blank_collisions(len(bad), periods, p, record.collision_bins) if record.collisions else None))
     queue = list(np.flatnonzero(valid))
     b = min(batch_size, len(queue))
     if b == 0:
@@ -156,6 +172,7 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
     active = np.ones(b, bool)
     buf_poses, buf_touch, buf_dist = _blank(b, periods, n, p)
     buf_status = np.zeros(b, np.int32)
+    buf_coll = blank_collisions(b, periods, p, record.collision_bins) if record.collisions else None
     wall = 0.0
 
     while active.any():
@@ -167,11 +184,12 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
         if shrink and not active.all():
             # native: idle slots cost real work, run only the occupied ones
             idx = np.flatnonzero(active)
-            sub_state, sub_rec, _ = backend.advance(_take_state(state, idx), slot_lanes.take(idx), n_adv)
+            sub_state, sub_rec, _ = backend.advance(_take_state(state, idx), slot_lanes.take(idx), n_adv,
+                                                    record=record)
             state = _put_state(state, idx, sub_state)
             rec = _scatter_records(sub_rec, idx, b)
         else:
-            state, rec, _ = backend.advance(state, slot_lanes, n_adv)
+            state, rec, _ = backend.advance(state, slot_lanes, n_adv, record=record)
         wall += time.perf_counter() - t
         finished = []
         for s in np.flatnonzero(active):
@@ -182,6 +200,9 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
             buf_touch[s, k0:k1] = rec.touched[s, :used]
             buf_dist[s, k0:k1] = rec.min_dist[s, :used]
             buf_status[s] |= rec.status[s]
+            if buf_coll is not None:
+                for name, v in rec.collisions.items():
+                    buf_coll[name][s, k0:k1] = v[s, :used]
             slot_done[s] = k1
             lane_periods += used
             if k1 >= periods:
@@ -203,7 +224,8 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
         if finished:
             f = np.array(finished)
             emit(LaneResults(slot_lane[f].copy(), buf_poses[f].copy(), buf_touch[f].copy(), buf_dist[f].copy(),
-                             buf_status[f].copy(), slot_done[f].copy()))
+                             buf_status[f].copy(), slot_done[f].copy(),
+                             {k: v[f].copy() for k, v in buf_coll.items()} if buf_coll is not None else None))
             # refill
             refill = []
             for s in f:
@@ -223,6 +245,9 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
                 buf_touch[r_idx] = False
                 buf_dist[r_idx] = np.inf
                 buf_status[r_idx] = 0
+                if buf_coll is not None:
+                    for v in buf_coll.values():
+                        v[r_idx] = 0
             if not active.any():
                 break
             # mjx: idle slots keep running a finished lane (discarded) so the

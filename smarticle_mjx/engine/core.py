@@ -33,6 +33,54 @@ class Status(enum.IntFlag):
 # contact sensor output per pair: number of contacts, deepest distance
 SENSOR_WIDTH = 2
 
+# Collision record: the nine geom-pair kinds between robots i < j, in this
+# order (robot i's part first). Each has a contact sensor reporting the
+# number of contacts and the net contact force on robot i's part (world frame).
+PARTS = ("body", "arm1", "arm2")
+CONTACT_KINDS = tuple(f"{a}-{b}" for a in PARTS for b in PARTS)
+COLLISION_WIDTH = 4  # found, force x, y, z
+
+
+@dataclasses.dataclass(frozen=True)
+class Record:
+    """What a run records beyond the per-period poses and touches.
+
+    Attributes:
+      track_stride: keep the full-rate state every this many steps (None: no track).
+      collisions: keep the per-period collision record (native backend):
+        for every robot pair and contact kind (:data:`CONTACT_KINDS`), per
+        bin of the gait period, the steps in contact and the contact impulse
+        on the pair's first robot.
+      collision_bins: bins per gait period (phase resolution of that record).
+    """
+
+    track_stride: int | None = None
+    collisions: bool = False
+    collision_bins: int = 16
+
+    def validate(self) -> None:
+        if self.track_stride is not None and self.track_stride < 1:
+            raise ValueError("track_stride must be >= 1")
+        if self.collision_bins < 1:
+            raise ValueError("collision_bins must be >= 1")
+
+
+def collision_sensors_xml(n_robots: int) -> str:
+    """Contact sensors of the collision record, pair after pair, kind after kind.
+
+    ``geom1`` is robot j's part and ``geom2`` robot i's: MuJoCo's contact
+    sensor reports the force that geom1 exerts on geom2 (the contact normal
+    points from geom1 to geom2), so the force is the one on robot i.
+    """
+    out = []
+    for i in range(n_robots):
+        for j in range(i + 1, n_robots):
+            for a in PARTS:
+                for b in PARTS:
+                    out.append(f'    <contact name="coll_{i}_{j}_{a}_{b}" geom1="r{j}_{b}" geom2="r{i}_{a}" '
+                               f'data="found force" reduce="netforce"/>')
+    return "\n".join(out)
+
 
 @dataclasses.dataclass(frozen=True)
 class Scene:
@@ -47,16 +95,22 @@ class Scene:
     layout: SceneLayout
     xml: str
 
+    collisions: bool = False  # has the collision record's sensors (after the touch sensors)
+
     @staticmethod
-    def build(params: SceneParams, n_robots: int) -> "Scene":
+    def build(params: SceneParams, n_robots: int, collisions: bool = False) -> "Scene":
+        """Compile the scene; ``collisions`` adds the collision record's sensors
+        (they read contact forces and change nothing in the dynamics)."""
         if n_robots < 1:
             raise ValueError("n_robots must be >= 1")
         spacing = 4 * (params.robot.body_length + 2 * params.robot.arm_length)
         poses = [(spacing * i, 0.0, 0.0, 0.0, 0.0) for i in range(n_robots)]
         xml = build_mjcf(params, poses)
         xml = xml.replace('data="found" num="1"', 'data="found dist" num="1" reduce="mindist"')
+        if collisions and n_robots > 1:
+            xml = xml.replace("  </sensor>", collision_sensors_xml(n_robots) + "\n  </sensor>")
         model = compile_model(xml)
-        return Scene(params, model, SceneLayout.of(model), xml)
+        return Scene(params, model, SceneLayout.of(model), xml, collisions and n_robots > 1)
 
     @property
     def n_robots(self) -> int:
@@ -86,6 +140,15 @@ class Scene:
             q[..., lay.arm_qpos[i, 0]] = poses[..., i, 3]
             q[..., lay.arm_qpos[i, 1]] = poses[..., i, 4]
         return q
+
+    def initial_act(self, lanes: "Lanes") -> np.ndarray:
+        """Actuator activations [B, na] at t = 0: a lagging servo's filter
+        starts at the command, so the arms do not lurch at the start."""
+        if self.model.na == 0:
+            return np.zeros((lanes.size, 0))
+        if self.model.na != self.model.nu:
+            raise ValueError("scene has activations on only some actuators; engines expect all or none")
+        return lane_controls(self, lanes, np.zeros(1))[:, 0]
 
     def poses_from_qpos(self, qpos: np.ndarray) -> np.ndarray:
         """Planar poses [..., N, 5] (x, y, heading, alpha1, alpha2) from qpos."""
@@ -199,9 +262,25 @@ class PeriodRecords:
       min_dist: [B, K, P] deepest inter-robot contact distance (m, negative
         is penetration); +inf where they did not touch.
       status: [B] Status bits accumulated over these periods.
+      collisions: None, or the collision record (``Record.collisions``):
+        ``steps`` [B, K, P, 9, bins] time steps in contact per contact kind
+        (:data:`CONTACT_KINDS`) and bin of the gait period; ``impulse``
+        [B, K, P, 9, bins, 2] contact impulse (N s, world x, y) on the pair's
+        first robot i; ``impulse_r`` [B, K, P, 9, bins] its component along
+        r = c_j - c_i at each step (N s): positive pulls robot i toward robot
+        j, the paper's attraction criterion (I_N + I_F) . r > 0.
     """
 
     poses: np.ndarray
     touched: np.ndarray
     min_dist: np.ndarray
     status: np.ndarray
+    collisions: dict | None = None
+
+
+def blank_collisions(b: int, k: int, p: int, bins: int) -> dict:
+    """A collision record of ``b`` lanes and ``k`` periods with nothing in it."""
+    n = len(CONTACT_KINDS)
+    return {"steps": np.zeros((b, k, p, n, bins), np.int32),
+            "impulse": np.zeros((b, k, p, n, bins, 2), np.float32),
+            "impulse_r": np.zeros((b, k, p, n, bins), np.float32)}

@@ -24,7 +24,7 @@ from mujoco import mjx
 
 from .. import gait as gait_mod
 from . import mjx_collision
-from .core import Lanes, PeriodRecords, Scene, Status, on_step_grid, steps_per_period
+from .core import Lanes, PeriodRecords, Record, Scene, Status, on_step_grid, steps_per_period
 
 
 def _strip_sensors(xml: str) -> str:
@@ -91,7 +91,10 @@ class MjxBackend:
         d0 = mjx.make_data(self.model)
         b = lanes.size
         d = jax.tree_util.tree_map(lambda x: jnp.broadcast_to(x, (b,) + x.shape), d0)
-        return self._shard(d.replace(qpos=qpos), b)
+        d = d.replace(qpos=qpos)
+        if self.model.na:
+            d = d.replace(act=jnp.asarray(self.scene.initial_act(lanes), dtype=d.act.dtype))
+        return self._shard(d, b)
 
     def _lane_args(self, lanes: Lanes):
         """Traced per-lane gait inputs (amplitude, chirality, kind, phase)."""
@@ -133,10 +136,10 @@ class MjxBackend:
         self._compiled[nstep] = fn
         return fn
 
-    def advance(self, state, lanes: Lanes, n_periods: int, *, t0: float = 0.0, track_stride: int | None = None):
+    def advance(self, state, lanes: Lanes, n_periods: int, *, t0: float = 0.0, record: Record | None = None):
         """Advance batched ``state`` by ``n_periods``; same contract as the native backend."""
-        if track_stride:
-            raise NotImplementedError("full-rate tracks are recorded by the native backend")
+        if record is not None and (record.track_stride or record.collisions):
+            raise ValueError("full-rate tracks and the collision record are recorded by the native backend only")
         lanes = on_step_grid(lanes, float(self.model.opt.timestep))
         nstep = steps_per_period(lanes.period, float(self.model.opt.timestep))
         fn = self._period_fn(nstep)

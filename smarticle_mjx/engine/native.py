@@ -14,7 +14,8 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
-from .core import SENSOR_WIDTH, Lanes, PeriodRecords, Scene, Status, lane_controls, on_step_grid, steps_per_period
+from .core import (COLLISION_WIDTH, CONTACT_KINDS, SENSOR_WIDTH, Lanes, PeriodRecords, Record, Scene, Status,
+                   blank_collisions, lane_controls, on_step_grid, steps_per_period)
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
 
@@ -57,20 +58,29 @@ class NativeBackend:
         mujoco.mj_getState(m, d, base, _FULL)
         state = np.tile(base, (lanes.size, 1))
         state[:, self.qpos_at:self.qpos_at + m.nq] = self.scene.qpos_from_poses(lanes.poses)
+        if m.na:
+            act_at = self.qvel_at + m.nv
+            state[:, act_at:act_at + m.na] = self.scene.initial_act(lanes)
         state[:, 0] = 0.0
         return state
 
     def advance(self, state: np.ndarray, lanes: Lanes, n_periods: int, *, t0: float = 0.0,
-                track_stride: int | None = None):
+                record: Record | None = None):
         """Advance ``state`` [B, nstate] by ``n_periods`` whole gait periods.
 
         Every lane must be at gait phase 0 (a whole number of periods into its
         run); lanes need not share a clock. ``t0`` only labels track times.
+        ``record`` says what to keep beyond the per-period records.
 
         Returns:
           (new_state, PeriodRecords, track) where track is None or a dict with
-          ``t`` [S] and ``qpos`` [B, S, nq] sampled every ``track_stride`` steps.
+          ``t`` [S] and ``qpos`` [B, S, nq] sampled every ``record.track_stride`` steps.
         """
+        record = record or Record()
+        record.validate()
+        track_stride = record.track_stride
+        if record.collisions and not self.scene.collisions:
+            raise ValueError("the collision record needs a scene built with Scene.build(..., collisions=True)")
         m = self.model
         dt = m.opt.timestep
         lanes = on_step_grid(lanes, dt)
@@ -82,6 +92,7 @@ class NativeBackend:
         touched = np.zeros((b, n_periods, n_pairs), dtype=bool)
         min_dist = np.full((b, n_periods, n_pairs), np.inf)
         status = np.zeros(b, dtype=np.int32)
+        coll = blank_collisions(b, n_periods, n_pairs, record.collision_bins) if record.collisions else None
         state = np.array(state, dtype=np.float64, copy=True)
         track_t, track_q = [], []
         # every call starts at gait phase 0 and the gait is periodic, so the
@@ -97,7 +108,9 @@ class NativeBackend:
                 init = state[sl].copy()
                 states, sens = self.pool.rollout(
                     m, self.datas, init, ctrl, nstep=nstep)
-                sens = sens.reshape(sens.shape[0], nstep, n_pairs, SENSOR_WIDTH)
+                if coll is not None:
+                    self._collisions(coll, sl, k, init, states, sens, nstep, record.collision_bins)
+                sens = sens[..., :n_pairs * SENSOR_WIDTH].reshape(sens.shape[0], nstep, n_pairs, SENSOR_WIDTH)
                 found = sens[..., 0] > 0
                 touched[sl, k] = found.any(1)
                 dist = np.where(found, sens[..., 1], np.inf).min(1)
@@ -116,7 +129,32 @@ class NativeBackend:
         track = None
         if track_stride:
             track = {"t": np.concatenate(track_t), "qpos": np.concatenate(track_q, 1)}
-        return state, PeriodRecords(poses, touched, min_dist, status), track
+        return state, PeriodRecords(poses, touched, min_dist, status, coll), track
+
+    def _collisions(self, coll: dict, sl: slice, k: int, init, states, sens, nstep: int, bins: int):
+        """Fold one period's contact-force sensors into the collision record."""
+        m, lay = self.model, self.scene.layout
+        n_pairs, n_kinds = self.scene.n_pairs, len(CONTACT_KINDS)
+        cs = sens[..., n_pairs * SENSOR_WIDTH:].reshape(sens.shape[0], nstep, n_pairs, n_kinds, COLLISION_WIDTH)
+        # the sensors of step s read the forces that acted during step s, on the
+        # state the step started from: the previous row of ``states`` (or the
+        # period's initial state for the first step)
+        qa = slice(self.qpos_at, self.qpos_at + m.nq)
+        q = np.concatenate([init[:, None, qa], states[:, :-1, qa]], 1)
+        dt = m.opt.timestep
+        bin_of = np.minimum((np.arange(nstep) * bins) // nstep, bins - 1)
+        for p, (i, j) in enumerate(lay.pairs):
+            ci, cj = q[..., lay.free_qpos[i]:lay.free_qpos[i] + 2], q[..., lay.free_qpos[j]:lay.free_qpos[j] + 2]
+            rvec = cj - ci
+            rhat = rvec / np.maximum(np.linalg.norm(rvec, axis=-1, keepdims=True), 1e-12)  # [b, nstep, 2]
+            found = cs[:, :, p, :, 0] > 0  # [b, nstep, kinds]
+            imp = cs[:, :, p, :, 1:3] * dt  # [b, nstep, kinds, 2]
+            imp_r = (imp * rhat[:, :, None, :]).sum(-1)
+            for g in range(bins):
+                at = bin_of == g
+                coll["steps"][sl, k, p, :, g] = found[:, at].sum(1)
+                coll["impulse"][sl, k, p, :, g] = imp[:, at].sum(1)
+                coll["impulse_r"][sl, k, p, :, g] = imp_r[:, at].sum(1)
 
     def step_qpos(self, lanes: Lanes, nsteps: int) -> np.ndarray:
         """qpos [B, nsteps, nq] of the first ``nsteps`` steps from rest."""

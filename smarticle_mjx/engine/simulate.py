@@ -9,7 +9,7 @@ import numpy as np
 from .. import configs
 from ..gait import GaitSpec
 from ..scene import SceneParams
-from .core import Lanes, Scene, Status, on_step_grid
+from .core import Lanes, Record, Scene, Status, on_step_grid
 
 
 @dataclasses.dataclass
@@ -26,6 +26,8 @@ class SimResult:
       status: Status bits.
       track_t: [S] times of the full-rate track, or None.
       track: [S, N, 5] poses along the track, or None.
+      collisions: the collision record of the K periods (see
+        ``PeriodRecords.collisions``, without the lane axis), or None.
     """
 
     period: float
@@ -37,6 +39,7 @@ class SimResult:
     body_length: float
     track_t: np.ndarray | None = None
     track: np.ndarray | None = None
+    collisions: dict | None = None
 
     def relative(self, i: int = 0, j: int = 1):
         """(|r| in W, theta, phi) of robots i, j at every period boundary [K+1]."""
@@ -44,7 +47,8 @@ class SimResult:
 
 
 def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=None,
-             track_stride: int | None = None, backend: str = "native", nthread: int | None = None) -> SimResult:
+             track_stride: int | None = None, backend: str = "native", nthread: int | None = None,
+             record: Record | None = None) -> SimResult:
     """Simulate N robots on the plate for ``periods`` gait periods.
 
     Args:
@@ -53,8 +57,10 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
       gait: gait shared by all robots.
       periods: number of gait periods K (>= 1).
       phase: optional [N] phase offsets (fractions of a period).
-      track_stride: record the full-rate track every this many steps.
+      track_stride: record the full-rate track every this many steps
+        (shorthand for ``record=Record(track_stride=...)``).
       backend: "native" (default) or "mjx".
+      record: what to record beyond per-period poses and touches.
 
     Raises:
       ValueError: bad parameters, or robots overlapping at the start.
@@ -64,25 +70,29 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
         raise ValueError(f"poses must be [N, 5], got shape {poses.shape}")
     if periods < 1:
         raise ValueError(f"periods must be >= 1, got {periods}")
-    if track_stride is not None and track_stride < 1:
-        raise ValueError("track_stride must be >= 1")
+    record = record or Record()
+    if track_stride is not None:
+        record = dataclasses.replace(record, track_stride=track_stride)
+    record.validate()
     params.validate()
     gait.validate(params.robot.servo_speed, params.robot.arm_limit_deg)
     if len(poses) > 1 and not configs.poses_valid(poses, params.robot):
         raise ValueError("initial poses overlap: robots would start interpenetrating")
-    scene = Scene.build(params, len(poses))
+    scene = Scene.build(params, len(poses), collisions=record.collisions)
     lanes = on_step_grid(Lanes.from_gait(poses, gait, phase), params.timestep)
     from . import make_backend
     be = make_backend(backend, scene, nthread=nthread)
     try:
         state = be.initial_state(lanes)
-        _, rec, track = be.advance(state, lanes, periods, track_stride=track_stride)
+        _, rec, track = be.advance(state, lanes, periods, record=record)
     finally:
         if hasattr(be, "close"):
             be.close()
     all_poses = np.concatenate([poses[None], rec.poses[0]], 0)
     res = SimResult(lanes.period, all_poses, rec.touched[0], rec.min_dist[0], scene.layout.pairs,
                     int(Status(int(rec.status[0]))), params.robot.body_length)
+    if rec.collisions is not None:
+        res.collisions = {k: v[0] for k, v in rec.collisions.items()}
     if track is not None:
         res.track_t = track["t"]
         res.track = scene.poses_from_qpos(track["qpos"][0])

@@ -178,3 +178,81 @@ def steady_separation(rel, touched, window: int = 20) -> dict:
     n = len(per)
     return {"mean": float(per.mean()) if n else np.nan, "std": float(per.std(ddof=1)) if n > 1 else np.nan,
             "sem": float(per.std(ddof=1) / np.sqrt(n)) if n > 1 else np.nan, "pairs": n, "per_pair": per}
+
+
+def sign_runs(phi) -> np.ndarray:
+    """Lengths (periods) of the runs in which phi - 180 deg keeps its sign.
+
+    Args:
+      phi: [K] relative orientation once per period (rad), NaN = missing
+        (a missing sample ends a run).
+
+    Returns:
+      [R] run lengths. The first and last runs are censored by the track's
+      ends; :func:`sign_persistence` reports them as such.
+    """
+    dev = np.angle(np.exp(1j * (np.asarray(phi, float) - np.pi)))
+    s = np.where(np.isfinite(dev), np.sign(dev), 0)
+    runs, cur, prev = [], 0, 0
+    for v in s:
+        if v != 0 and v == prev:
+            cur += 1
+        else:
+            if cur:
+                runs.append(cur)
+            cur = 1 if v != 0 else 0
+        prev = v
+    if cur:
+        runs.append(cur)
+    return np.array(runs, int)
+
+
+def sign_persistence(rel_tracks, hold: int = 50) -> dict:
+    """How long gliders keep the sign of phi - 180 deg (the paper: the sign
+    sets the direction of travel and stays).
+
+    Args:
+      rel_tracks: [G, L, 3] per-period (|r|, theta, phi) of G gliders (NaN-padded).
+      hold: periods a glider must keep its sign to count as holding it.
+
+    Returns:
+      {"flips_per_period": sign changes per glider-period, "mean_run": mean
+       run length (periods, censored runs included, so a lower bound),
+       "held": fraction of gliders whose longest run is >= ``hold`` or covers
+       the whole track, "longest": [G] longest run per glider, "length": [G]}.
+    """
+    rel_tracks = np.asarray(rel_tracks, float)
+    longest, lengths, flips, runs_all = [], [], 0, []
+    for tr in rel_tracks:
+        ph = tr[:, 2]
+        ok = np.isfinite(ph)
+        if ok.sum() < 2:
+            continue
+        runs = sign_runs(ph[ok])
+        runs_all += list(runs)
+        flips += len(runs) - 1
+        longest.append(int(runs.max()))
+        lengths.append(int(ok.sum()))
+    longest, lengths = np.array(longest), np.array(lengths)
+    n = int(lengths.sum())
+    return {"flips_per_period": flips / max(n - len(lengths), 1) if len(lengths) else np.nan,
+            "mean_run": float(np.mean(runs_all)) if runs_all else np.nan,
+            "held": float(np.mean((longest >= hold) | (longest == lengths))) if len(lengths) else np.nan,
+            "longest": longest, "length": lengths}
+
+
+def repeatability(rel_tracks) -> dict:
+    """How tightly the once-per-period (|r|, theta, phi) of a glider repeats
+    (a limit cycle repeats exactly): per glider the standard deviation of |r|
+    (W) and the circular standard deviations of theta and phi (rad),
+    then the median over gliders."""
+    out = {"r": [], "theta": [], "phi": []}
+    for tr in np.asarray(rel_tracks, float):
+        tr = tr[np.isfinite(tr).all(-1)]
+        if len(tr) < 3:
+            continue
+        out["r"].append(tr[:, 0].std())
+        for k, name in ((1, "theta"), (2, "phi")):
+            R = np.abs(np.exp(1j * tr[:, k]).mean())
+            out[name].append(np.sqrt(-2 * np.log(max(R, 1e-12))))
+    return {k: float(np.median(v)) if v else np.nan for k, v in out.items()}

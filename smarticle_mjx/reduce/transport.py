@@ -156,3 +156,67 @@ def track_turning(xy) -> np.ndarray:
     d = np.diff(np.asarray(xy, float), axis=-2)
     ang = np.arctan2(d[..., 1], d[..., 0])
     return np.angle(np.exp(1j * np.diff(ang, axis=-1)))
+
+
+# ------------------------------------------------------ straight gliding
+# The once-per-period track of a glider that glides is a line of equal
+# steps; one that shuttles or zig-zags has steps of the same length whose
+# direction flips. A mean step length cannot tell them apart; these can.
+
+def _steps(xy):
+    d = np.diff(np.asarray(xy, float), axis=-2)
+    return d, np.linalg.norm(d, axis=-1)
+
+
+def direction_persistence(xy) -> float:
+    """Mean cosine between successive once-per-period steps, pooled over
+    tracks: 1 for a straight line, 0 for a random walk, -1 for a shuttle
+    that reverses every period. NaN where there are no two steps."""
+    d, n = _steps(xy)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos = (d[..., 1:, :] * d[..., :-1, :]).sum(-1) / (n[..., 1:] * n[..., :-1])
+    cos = cos[np.isfinite(cos)]
+    return float(cos.mean()) if cos.size else np.nan
+
+
+def median_direction_change(xy) -> float:
+    """Median absolute change of the direction of travel from one period to
+    the next (rad), pooled over tracks."""
+    t = np.abs(track_turning(xy))
+    t = t[np.isfinite(t)]
+    return float(np.median(t)) if t.size else np.nan
+
+
+def straightness(xy, window: int = 20) -> float:
+    """Net displacement over ``window`` periods divided by the once-per-period
+    path length over them, averaged over every complete window of every
+    track (1: a straight line)."""
+    xy = np.asarray(xy, float)
+    if xy.ndim == 2:
+        xy = xy[None]
+    _, n = _steps(xy)
+    vals = []
+    for tr, st in zip(xy, n):
+        for s in range(0, tr.shape[0] - window):
+            seg = tr[s:s + window + 1]
+            if not np.isfinite(seg).all():
+                continue
+            path = st[s:s + window].sum()
+            if path > 0:
+                vals.append(np.linalg.norm(seg[-1] - seg[0]) / path)
+    return float(np.mean(vals)) if vals else np.nan
+
+
+def net_speed(xy) -> np.ndarray:
+    """[M] net gliding speed per track: |last - first| / periods between them
+    (units per period), over the track's finite samples; NaN if < 2.
+    A zig-zag or a shuttle has a large mean step but a small net speed."""
+    xy = np.asarray(xy, float)
+    if xy.ndim == 2:
+        xy = xy[None]
+    out = np.full(len(xy), np.nan)
+    for g, tr in enumerate(xy):
+        ok = np.flatnonzero(np.isfinite(tr).all(-1))
+        if len(ok) >= 2:
+            out[g] = np.linalg.norm(tr[ok[-1]] - tr[ok[0]]) / (ok[-1] - ok[0])
+    return out

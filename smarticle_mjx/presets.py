@@ -1,0 +1,121 @@
+"""Named model presets: the one place where a model's numbers are chosen.
+
+A preset is a robot geometry and a servo, bound into one ``SceneParams``
+(like Playground's ``registry.py`` binds environment variants). Every value a
+preset sets cites where it comes from; sources are public smarticle code
+(``shared/reference/smarticle.md``, "Beyond the paper's text") or the paper.
+Nothing here was chosen to match a number the model is then checked against:
+the values were fixed before the screening study (``benchmarks/fidelity_screen.py``,
+``docs/fidelity.md``) ran.
+
+Every command that builds a scene takes ``--model NAME``; every store and
+track sidecar records the preset's name and its full parameters.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from .scene import RobotParams, SceneParams
+
+
+@dataclasses.dataclass(frozen=True)
+class Preset:
+    """A named model: its parameters, one line about it, and the source of each value it sets."""
+
+    name: str
+    params: SceneParams
+    summary: str
+    sources: tuple[tuple[str, str], ...]  # (field, where the value comes from)
+
+
+# ------------------------------------------------------------------ robots
+_LAB_CODE = "wsavoie/ArduinoSmarticle crawlingStudy5_ThickCenter_wStatic_fast20170929.m"
+_CHRONO = "wsavoie/SmarticleSim Smarticle.cpp; AkashVardhan7/smarticle_cloud_open_Boundary"
+_DART = "LuningFang/smarticle_v6 main.cpp (world.skel quoted in comments)"
+
+# geometry name -> (RobotParams changes, scene changes, sources)
+_GEOMETRY = {
+    "paper": ({}, {}, (
+        ("body_length, arm_length, arm_thickness, body_thickness, mass", "paper (W 5.0 cm, L 5.4 cm, 0.3 cm, D 2.2 cm, 34.8 g)"),
+        ("arm_mass 2 g, capsule arms, body_height 2.5 cm", "chosen where the paper is silent (docs/model.md)"),
+        ("plate_friction 0.37", "DART-derived comments in public code"),
+        ("robot_friction 0.3", "chosen (plastic on plastic)"),
+    )),
+    "lab": (dict(
+        body_length=0.054, arm_length=0.050, hinge_inset=0.006,
+        arm_shape="plate", arm_thickness=0.0032, arm_height=0.024, arm_clearance=0.0005,
+        arm_mass=0.00319,
+    ), dict(robot_friction=0.37), (
+        ("body_length 5.4 cm, arm_length 5.0 cm", f"{_LAB_CODE}; LuningFang/smarticle_v6 Skeleton.cpp (three codes agree)"),
+        ("hinge_inset 6 mm", f"{_LAB_CODE}; wsavoie/SmarticleSim Smarticle.cpp (pivot to pivot ~4.2 cm)"),
+        ("arm_shape plate, 3.2 mm thick, 0.96 of the body height", _CHRONO),
+        ("arm_mass 3.19 g", f"{_LAB_CODE}; Chrono ports"),
+        ("mass 34.8 g", "paper (measured; the lab code's body 24.8 g + 2 x 3.19 g = 31.2 g omits the rest)"),
+        ("plate_friction 0.37", f"{_LAB_CODE} (kinetic; static 0.43: MuJoCo has one coefficient)"),
+        ("robot_friction 0.37", f"{_DART}; dartsim/dart ContactConstraint.cpp (min of 0.37 and 0.37)"),
+    )),
+}
+
+# servo name -> (RobotParams changes, sources)
+_SERVO = {
+    "pd": ({}, (
+        ("servo: PD + feed-forward, kp 0.5 N m/rad, kv critical, 0.078 N m, armature 5e-5 kg m^2",
+         "stall torque: Savoie's public Chrono code; gains and armature chosen (docs/model.md, docs/timestep.md)"),
+    )),
+    # DART's "SERVO" joint: a velocity constraint whose force is bounded, hard stops at +-90 deg.
+    # Here: a velocity loop stiff enough to be a constraint within the bound (a velocity
+    # error of 0.3 rad/s, or a setpoint error of 1 deg, saturates 0.03 N m), no reflected inertia.
+    "dart": (dict(servo_kp=3.0, servo_kv=0.1, servo_torque=0.03, servo_armature=0.0, arm_limit_deg=90.0), (
+        ("servo_torque 0.03 N m, arm_limit 90 deg (hard stops)", f"{_DART}; dartsim/dart JointAspect.hpp"),
+        ("servo_kv 0.1, servo_kp 3.0, armature 0", "a velocity constraint within the force bound, as DART's servo"),
+    )),
+    # A hobby servo is commanded by a pulse every 20 ms (50 Hz) and the lab firmware sends step
+    # setpoints (wsavoie/ArduinoSmarticle cloudSmarticle.ino): the arm responds to a command on
+    # average half a frame late. Modelled as a first-order lag of 10 ms on the command.
+    "lag": (dict(servo_timeconst=0.010), (
+        ("servo_timeconst 10 ms", "half the 20 ms command frame of a hobby servo; lab firmware sends step setpoints "
+                                  "(wsavoie/ArduinoSmarticle cloudSmarticle.ino)"),
+        ("servo otherwise as 'pd'", "see the pd servo"),
+    )),
+}
+
+
+def _bind(name: str, geometry: str, servo: str, summary: str) -> Preset:
+    robot_changes, scene_changes, geo_sources = _GEOMETRY[geometry]
+    servo_changes, servo_sources = _SERVO[servo]
+    robot = dataclasses.replace(RobotParams(), **robot_changes, **servo_changes)
+    params = dataclasses.replace(SceneParams(), robot=robot, **scene_changes)
+    params.validate()
+    return Preset(name, params, summary, geo_sources + servo_sources)
+
+
+PRESETS: dict[str, Preset] = {p.name: p for p in (
+    _bind("paper", "paper", "pd", "the paper's text: W 5.0 cm, L 5.4 cm, capsule arms, PD servo (the model before presets)"),
+    _bind("paper-dart", "paper", "dart", "the paper's geometry with DART's servo (0.03 N m velocity servo, hard stops)"),
+    _bind("lab", "lab", "pd", "the lab robot from public code: body 5.4 cm, arms 5.0 cm plates, hinges 6 mm inset; PD servo"),
+    _bind("lab-dart", "lab", "dart", "the lab robot with DART's servo (0.03 N m velocity servo, hard stops at 90 deg)"),
+    _bind("lab-lag", "lab", "lag", "the lab robot with a PD servo that answers its command 10 ms late (first-order lag)"),
+)}
+
+# The default model of every command. Chosen in docs/model.md from the screening study
+# (docs/fidelity.md); stores record the preset that made them.
+DEFAULT = "paper"
+
+
+def get(name: str | None = None) -> Preset:
+    """The preset called ``name`` (default: :data:`DEFAULT`).
+
+    Raises:
+      ValueError: unknown name (one line naming the known ones).
+    """
+    name = DEFAULT if name is None else name
+    try:
+        return PRESETS[name]
+    except KeyError:
+        raise ValueError(f"unknown model {name!r}; choose one of {', '.join(PRESETS)}") from None
+
+
+def params(name: str | None = None) -> SceneParams:
+    """The ``SceneParams`` of preset ``name`` (default: :data:`DEFAULT`)."""
+    return get(name).params

@@ -1,0 +1,89 @@
+"""The collision record, reduced: which contacts happened when, and which of
+them attract. numpy only.
+
+A record (``PeriodRecords.collisions``, or a store's ``coll_*`` datasets) has
+per lane, period, robot pair, contact kind (``KINDS``: robot i's part, then
+robot j's) and bin of the gait period: the time steps in contact, the contact
+impulse on robot i (world x, y; N s) and its component along r = c_j - c_i.
+A positive component pulls robot i toward robot j: the paper's attraction
+criterion (I_N + I_F) . r > 0. By Newton's third law robot j receives the
+opposite impulse, which pulls it toward robot i just as much.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+PARTS = ("body", "arm1", "arm2")
+KINDS = tuple(f"{a}-{b}" for a in PARTS for b in PARTS)  # the engine's CONTACT_KINDS, in its order
+
+
+def period_totals(coll: dict) -> dict:
+    """Per lane, period and pair: the impulse along r and the steps in contact,
+    summed over kinds and bins, and the impulse along r per kind.
+
+    Returns:
+      {"impulse_r": [B, K, P] (N s), "steps": [B, K, P],
+       "impulse_r_by_kind": [B, K, P, 9], "steps_by_kind": [B, K, P, 9]}.
+    """
+    ir = np.asarray(coll["impulse_r"], float)
+    st = np.asarray(coll["steps"])
+    by_kind = ir.sum(-1)
+    return {"impulse_r": by_kind.sum(-1), "steps": st.sum((-1, -2)),
+            "impulse_r_by_kind": by_kind, "steps_by_kind": st.sum(-1)}
+
+
+def attractive_periods(coll: dict) -> np.ndarray:
+    """[B, K, P] bool: some contact kind's impulse along r was positive in
+    that period (at least one attractive collision, the paper's criterion)."""
+    return (period_totals(coll)["impulse_r_by_kind"] > 0).any(-1)
+
+
+def sequence(coll: dict, lane: int, period: int, pair: int = 0, min_steps: int = 1) -> list[dict]:
+    """The collisions of one period of one lane in gait order.
+
+    Returns:
+      One dict per contiguous run of bins in which a contact kind was in
+      contact: kind, first and last bin, phase (fraction of the period) at
+      its start, steps in contact, impulse along r (N s) and the impulse
+      vector (N s) on robot i. Sorted by start bin.
+    """
+    st = np.asarray(coll["steps"])[lane, period, pair]
+    ir = np.asarray(coll["impulse_r"], float)[lane, period, pair]
+    iv = np.asarray(coll["impulse"], float)[lane, period, pair]
+    bins = st.shape[-1]
+    out = []
+    for k, name in enumerate(KINDS):
+        on = st[k] >= min_steps
+        g = 0
+        while g < bins:
+            if not on[g]:
+                g += 1
+                continue
+            h = g
+            while h + 1 < bins and on[h + 1]:
+                h += 1
+            sl = slice(g, h + 1)
+            out.append({"kind": name, "first_bin": g, "last_bin": h, "phase": g / bins,
+                        "steps": int(st[k, sl].sum()), "impulse_r": float(ir[k, sl].sum()),
+                        "impulse": [float(v) for v in iv[k, sl].sum(0)]})
+            g = h + 1
+    return sorted(out, key=lambda e: (e["first_bin"], e["kind"]))
+
+
+def kind_summary(coll: dict, mask=None) -> dict:
+    """Per contact kind over the periods selected by ``mask`` [B, K] (default all):
+    fraction of periods with that contact, mean impulse along r per period
+    (N s), and the fraction of those contacts whose impulse along r was attractive."""
+    t = period_totals(coll)
+    st, ir = t["steps_by_kind"][..., 0, :], t["impulse_r_by_kind"][..., 0, :]  # pair 0
+    if mask is not None:
+        st, ir = st[np.asarray(mask, bool)], ir[np.asarray(mask, bool)]
+    st, ir = st.reshape(-1, len(KINDS)), ir.reshape(-1, len(KINDS))
+    out = {}
+    for k, name in enumerate(KINDS):
+        hit = st[:, k] > 0
+        out[name] = {"periods_with_contact": float(hit.mean()) if len(hit) else np.nan,
+                     "mean_impulse_r": float(ir[hit, k].mean()) if hit.any() else 0.0,
+                     "attractive_fraction": float((ir[hit, k] > 0).mean()) if hit.any() else np.nan}
+    return out

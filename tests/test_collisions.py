@@ -1,0 +1,101 @@
+"""The collision record against MuJoCo's own contact forces, summed by hand."""
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from smarticle_mjx import configs as C
+from smarticle_mjx import presets
+from smarticle_mjx.engine.core import CONTACT_KINDS, PARTS, Lanes, Record, Scene, lane_controls, on_step_grid
+from smarticle_mjx.engine.simulate import simulate
+from smarticle_mjx.gait import GaitSpec
+from smarticle_mjx.reduce import collisions as RC
+
+GAIT = GaitSpec(90.0)
+
+
+def _by_hand(params, poses, bins):
+    """Step MuJoCo one step at a time (no collision sensors in the model) and
+    sum every robot-robot contact's force (mj_contactForce, rotated out of the
+    contact frame) on robot 0, by contact kind and bin of the period."""
+    scene = Scene.build(params, 2)
+    m = scene.model
+    d = mujoco.MjData(m)
+    lanes = on_step_grid(Lanes.from_gait(poses, GAIT), m.opt.timestep)
+    nstep = int(round(lanes.period / m.opt.timestep))
+    ctrl = lane_controls(scene, lanes, m.opt.timestep * np.arange(nstep))[0]
+    d.qpos[:] = scene.qpos_from_poses(np.asarray(poses)[None])[0]
+    mujoco.mj_forward(m, d)
+    names = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"r{r}_{p}"): (r, p) for r in (0, 1) for p in PARTS}
+    steps = np.zeros((len(CONTACT_KINDS), bins), int)
+    imp = np.zeros((len(CONTACT_KINDS), bins, 2))
+    imp_r = np.zeros((len(CONTACT_KINDS), bins))
+    f6 = np.zeros(6)
+    for s in range(nstep):
+        d.ctrl[:] = ctrl[s]
+        mujoco.mj_forward(m, d)  # contacts and forces of the state this step starts from
+        g = min(s * bins // nstep, bins - 1)
+        c0 = d.xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "r0")][:2]
+        c1 = d.xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "r1")][:2]
+        rhat = (c1 - c0) / np.linalg.norm(c1 - c0)
+        seen = set()
+        for ci in range(d.ncon):
+            con = d.contact[ci]
+            a, b = names.get(con.geom[0]), names.get(con.geom[1])
+            if a is None or b is None or a[0] == b[0]:
+                continue
+            mujoco.mj_contactForce(m, d, ci, f6)
+            # mj_contactForce gives the force on geom[1] in the contact frame (rows: normal, tangents)
+            on_g1 = con.frame.reshape(3, 3).T @ f6[:3]
+            on_robot0 = on_g1 if b[0] == 0 else -on_g1
+            part0, part1 = (b[1], a[1]) if b[0] == 0 else (a[1], b[1])
+            k = CONTACT_KINDS.index(f"{part0}-{part1}")
+            seen.add(k)
+            imp[k, g] += on_robot0[:2] * m.opt.timestep
+            imp_r[k, g] += on_robot0[:2] @ rhat * m.opt.timestep
+        for k in seen:
+            steps[k, g] += 1
+        mujoco.mj_step(m, d)
+    return steps, imp, imp_r
+
+
+@pytest.mark.parametrize("model", ["paper", "lab-dart"])
+def test_collision_record_matches_mujoco_contact_forces_summed_by_hand(model):
+    """Per contact kind and phase bin, the record's steps in contact and the
+    contact impulse on robot 0 (and its component along r) equal the sum of
+    MuJoCo's own contact forces over an independently stepped period."""
+    params = presets.params(model)
+    a0 = GAIT.setpoints(0.0, params.robot.servo_speed)
+    # an asymmetric start whose robots collide arm-arm and arm-body in the first period
+    poses = C.pair_poses(1.25, math.radians(250), math.radians(170), a0[0], a0[1], params.robot)
+    assert C.poses_valid(poses, params.robot)
+    bins = 8
+    res = simulate(params, poses, GAIT, 1, record=Record(collisions=True, collision_bins=bins))
+    steps, imp, imp_r = _by_hand(params, poses, bins)
+    rec = res.collisions
+    assert steps.sum() > 100, "the start must collide"
+    assert (steps.sum(1) > 0).sum() >= 2, "at least two kinds of contact"
+    np.testing.assert_array_equal(rec["steps"][0, 0], steps)
+    scale = np.abs(imp).max()
+    np.testing.assert_allclose(rec["impulse"][0, 0], imp, atol=1e-4 * scale)
+    np.testing.assert_allclose(rec["impulse_r"][0, 0], imp_r, atol=1e-4 * scale)
+    # the reducer's per-period totals are the same sums
+    tot = RC.period_totals({k: v[None] for k, v in rec.items()})
+    np.testing.assert_allclose(tot["impulse_r"][0, 0, 0], imp_r.sum(), atol=1e-4 * scale)
+
+
+def test_collision_record_needs_the_native_backend_and_sensors():
+    params = presets.params("paper")
+    scene = Scene.build(params, 2)
+    from smarticle_mjx.engine.native import NativeBackend
+    be = NativeBackend(scene, nthread=1)
+    try:
+        lanes = Lanes.from_gait(np.array(C.pair_poses(1.5, 4.7, 3.1, 1.57, 1.57, params.robot))[None], GAIT)
+        with pytest.raises(ValueError, match="collision record"):
+            be.advance(be.initial_state(lanes), lanes, 1, record=Record(collisions=True))
+    finally:
+        be.close()
+    with pytest.raises(ValueError, match="collision_bins"):
+        Record(collisions=True, collision_bins=0).validate()
