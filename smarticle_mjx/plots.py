@@ -177,3 +177,40 @@ def tracks(xy_list, labels, out_dir, stem, title="", formats=("png",)):
     ax.legend(fontsize=6)
     ax.set_title(title, fontsize=9)
     return _save(fig, out_dir, stem, formats)
+
+
+def collision_sequence(coll: dict, lane: int, periods, out_dir, stem, title="", formats=("png",)):
+    """A glider's collisions over one or more gait periods: per contact kind
+    (rows) and bin of the period (columns), the contact impulse along r on
+    robot i (red: attractive, pulls the robots together; blue: repulsive);
+    blank where there was no contact. Gait quarters are marked: in each one
+    arm moves, then both dwell.
+
+    Args:
+      coll: a collision record with a lane axis (``PeriodRecords.collisions``
+        or a store's ``coll_*`` datasets as steps/impulse/impulse_r).
+      lane: which lane; periods: which periods (one panel each).
+    """
+    from .reduce import collisions as RC
+    plt = _mpl()
+    periods = list(np.atleast_1d(periods))
+    steps = np.asarray(coll["steps"])[lane, :, 0]  # pair 0: [K, kinds, bins]
+    imp = np.asarray(coll["impulse_r"], float)[lane, :, 0] * 1e3  # mN s
+    used = [k for k in range(len(RC.KINDS)) if steps[periods].sum(axis=(0, 2))[k] > 0] or [0]
+    lim = max(np.abs(imp[periods][:, used]).max(), 1e-9)
+    bins = steps.shape[-1]
+    fig, axes = plt.subplots(1, len(periods), figsize=(3.6 * len(periods) + 1.2, 0.45 * len(used) + 1.6),
+                             squeeze=False, sharey=True)
+    for ax, k in zip(axes[0], periods):
+        grid = np.where(steps[k][used] > 0, imp[k][used], np.nan)
+        im = ax.imshow(grid, aspect="auto", cmap="RdBu_r", vmin=-lim, vmax=lim, interpolation="nearest",
+                       extent=(0, 1, len(used) - 0.5, -0.5))
+        for q in (0.25, 0.5, 0.75):
+            ax.axvline(q, color="0.6", lw=0.6)
+        ax.set_yticks(range(len(used)), [f"{RC.KINDS[u]}" for u in used])
+        ax.set(xlabel=f"gait phase (period {k}, {bins} bins)")
+    axes[0, 0].set_ylabel("contact (robot i part – robot j part)")
+    fig.colorbar(im, ax=axes[0, -1], label="impulse along r on robot i (mN·s); > 0 attracts")
+    if title:
+        fig.suptitle(title, fontsize=9)
+    return _save(fig, out_dir, stem, formats)

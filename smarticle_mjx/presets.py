@@ -49,7 +49,8 @@ _GEOMETRY = {
     ), dict(robot_friction=0.37), (
         ("body_length 5.4 cm, arm_length 5.0 cm", f"{_LAB_CODE}; LuningFang/smarticle_v6 Skeleton.cpp (three codes agree)"),
         ("hinge_inset 6 mm", f"{_LAB_CODE}; wsavoie/SmarticleSim Smarticle.cpp (pivot to pivot ~4.2 cm)"),
-        ("arm_shape plate, 3.2 mm thick, 0.96 of the body height", _CHRONO),
+        ("arm_shape plate, arm_thickness 3.2 mm, arm_height 0.96 of the body height", _CHRONO),
+        ("arm_clearance 0.5 mm", "paper: arms 'slightly raised above the ground'; half the 1 mm the plate leaves"),
         ("arm_mass 3.19 g", f"{_LAB_CODE}; Chrono ports"),
         ("mass 34.8 g", "paper (measured; the lab code's body 24.8 g + 2 x 3.19 g = 31.2 g omits the rest)"),
         ("plate_friction 0.37", f"{_LAB_CODE} (kinetic; static 0.43: MuJoCo has one coefficient)"),
@@ -81,13 +82,26 @@ _SERVO = {
 }
 
 
-def _bind(name: str, geometry: str, servo: str, summary: str) -> Preset:
+# numerics name -> (SceneParams changes, sources)
+_NUMERICS = {
+    "default": ({}, (("timestep 0.25 ms, contacts solref 5 ms", "chosen by convergence (docs/timestep.md)"),)),
+    # DART's time stepping is an LCP: rigid contacts, 0.1 ms steps. MuJoCo's contacts are soft;
+    # the stiffest it integrates stably has a time constant of two steps.
+    "rigid": (dict(timestep=1e-4, contact_timeconst=2e-4), (
+        ("timestep 0.1 ms", "the paper's SI (DART, 1e-4 s)"),
+        ("contact_timeconst 0.2 ms", "as rigid as MuJoCo allows at that step (2 dt), standing in for DART's LCP"),
+    )),
+}
+
+
+def _bind(name: str, geometry: str, servo: str, summary: str, numerics: str = "default") -> Preset:
     robot_changes, scene_changes, geo_sources = _GEOMETRY[geometry]
     servo_changes, servo_sources = _SERVO[servo]
+    num_changes, num_sources = _NUMERICS[numerics]
     robot = dataclasses.replace(RobotParams(), **robot_changes, **servo_changes)
-    params = dataclasses.replace(SceneParams(), robot=robot, **scene_changes)
+    params = dataclasses.replace(SceneParams(), robot=robot, **scene_changes, **num_changes)
     params.validate()
-    return Preset(name, params, summary, geo_sources + servo_sources)
+    return Preset(name, params, summary, geo_sources + servo_sources + num_sources)
 
 
 PRESETS: dict[str, Preset] = {p.name: p for p in (
@@ -96,6 +110,8 @@ PRESETS: dict[str, Preset] = {p.name: p for p in (
     _bind("lab", "lab", "pd", "the lab robot from public code: body 5.4 cm, arms 5.0 cm plates, hinges 6 mm inset; PD servo"),
     _bind("lab-dart", "lab", "dart", "the lab robot with DART's servo (0.03 N m velocity servo, hard stops at 90 deg)"),
     _bind("lab-lag", "lab", "lag", "the lab robot with a PD servo that answers its command 10 ms late (first-order lag)"),
+    _bind("dart", "lab", "dart", "the paper's DART simulation as public code describes it: the lab robot, DART's "
+          "servo, 0.1 ms steps and near-rigid contacts", numerics="rigid"),
 )}
 
 # The default model of every command. Chosen in docs/model.md from the screening study

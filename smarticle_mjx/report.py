@@ -145,6 +145,8 @@ def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> 
                 title=f"bound pairs, periods >= {s['options']['burn_in']}, α_max = {s['amplitude_deg']:g}°")]
             names += [p.name for p in plots.lifetimes(arr["typed"], s["periods"], out, f"lifetimes_{run}",
                                                      title=f"α_max = {s['amplitude_deg']:g}°")]
+        if "coll_steps" in st.run_fields[run]:
+            names += _collision_figure(st, run, out, s)
         if "tracks" in arr:
             tr = arr["tracks"][:8]
             names += [p.name for p in plots.tracks([t[np.isfinite(t).all(-1)] for t in tr],
@@ -162,11 +164,26 @@ def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> 
         common += [p.name for p in plots.pb_curve(amps, [s["pb_end"] for s in summaries],
                                                    [s["pb_throughout"] for s in summaries], out)]
         common += [p.name for p in plots.versus_amplitude(amps, amplitude_panels(summaries), out)]
-    report = {"store": str(store_path), "versions": {k: st.attrs.get(k) for k in ("package", "mujoco", "jax")},
+    report = {"store": str(store_path), "model": st.model,
+              "versions": {k: st.attrs.get(k) for k in ("package", "mujoco", "jax")},
               "scan": st.config["scan"], "runs": summaries, "figures": {"runs": figs, "common": common}}
     (out / "report.json").write_text(json.dumps(report, indent=1, default=json_default))
     (out / "report.md").write_text(markdown(report))
     return report
+
+
+def _collision_figure(st: Store, run: str, out: pathlib.Path, s: dict) -> list[str]:
+    """The collision sequence of the longest-bound lane over its last two bound periods."""
+    d = st.run(run, fields=("touched", "lifetime", "coll_steps", "coll_impulse", "coll_impulse_r"))
+    lane = int(np.argmax(d["lifetime"]))
+    bound = np.flatnonzero(d["touched"][lane, :, 0])
+    if len(bound) == 0:
+        return []
+    periods = bound[-2:] if len(bound) > 1 else bound[-1:]
+    coll = {"steps": d["coll_steps"], "impulse": d["coll_impulse"], "impulse_r": d["coll_impulse_r"]}
+    return [p.name for p in plots.collision_sequence(
+        coll, lane, periods, out, f"collisions_{run}",
+        title=f"configuration {lane} (bound {int(d['lifetime'][lane])} periods), α_max = {s['amplitude_deg']:g}°")]
 
 
 def amplitude_panels(summaries: list[dict]) -> dict:
@@ -211,7 +228,8 @@ def markdown(report: dict) -> str:
              + (f" (random, |r| in {sc['r_range_W']} W)"
                                                    if sc["configs"] == "random" else
                                                    f" (|r| = {sc['radius_W']} W, {sc['positions']} × {sc['orientations']})")
-             + f", {sc['periods']} periods, gait {sc['gait']} {sc['chirality']}, backend {sc['backend']}; "
+             + f", {sc['periods']} periods, gait {sc['gait']} {sc['chirality']}, model `{report.get('model')}`, "
+             f"backend {sc['backend']}; "
              f"written by {report['versions'].get('package')}, mujoco {report['versions'].get('mujoco')}.", "",
              "| α_max | valid | P_b end [95% CI] | P_b throughout [95% CI] | C1 basin | C2 basin | "
              "C1 lifetime (mean, censored) | C2 lifetime | gliders | β (long delays) | V_com (W/period) | steady \\|r\\| (W) |",
