@@ -15,6 +15,7 @@ track sidecar records the preset's name and its full parameters.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 from .scene import RobotParams, SceneParams
 
@@ -64,12 +65,31 @@ _SERVO = {
         ("servo: PD + feed-forward, kp 0.5 N m/rad, kv critical, 0.078 N m, armature 5e-5 kg m^2",
          "stall torque: Savoie's public Chrono code; gains and armature chosen (docs/model.md, docs/timestep.md)"),
     )),
-    # DART's "SERVO" joint: a velocity constraint whose force is bounded, hard stops at +-90 deg.
-    # Here: a velocity loop stiff enough to be a constraint within the bound (a velocity
-    # error of 0.3 rad/s, or a setpoint error of 1 deg, saturates 0.03 N m), no reflected inertia.
-    "dart": (dict(servo_kp=3.0, servo_kv=0.1, servo_torque=0.03, servo_armature=0.0, arm_limit_deg=90.0), (
+    # DART's "SERVO" joint: a velocity constraint whose force is bounded, hard stops at
+    # +-90 deg. The command is a velocity (the gait's rate): an arm a neighbour blocks does not
+    # catch up afterwards; the stops reset it every half period at 90 deg. MuJoCo has no bounded
+    # velocity constraint for a moving target, so it is a velocity loop (kv) clipped at the bound.
+    # Its gain is capped by the implicit integrator, which linearises an actuator as its damping
+    # even while the torque is clipped: dt kv must stay small against the arm's inertia
+    # (2.7e-6 kg m^2), else the arm moves as if several times heavier. kv = 0.003: a 1 ms loop,
+    # dt kv / I = 0.11 at DART's 0.1 ms step; a stalled arm pushes with 0.026 N m.
+    # A slow trim (kp = kv / 1.6 s, one 90-deg gait period) keeps arms from drifting at
+    # amplitudes whose corners lie inside the stops.
+    "dart": (dict(servo_kp=0.003 / 1.6, servo_kv=0.003, servo_torque=0.03, servo_armature=0.0,
+                  arm_limit_deg=90.0), (
+        ("servo_torque 0.03 N m, arm_limit 90 deg (hard stops), velocity command",
+         f"{_DART}; dartsim/dart JointAspect.hpp"),
+        ("servo_kv 0.003 (1 ms loop), armature 0",
+         "the stiffest velocity loop the implicit integrator keeps consistent while clipped (dt kv / I ~ 0.1)"),
+        ("servo_kp kv / 1.6 s", "chosen: a trim too slow to catch up within a period (no source)"),
+    )),
+    # The same bound and stops with a stiff position loop: the arm keeps pushing toward its
+    # setpoint (a setpoint error of 1 deg saturates 0.03 N m), as a hobby servo does.
+    "stiff": (dict(servo_kp=0.03 / math.radians(1.0), servo_kv=None, servo_torque=0.03, servo_armature=0.0,
+                   arm_limit_deg=90.0), (
         ("servo_torque 0.03 N m, arm_limit 90 deg (hard stops)", f"{_DART}; dartsim/dart JointAspect.hpp"),
-        ("servo_kv 0.1, servo_kp 3.0, armature 0", "a velocity constraint within the force bound, as DART's servo"),
+        ("servo_kp 1.72 (1 deg of error saturates the bound), kv critical, armature 0",
+         "chosen: a stiff position servo within DART's bound"),
     )),
     # A hobby servo is commanded by a pulse every 20 ms (50 Hz) and the lab firmware sends step
     # setpoints (wsavoie/ArduinoSmarticle cloudSmarticle.ino): the arm responds to a command on
@@ -106,13 +126,17 @@ def _bind(name: str, geometry: str, servo: str, summary: str, numerics: str = "d
 
 PRESETS: dict[str, Preset] = {p.name: p for p in (
     _bind("paper", "paper", "pd", "the paper's text: W 5.0 cm, L 5.4 cm, capsule arms, PD servo (the model before presets)"),
-    _bind("paper-dart", "paper", "dart", "the paper's geometry with DART's servo (0.03 N m velocity servo, hard stops)"),
+    _bind("paper-stiff", "paper", "stiff", "the paper's geometry with a stiff position servo within DART's 0.03 N m"),
+    _bind("paper-dart", "paper", "dart", "the paper's geometry with DART's servo (velocity command within 0.03 N m, "
+          "hard stops)"),
     _bind("lab", "lab", "pd", "the lab robot from public code: body 5.4 cm, arms 5.0 cm plates, hinges 6 mm inset; PD servo"),
-    _bind("lab-dart", "lab", "dart", "the lab robot with DART's servo (0.03 N m velocity servo, hard stops at 90 deg)"),
+    _bind("lab-stiff", "lab", "stiff", "the lab robot with a stiff position servo within DART's 0.03 N m"),
+    _bind("lab-dart", "lab", "dart", "the lab robot with DART's servo (velocity command within 0.03 N m, hard stops)"),
     _bind("lab-lag", "lab", "lag", "the lab robot with a PD servo that answers its command 10 ms late (first-order lag)"),
     _bind("dart", "lab", "dart", "the paper's DART simulation as public code describes it: the lab robot, DART's "
           "servo, 0.1 ms steps and near-rigid contacts", numerics="rigid"),
 )}
+
 
 # The default model of every command. Chosen in docs/model.md from the screening study
 # (docs/fidelity.md); stores record the preset that made them.

@@ -86,15 +86,18 @@ class RobotParams:
 
     def validate(self) -> None:
         positive = ("body_length", "body_thickness", "body_height", "arm_length",
-                    "arm_thickness", "mass", "arm_mass", "servo_kp",
-                    "servo_torque", "servo_speed")
+                    "arm_thickness", "mass", "arm_mass", "servo_torque", "servo_speed")
         for name in positive:
             if not getattr(self, name) > 0:
                 raise ValueError(f"robot.{name} must be positive, got {getattr(self, name)}")
         if self.mass <= 2 * self.arm_mass:
             raise ValueError("robot.mass must exceed the two arms' mass")
+        if self.servo_kp < 0:
+            raise ValueError("robot.servo_kp must be >= 0")
         if self.servo_kv is not None and self.servo_kv < 0:
             raise ValueError("robot.servo_kv must be >= 0")
+        if self.servo_kp == 0 and not self.servo_kv:
+            raise ValueError("a servo needs a position gain (servo_kp) or a velocity gain (servo_kv)")
         if self.servo_armature < 0:
             raise ValueError("robot.servo_armature must be >= 0")
         if self.arm_clearance < 0:

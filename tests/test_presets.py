@@ -39,7 +39,7 @@ def test_every_preset_value_cites_a_source(name):
     p = presets.get(name)
     cited = " ".join(field for field, _ in p.sources)
     changed = _changed_fields(p.params)
-    aliases = {"servo_kp": "kp", "servo_kv": "kv", "servo_torque": "torque", "servo_armature": "armature",
+    aliases = {"servo_kp": "kp", "servo_kv": "kv", "servo_torque": "torque", "servo_armature": "armature", "servo_kp": "kp",
                "arm_limit_deg": "arm_limit", "contact_timeconst": "contact_timeconst"}
     missing = [f for f in changed if f not in cited and aliases.get(f, f) not in cited]
     assert not missing, f"{name}: no source for {missing}"
