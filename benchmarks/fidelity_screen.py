@@ -179,19 +179,27 @@ def main():
     ap.add_argument("--pb-periods", type=int, default=30)
     ap.add_argument("--drift-periods", type=int, default=20)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--dt-divisor", type=int, default=1,
+                    help="run the glide and P_b parts at the preset's time step / this (convergence check); "
+                         "results are stored under the preset name + '@dt/N'")
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "fidelity_screen.json")
     args = ap.parse_args()
     data = json.loads(args.out.read_text()) if args.out.exists() else {}
     for name in args.models.split(","):
         params = presets.params(name)
+        if args.dt_divisor > 1:
+            params = dataclasses.replace(params, timestep=params.timestep / args.dt_divisor)
+            name = f"{name}@dt/{args.dt_divisor}"
         entry = data.setdefault(name, {})
-        parts = {
+        parts = {} if args.dt_divisor > 1 else {
             f"drift90_{args.drift_periods}": lambda: lone_drift(params, 90.0, args.drift_periods),
             f"drift10_{args.drift_periods}": lambda: lone_drift(params, 10.0, args.drift_periods),
+        }
+        parts.update({
             f"glide_{args.pairs}x{args.periods}_s{args.seed}": lambda: gliding(
                 params, args.pairs, args.periods, args.seed, args.burn_in,
-                save=args.out.parent / "fidelity_tracks" / f"{name}_glide_{args.pairs}x{args.periods}_s{args.seed}.npz"),
-        }
+                save=args.out.parent / "fidelity_tracks" / f"{name.replace('/', '')}_glide_{args.pairs}x{args.periods}_s{args.seed}.npz"),
+        })
         if args.pb:
             for a in (30.0, 50.0, 70.0, 90.0):
                 parts[f"pb{a:g}_{args.pb}x{args.pb_periods}_s{args.seed}"] = \
@@ -203,7 +211,10 @@ def main():
             entry[key] = fn()
             print(f"{name} {key}: {time.perf_counter() - t:.0f} s", flush=True)
             _save(args.out, data)
-    print(table(data, args.models.split(",")))
+    names = args.models.split(",")
+    if args.dt_divisor > 1:
+        names = [f"{n}@dt/{args.dt_divisor}" for n in names]
+    print(table(data, names))
 
 
 def _fmt(v, spec=".2f"):
