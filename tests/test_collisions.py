@@ -99,3 +99,37 @@ def test_collision_record_needs_the_native_backend_and_sensors():
         be.close()
     with pytest.raises(ValueError, match="collision_bins"):
         Record(collisions=True, collision_bins=0).validate()
+
+
+def test_collision_record_through_a_scan_store_and_report(tmp_path):
+    """smx scan --collisions stores the record; a period has contacts in it
+    exactly when the independent touch sensor saw the robots touch; smx report
+    draws the collision sequence; a store without it says how to get it."""
+    from typer.testing import CliRunner
+
+    from smarticle_mjx.cli import app
+    from smarticle_mjx.store import Store, StoreError
+
+    out = tmp_path / "c.h5"
+    r = CliRunner().invoke(app, ["scan", "--configs", "polar", "--radius", "1.2", "--positions", "6",
+                                 "--periods", "3", "--collisions", "--collision-bins", "4", "--out", str(out),
+                                 "--quiet"])
+    assert r.exit_code == 0, r.output
+    st = Store(out)
+    d = st.run(fields=("valid", "touched", "coll_steps", "coll_impulse", "coll_impulse_r"))
+    m = len(d["valid"])
+    assert d["coll_steps"].shape == (m, 3, 1, 9, 4) and d["coll_impulse"].shape == (m, 3, 1, 9, 4, 2)
+    assert d["touched"].any(), "some start must touch"
+    np.testing.assert_array_equal(d["coll_steps"].sum((-1, -2)) > 0, d["touched"])
+    assert RC.KINDS == CONTACT_KINDS
+    rep = CliRunner().invoke(app, ["report", str(out), "--out", str(tmp_path / "rep")])
+    assert rep.exit_code == 0, rep.output
+    assert list((tmp_path / "rep").glob("collisions_*.png"))
+    plain = tmp_path / "p.h5"
+    CliRunner().invoke(app, ["scan", "--configs", "polar", "--positions", "2", "--periods", "1",
+                             "--out", str(plain), "--quiet"])
+    with pytest.raises(StoreError, match="--collisions"):
+        Store(plain).run(fields=("coll_steps",))
+    bad = CliRunner().invoke(app, ["scan", "--configs", "polar", "--positions", "2", "--periods", "1",
+                                   "--collisions", "--backend", "mjx", "--out", str(tmp_path / "m.h5")])
+    assert bad.exit_code == 2 and "native backend only" in bad.output
