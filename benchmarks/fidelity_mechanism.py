@@ -64,19 +64,24 @@ def run(model: str, start, periods: int, bins: int = 16) -> dict:
 
 
 def return_maps(track_dir: pathlib.Path, models, out_dir: pathlib.Path, burn_in: int = 10) -> dict:
-    """phi - 180 deg in period n+1 against period n for every glider of the
+    """phi - 180 deg in period n+1 against period n for every C1 glider of the
     screening study (its saved tracks), one panel per preset. A symmetric
     glider sits at the origin; one that keeps a broken symmetry sits in the
     first or third quadrant; one that swaps the lead every period sits in the
     second and fourth. Returns, per preset, the fraction of steps in each."""
     plt = plots._mpl()
     models = [m for m in models if list(track_dir.glob(f"{m}_glide_*.npz"))]
-    fig, axes = plt.subplots(1, len(models), figsize=(3.0 * len(models), 3.2), squeeze=False)
+    cols = min(4, len(models))
+    rows = -(-len(models) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 3.0 * rows), squeeze=False)
+    for ax in axes.ravel()[len(models):]:
+        ax.set_visible(False)
     out = {}
-    for ax, m in zip(axes[0], models):
+    for ax, m in zip(axes.ravel(), models):
         f = max(track_dir.glob(f"{m}_glide_*.npz"), key=lambda p: p.stat().st_size)
         d = np.load(f)
-        glide = d["touched"][:, burn_in:].all(1)
+        # C1 gliders only: a C2 glider's phi - 180 deg sits at +-180 and wraps
+        glide = d["touched"][:, burn_in:].all(1) & (np.cos(d["rel"][:, burn_in:, 2]) < 0).all(1)
         dev = np.degrees(np.angle(np.exp(1j * (d["rel"][glide, burn_in:, 2] - np.pi))))
         x, y = dev[:, :-1].ravel(), dev[:, 1:].ravel()
         ax.scatter(x, y, s=3, alpha=0.4)
@@ -84,7 +89,7 @@ def return_maps(track_dir: pathlib.Path, models, out_dir: pathlib.Path, burn_in:
         ax.plot([-lim, lim], [-lim, lim], color="0.7", lw=0.6)
         ax.axhline(0, color="0.7", lw=0.6)
         ax.axvline(0, color="0.7", lw=0.6)
-        ax.set(xlim=(-lim, lim), ylim=(-lim, lim), title=f"{m} ({int(glide.sum())} gliders)",
+        ax.set(xlim=(-lim, lim), ylim=(-lim, lim), title=f"{m} ({int(glide.sum())} C1 gliders)",
                xlabel="φ−180° in period n")
         small = (np.abs(x) < 2) & (np.abs(y) < 2)
         same = (np.sign(x) == np.sign(y)) & ~small
@@ -92,7 +97,8 @@ def return_maps(track_dir: pathlib.Path, models, out_dir: pathlib.Path, burn_in:
                   "symmetric (both |.| < 2 deg)": float(small.mean()) if x.size else float("nan"),
                   "kept sign": float(same.mean()) if x.size else float("nan"),
                   "swapped sign": float((~same & ~small).mean()) if x.size else float("nan")}
-    axes[0, 0].set_ylabel("φ−180° in period n+1")
+    for row in axes:
+        row[0].set_ylabel("φ−180° in period n+1")
     plots._save(fig, out_dir, "return_map", ("png",))
     return out
 

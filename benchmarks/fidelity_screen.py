@@ -221,14 +221,16 @@ def _fmt(v, spec=".2f"):
     return "—" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, spec)
 
 
-def table(data: dict, names) -> str:
-    """Markdown table of the largest glide sample and P_b of each preset."""
+def table(data: dict, names, confirm: int | None = None, sample: str | None = None) -> str:
+    """Markdown table of the largest glide sample and P_b of each preset
+    (``confirm``: the largest sample of at least that many periods;
+    ``sample``: that glide sample, e.g. "24x40_s1")."""
     rows = [("lone drift 90° (W/cycle), dt · dt/4", "1.5e-3"), ("lone drift 10° (W/cycle), dt · dt/4", "> 90°'s"),
             ("gliders / starts (periods)", "—"), ("net speed (W/period)", "2.9 W / ≥ 100 periods ≈ 0.03 (lab)"),
             ("direction persistence", "nearly ballistic (≥ 0.8 target)"), ("median direction change (°)", "small"),
             ("straightness over 20 periods", "≥ 0.8 target"), ("β (lags 5–15) ± bootstrap sd", "≈ 1.8"),
             ("C1 median \\|φ−180°\\| (°)", "deviates, consistent sign"),
-            ("φ−180° sign held (fraction of gliders)", "consistent sign"), ("sign flips per period", "≈ 0"),
+            ("C1 gliders holding the sign of φ−180°", "consistent sign"), ("sign flips per period", "≈ 0"),
             ("repeat sd: |r| (W), φ (°)", "tight (limit cycle)"), ("C2 fraction of glider samples", "two clusters"),
             ("P_b end 30/50/70/90° (n)", "dip at 40–60°"), ("cost (sim s per wall s, pair)", "—")]
     cols = {}
@@ -238,6 +240,10 @@ def table(data: dict, names) -> str:
         d10 = [v for k, v in e.items() if k.startswith("drift10")]
         gl = [v for k, v in e.items() if k.startswith("glide")]
         g = max(gl, key=lambda v: v["starts"] * v["periods"]) if gl else {}
+        if confirm is not None:
+            g = max((v for v in gl if v["periods"] >= confirm), key=lambda v: v["starts"], default={})
+        if sample is not None:
+            g = e.get(f"glide_{sample}", {})
         pbs = {k.split("_")[0][2:]: v for k, v in e.items() if k.startswith("pb")}
         col = [
             " · ".join(_fmt(d90[-1][x]["net_per_cycle_W"], ".1e") for x in ("dt", "dt/4")) if d90 else "—",
@@ -247,7 +253,7 @@ def table(data: dict, names) -> str:
             _fmt(g.get("median_turn_deg"), ".0f"), _fmt(g.get("straightness20")),
             f"{_fmt(g.get('beta'))} ± {_fmt(g.get('beta_err'))}",
             _fmt(g.get("C1_phi_dev_deg"), ".1f"),
-            f"{_fmt(g.get('sign_held_frac'))} (≥ {g.get('sign_hold_periods', '—')} periods)",
+            f"{_fmt(g.get('C1_sign_held_frac'))} of {g.get('C1_gliders', '—')} (≥ {g.get('sign_hold_periods', '—')} periods)",
             _fmt(g.get("sign_flips_per_period"), ".3f"),
             f"{_fmt((g.get('repeat') or {}).get('r'), '.3f')}, "
             f"{_fmt(math.degrees((g.get('repeat') or {}).get('phi', float('nan'))), '.1f')}",

@@ -140,7 +140,7 @@ PRESETS: dict[str, Preset] = {p.name: p for p in (
 
 # The default model of every command. Chosen in docs/model.md from the screening study
 # (docs/fidelity.md); stores record the preset that made them.
-DEFAULT = "paper"
+DEFAULT = "lab-lag"
 
 
 def get(name: str | None = None) -> Preset:

@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from smarticle_mjx import presets
 from smarticle_mjx import scene as S
 
 MODELS = pathlib.Path(__file__).resolve().parents[1] / "models"
@@ -13,12 +14,14 @@ MODELS = pathlib.Path(__file__).resolve().parents[1] / "models"
 
 def test_reference_models_are_up_to_date():
     """models/*.xml are generated; a change to the generator must regenerate them (smx models)."""
-    for name, xml in S.reference_models().items():
+    for name, xml in S.reference_models(presets.params()).items():
         stored = (MODELS / name).read_text()
         assert stored == xml, f"models/{name} is stale: run `smx models`"
 
 
-def test_paper_robot_mass_and_geometry():
+def test_default_robot_mass_and_geometry():
+    """models/ holds the default preset: the paper's measured mass, the lab
+    code's 5.4 cm body (D 2.2 cm from the paper, 2.5 cm tall, chosen)."""
     m = S.compile_model((MODELS / "single.xml").read_text())
     total = sum(m.body_mass[1:])
     assert total == pytest.approx(0.0348, rel=1e-9)
@@ -26,7 +29,7 @@ def test_paper_robot_mass_and_geometry():
     mujoco.mj_resetDataKeyframe(m, d, 0)
     mujoco.mj_forward(m, d)
     body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "r0_body")
-    np.testing.assert_allclose(2 * m.geom_size[body], [0.050, 0.022, 0.025])
+    np.testing.assert_allclose(2 * m.geom_size[body], [0.054, 0.022, 0.025])
     assert m.nu == 4 and m.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC  # per arm: setpoint + rate
 
 
