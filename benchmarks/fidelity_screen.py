@@ -231,7 +231,7 @@ def table(data: dict, names, confirm: int | None = None, sample: str | None = No
             ("straightness over 20 periods", "≥ 0.8 target"), ("β (lags 5–15) ± bootstrap sd", "≈ 1.8"),
             ("C1 median \\|φ−180°\\| (°)", "deviates, consistent sign"),
             ("C1 gliders holding the sign of φ−180°", "consistent sign"), ("sign flips per period", "≈ 0"),
-            ("repeat sd: |r| (W), φ (°)", "tight (limit cycle)"), ("C2 fraction of glider samples", "two clusters"),
+            ("repeat sd: \\|r\\| (W), φ (°)", "tight (limit cycle)"), ("C2 fraction of glider samples", "two clusters"),
             ("P_b end 30/50/70/90° (n)", "dip at 40–60°"), ("cost (sim s per wall s, pair)", "—")]
     cols = {}
     for n in names:
