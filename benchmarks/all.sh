@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Every benchmark in one command (about 3 hours on 2 cores; the paper-sized
-# scan alone is over an hour). Results land in benchmarks/results/*.json.
+# Every benchmark in one command (about 4 hours on 2 cores; the paper-sized
+# scan alone is over an hour, the fidelity study about an hour). Results land in benchmarks/results/*.json.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PY:-.venv/bin/python}
@@ -14,3 +14,11 @@ $PY benchmarks/label_sensitivity.py
 $PY benchmarks/early_exit.py --configs 850 --periods 75
 $PY benchmarks/full_scan.py --n 5000 --periods 75
 $PY benchmarks/calibration.py
+# fidelity study (docs/fidelity.md): screen, confirm, time step, mechanism; resumable
+$PY benchmarks/fidelity_screen.py --pairs 48 --periods 40
+$PY benchmarks/fidelity_screen.py --models lab-lag,paper --pairs 128 --periods 100 --pb 0
+for m in lab-lag lab-dart dart; do $PY benchmarks/fidelity_screen.py --models $m --pairs 24 --periods 40 --pb 0; done
+$PY benchmarks/fidelity_screen.py --models lab-lag,lab-dart --dt-divisor 4 --pairs 24 --periods 40 --pb 0
+$PY benchmarks/fidelity_screen.py --models dart --dt-divisor 2 --pairs 24 --periods 40 --pb 0
+$PY benchmarks/fidelity_mechanism.py --models paper,lab,lab-lag,lab-dart,dart --periods 60
+$PY benchmarks/fidelity_mechanism.py --return-maps --models paper,paper-stiff,paper-dart,lab,lab-stiff,lab-dart,lab-lag,dart

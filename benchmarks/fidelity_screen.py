@@ -171,7 +171,7 @@ def pb(params, amplitude: float, n: int, periods: int, seed: int) -> dict:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--models", default="paper,paper-dart,lab,lab-dart,lab-lag")
+    ap.add_argument("--models", default="paper,paper-stiff,paper-dart,lab,lab-stiff,lab-dart,lab-lag,dart")
     ap.add_argument("--pairs", type=int, default=48, help="random starts at 90 deg")
     ap.add_argument("--periods", type=int, default=40)
     ap.add_argument("--burn-in", type=int, default=10)
