@@ -183,8 +183,12 @@ def main():
                     help="run the glide and P_b parts at the preset's time step / this (convergence check); "
                          "results are stored under the preset name + '@dt/N'")
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "fidelity_screen.json")
+    ap.add_argument("--tables", action="store_true", help="only print the tables of docs/fidelity.md from the JSON")
     args = ap.parse_args()
     data = json.loads(args.out.read_text()) if args.out.exists() else {}
+    if args.tables:
+        print(doc_tables(data))
+        return
     for name in args.models.split(","):
         params = presets.params(name)
         if args.dt_divisor > 1:
@@ -215,6 +219,32 @@ def main():
     if args.dt_divisor > 1:
         names = [f"{n}@dt/{args.dt_divisor}" for n in names]
     print(table(data, names))
+
+
+def doc_tables(data: dict) -> str:
+    """The tables of docs/fidelity.md: screen, P_b with exact intervals,
+    confirmation, time step (each from the samples named in its caption)."""
+    order = ["paper", "paper-stiff", "paper-dart", "lab", "lab-stiff", "lab-dart", "lab-lag", "dart"]
+
+    def strip(t):  # drift and P_b come from the screen
+        return "\n".join(ln for ln in t.splitlines() if not ln.startswith(("| lone drift", "| P_b")))
+
+    rows = ["| preset | " + " | ".join(f"P_b end {a}° [95 % exact]" for a in (30, 50, 70, 90)) + " |",
+            "|" + " --- |" * 5]
+    for m in order:
+        cells = []
+        for a in (30, 50, 70, 90):
+            v = data.get(m, {}).get(f"pb{a}_80x30_s1")
+            cells.append("—" if v is None else
+                         f"{v['end'][0]:.2f} [{v['end'][1]:.2f}, {v['end'][2]:.2f}] ({v['end'][3]}/{v['n']})")
+        rows.append(f"| `{m}` | " + " | ".join(cells) + " |")
+    confirm = [m for m in ("lab-lag", "paper") if "glide_128x100_s1" in data.get(m, {})]
+    dt = ["lab-lag", "lab-lag@dt/4", "lab-dart", "lab-dart@dt/4", "dart", "dart@dt/2"]
+    return "\n\n".join([
+        "### Screen (48 starts x 40 periods)", table(data, order, sample="48x40_s1"),
+        "### P_b (80 starts x 30 periods, bound in the last period)", "\n".join(rows),
+        "### Confirmation (128 starts x 100 periods)", strip(table(data, confirm, sample="128x100_s1")),
+        "### Time step (24 starts x 40 periods)", strip(table(data, dt, sample="24x40_s1"))])
 
 
 def _fmt(v, spec=".2f"):
