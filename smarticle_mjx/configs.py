@@ -103,7 +103,6 @@ def robot_outline(pose, robot: RobotParams = RobotParams()):
     c, s = np.cos(h), np.sin(h)
     hw, hd = robot.body_length / 2, robot.body_thickness / 2
     hx = robot.hinge_x
-    len2 = robot.arm2_length if robot.arm2_length is not None else robot.arm_length
 
     def world(bx, by):
         return np.stack([x + c * bx - s * by, y + s * bx + c * by], -1)
@@ -112,7 +111,8 @@ def robot_outline(pose, robot: RobotParams = RobotParams()):
     zero = 0 * x
     arms = []
     # arm 1 points along -x at angle 0 and folds toward +y; arm 2 mirrors it
-    for sign, alpha, length in ((-1, a1, robot.arm_length), (1, a2, len2)):
+    len1, len2 = robot.arm_lengths
+    for sign, alpha, length in ((-1, a1, len1), (1, a2, len2)):
         ux, uy = sign * np.cos(alpha), np.sin(alpha)  # along the arm, body frame
         if robot.arm_shape == "plate":
             t = robot.arm_thickness / 2

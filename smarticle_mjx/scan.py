@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import pathlib
 import time
@@ -267,5 +268,4 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
 
 def _params_json(params: SceneParams) -> dict:
     # through JSON: tuples become lists, as a resumed store's saved copy has them
-    import json
     return json.loads(json.dumps(dataclasses.asdict(params)))

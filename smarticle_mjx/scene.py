@@ -134,6 +134,11 @@ class RobotParams:
         return self.arm_clearance + self.arm_extent_z / 2
 
     @property
+    def arm_lengths(self) -> tuple[float, float]:
+        """Hinge-to-tip lengths of arm 1 and arm 2 (arm 2 is arm 1's unless ``arm2_length`` is set)."""
+        return self.arm_length, self.arm2_length if self.arm2_length is not None else self.arm_length
+
+    @property
     def hinge_x(self) -> float:
         """Distance of each hinge axis from the body centre, along the body."""
         return self.body_length / 2 - self.hinge_inset
@@ -245,7 +250,7 @@ def _robot_xml(i: int, s: SceneParams, pose: Sequence[float], plate_bits: int = 
     hw, hd, hh = p.body_length / 2, p.body_thickness / 2, p.body_height / 2
     hx = p.hinge_x
     arm_dz = p.arm_z - hh  # arm centre line relative to the body centre
-    len2 = p.arm2_length if p.arm2_length is not None else p.arm_length
+    len1, len2 = p.arm_lengths
     lim = p.arm_limit_deg
     quat = _fmt(math.cos(heading / 2), 0, 0, math.sin(heading / 2))
     rgba = "0.85 0.35 0.2 1" if i == 0 else "0.2 0.45 0.85 1"
@@ -261,7 +266,7 @@ def _robot_xml(i: int, s: SceneParams, pose: Sequence[float], plate_bits: int = 
             contype="{plate_bits | _ROBOT_BIT}" conaffinity="{plate_bits | _ROBOT_BIT}" rgba="{rgba}"/>
       <body name="r{i}_arm1" pos="{_fmt(-hx, 0, arm_dz)}">
         <joint name="r{i}_a1" type="hinge" axis="0 0 -1" {joint}/>
-        {_arm_geom_xml(f"r{i}_arm1", p, -1, p.arm_length)}
+        {_arm_geom_xml(f"r{i}_arm1", p, -1, len1)}
       </body>
       <body name="r{i}_arm2" pos="{_fmt(hx, 0, arm_dz)}">
         <joint name="r{i}_a2" type="hinge" axis="0 0 1" {joint}/>

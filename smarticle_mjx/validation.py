@@ -46,13 +46,13 @@ def ensure_store(study: pathlib.Path, data: pathlib.Path, model: str = presets.D
     cfg = dataclasses.replace(load_study(study), model=model)
     params = cfg.scene_params()
     path = data / f"{study.stem}.h5"
-    want = json.loads(json.dumps({"model": model, "scan": cfg.to_json(), "scene": _params_json(params)}))
+    want = {"model": model, "scan": cfg.to_json(), "scene": _params_json(params)}
     if path.exists():
         have = Store(path).config
         have.setdefault("model", "paper")  # stores from before presets
         have["scan"] = {**want["scan"], **have.get("scan", {}), "model": have["model"]}
         # stores written before a scene parameter existed used its default
-        defaults = json.loads(json.dumps(_params_json(params.__class__())))
+        defaults = _params_json(params.__class__())
         have["scene"] = {**defaults, **have.get("scene", {}),
                          "robot": {**defaults["robot"], **have.get("scene", {}).get("robot", {})}}
         if have != want:
