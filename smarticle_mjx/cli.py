@@ -325,11 +325,13 @@ def report(
 
 @app.command("validate")
 def validate(
-    data: pathlib.Path = typer.Option(pathlib.Path("validation-data"), help="folder of the studies' stores "
-                                      "(complete ones are reused, interrupted ones resumed)"),
+    data: pathlib.Path = typer.Option(pathlib.Path("validation-data"), help="folder of the studies' stores, one "
+                                      "subfolder per model (complete ones are reused, interrupted ones resumed)"),
     out: pathlib.Path = typer.Option(pathlib.Path("docs/validation.md"), help="the page to write; figures go "
                                      "into a folder of the same name"),
     sweeps: Optional[pathlib.Path] = typer.Option(None, help="folder of the study files (default: the repo's sweeps/)"),
+    studies: Optional[str] = typer.Option(None, help="comma-separated studies to run (default: all); the page is "
+                                          "written from every complete, current store"),
     single_periods: int = typer.Option(75, help="periods of each lone-robot run"),
     quiet: bool = typer.Option(False, help="no progress bar"),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
@@ -343,6 +345,12 @@ def validate(
         missing = [f for f in STUDIES.values() if not (sweeps / f).is_file()]
         if missing:
             raise UserError(f"study files missing in {sweeps}: {', '.join(missing)}")
+        chosen = None
+        if studies is not None:
+            chosen = [x.strip() for x in studies.split(",") if x.strip()]
+            bad = [x for x in chosen if x not in STUDIES]
+            if bad or not chosen:
+                raise UserError(f"--studies: unknown {', '.join(bad) or '(none given)'}; known: {', '.join(STUDIES)}")
         if not out.parent.is_dir():
             raise UserError(f"output directory {out.parent} does not exist")
         if data.exists() and not data.is_dir():
@@ -352,12 +360,13 @@ def validate(
         bar, progress = _progress(quiet)
         with bar:
             res = run_validation(data, out, sweeps, model=preset.name, on_progress=progress,
-                                 single_periods=single_periods,
-                                 command=f"smx validate --data {data} --out {out} --model {preset.name}")
+                                 single_periods=single_periods, studies=chosen)
     except (UserError, ValueError, StoreError) as e:
         _fail(str(e))
     for r in res["rows"]:
         typer.echo(f"{r['verdict']:>16}: {r['claim']}")
+    for n in res["extra"].get("notes", []):
+        typer.echo(f"note: {n}")
     typer.echo(f"wrote {out}")
 
 

@@ -157,10 +157,14 @@ def lifetimes(runs: dict, periods: int, out_dir, stem, title="", formats=("png",
 
 
 def versus_amplitude(amplitudes, panels: dict, out_dir, stem="vs_amplitude", formats=("png",)):
-    """One panel per quantity vs alpha_max; ``panels[ylabel] = (values, errors)``."""
+    """One panel per quantity vs alpha_max; ``panels[ylabel] = (values, errors)``;
+    errors per point are a symmetric half-width or a (below, above) pair, or None."""
     plt = _mpl()
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.4), squeeze=False)
     for ax, (yl, (v, e)) in zip(axes[0], panels.items()):
+        if e is not None:
+            e = np.asarray(e, float)
+            e = np.nan_to_num(e.T if e.ndim == 2 else e, nan=0.0)
         ax.errorbar(amplitudes, v, yerr=e, marker="o", ms=4, capsize=3)
         ax.set(xlabel=r"$\alpha_{max}$ (deg)", ylabel=yl)
     return _save(fig, out_dir, stem, formats)

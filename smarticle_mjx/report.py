@@ -28,8 +28,9 @@ class ReportOptions:
       glider_min_periods: a glider track is a bound run at least this long
         (paper: > 30 cycles; default: min(30, K // 2)).
       steady_window: last periods over which steady |r| is averaged.
-      fit_lags: MSD delays fitted for beta (default: 5 .. half the shortest
-        glider track, at most 25).
+      fit_lags: MSD delays fitted for beta (default: the paper's long delays,
+        5 .. 15 periods, shortened for short glider tracks to half their
+        minimum length).
       clusters: k-means clusters of (|r|, theta, phi). More than the
         attractor's lobes: with 4, the C1 glider's four lobes took every
         centre and a 1.6 % C2 minority got none (1000-start scan at 90 deg).
@@ -45,7 +46,7 @@ class ReportOptions:
         burn = self.burn_in if self.burn_in is not None else min(30, k // 3)
         gmin = self.glider_min_periods if self.glider_min_periods is not None else max(2, min(30, k // 2))
         win = self.steady_window if self.steady_window is not None else max(1, min(20, k // 3))
-        lags = self.fit_lags if self.fit_lags is not None else (min(5, max(1, gmin // 4)), max(3, min(25, gmin // 2)))
+        lags = self.fit_lags if self.fit_lags is not None else (min(5, max(1, gmin // 4)), max(3, min(15, gmin // 2)))
         return dataclasses.replace(self, burn_in=burn, glider_min_periods=gmin, steady_window=win, fit_lags=lags)
 
 
@@ -104,20 +105,36 @@ def analyse_run(store: Store, run: str, opts: ReportOptions = ReportOptions()) -
                        "censored_fraction": _r(typed["censored"][sel].mean()) if len(lt) else None}
         arrays.update(clusters=cl, kinds=kinds, samples=samples, sample_kinds=kinds[steady], typed=typed,
                       final=final)
-    # transport of gliders
-    tracks = GL.glider_tracks(com, touched, min_periods=o.glider_min_periods)
+    # transport of gliders, measured as the paper measured it
+    heading = d["com"][..., 2].astype(float)
+    tracks3 = GL.glider_tracks(np.concatenate([com, heading[..., None]], -1), touched,
+                               min_periods=o.glider_min_periods)
+    tracks = tracks3[..., :2]
     s["gliders"] = int(len(tracks))
     if len(tracks):
-        ex = transport.msd_exponent(tracks, lag_range=o.fit_lags)
-        sp = transport.speed(tracks, period)
-        lags, m, _ = transport.msd(tracks)
-        s["beta"] = {"value": _r(ex.beta, 3), "err": _r(ex.err, 3), "tracks": ex.tracks,
-                     "lag_range": list(ex.lag_range), "method": ex.method}
-        s["v_com"] = {"W_per_period": _r(sp["per_period"], 5), "W_per_s": _r(sp["mean"], 5),
-                      "net_W_per_s": _r(sp["net"], 5), "sem_W_per_period": _r(sp["sem"], 5)}
-        turn = transport.turning(d["com"][..., 2].astype(float))[touched[:, 1:] & touched[:, :-1]]
-        s["heading_turn_deg_per_period"] = _r(np.degrees(np.nanmean(turn)), 3) if turn.size else None
-        arrays.update(msd=(lags, m), tracks=tracks)
+        ex = transport.msd_exponent(tracks, lag_range=o.fit_lags, centered=True)
+        lags, m, _ = transport.msd(tracks, centered=True)
+        s["beta"] = {"value": _r(ex.beta, 3), "err": _r(ex.err, 3), "lo": _r(ex.lo, 3), "hi": _r(ex.hi, 3),
+                     "tracks": ex.tracks, "lag_range": list(ex.lag_range), "method": ex.method, "centered": True}
+        net = transport.net_speed(tracks)
+        v, vlo, vhi, _ = transport.bootstrap_interval(net)
+        steps = transport.step_lengths(tracks)
+        per_track_step = np.array([np.nanmean(x) for x in steps])
+        st_m, st_lo, st_hi, _ = transport.bootstrap_interval(per_track_step)
+        s["v_com"] = {"net_W_per_period": _r(v, 5), "net_lo": _r(vlo, 5), "net_hi": _r(vhi, 5),
+                      "net_W_per_s": _r(v / period, 5),
+                      "glide_W_per_period": _r(transport.bootstrap_interval(transport.glide_speed(tracks))[0], 5),
+                      "mean_step_W_per_period": _r(st_m, 5), "step_lo": _r(st_lo, 5), "step_hi": _r(st_hi, 5)}
+        s["turning"] = {"median_direction_change_deg": _r(np.degrees(transport.median_direction_change(tracks)), 2),
+                        "direction_persistence": _r(transport.direction_persistence(tracks), 3),
+                        "straightness_20": _r(transport.straightness(tracks, min(20, tracks.shape[1] - 1)), 3)}
+        turn_g = np.degrees(transport.signed_turn_per_track(tracks3[..., 2]))
+        t, tlo, thi, _ = transport.bootstrap_interval(turn_g)
+        s["signed_heading_turn"] = {"deg_per_period": _r(t, 3), "lo": _r(tlo, 3), "hi": _r(thi, 3),
+                                    "gliders": int(np.isfinite(turn_g).sum())}
+        arrays.update(msd=(lags, m), tracks=tracks, heading_turn_per_glider=turn_g)
+    turn = transport.turning(heading)[touched[:, 1:] & touched[:, :-1]]
+    s["signed_heading_turn_deg_per_period"] = _r(np.degrees(np.nanmean(turn)), 3) if turn.size else None
     ss = GL.steady_separation(rel, touched, window=o.steady_window)
     s["steady_r"] = {"mean_W": _r(ss["mean"]), "std_W": _r(ss["std"]), "sem_W": _r(ss["sem"]), "pairs": ss["pairs"]}
     return {"summary": s, "arrays": arrays}
@@ -196,11 +213,24 @@ def amplitude_panels(summaries: list[dict]) -> dict:
 
     return {
         r"$\beta$ (gliders)": ([get(s, "beta", "value") for s in summaries], [get(s, "beta", "err") for s in summaries]),
-        r"$V_{com}$ (W/period)": ([get(s, "v_com", "W_per_period") for s in summaries],
-                                  [get(s, "v_com", "sem_W_per_period") for s in summaries]),
+        r"$V_{com}$, net (W/period)": ([get(s, "v_com", "net_W_per_period") for s in summaries],
+                                       [(get(s, "v_com", "net_W_per_period") - get(s, "v_com", "net_lo"),
+                                         get(s, "v_com", "net_hi") - get(s, "v_com", "net_W_per_period"))
+                                        for s in summaries]),
         "steady |r| (W)": ([get(s, "steady_r", "mean_W") for s in summaries],
                            [get(s, "steady_r", "std_W") for s in summaries]),
     }
+
+
+def describe_configs(sc: dict, wrap: str = "{}") -> str:
+    """How a scan chose its initial configurations, in words."""
+    if sc["configs"] == "random":
+        what = f"random, |r| in {sc['r_range_W']} W"
+    elif sc["configs"] == "polar":
+        what = f"|r| = {sc['radius_W']} W, {sc['positions']} × {sc['orientations']}"
+    else:
+        what = f"{len(sc.get('initial') or [])} explicit starts"
+    return wrap.format(what)
 
 
 def json_default(x):
@@ -216,6 +246,10 @@ def _fmt(x, nd=3):
     return "–" if x is None else f"{x:.{nd}f}"
 
 
+def _ci(v, lo, hi, nd=3):
+    return "–" if v is None else f"{v:.{nd}f} [{_fmt(lo, nd)}, {_fmt(hi, nd)}]"
+
+
 def _pm(v, e, nd=3):
     return "–" if v is None else f"{v:.{nd}f} ± {_fmt(e, nd)}"
 
@@ -225,15 +259,14 @@ def markdown(report: dict) -> str:
     sc = report["scan"]
     lines = [f"# Report: `{pathlib.Path(report['store']).name}`", "",
              f"{report['runs'][0]['configs'] if report['runs'] else 0} configurations"
-             + (f" (random, |r| in {sc['r_range_W']} W)"
-                                                   if sc["configs"] == "random" else
-                                                   f" (|r| = {sc['radius_W']} W, {sc['positions']} × {sc['orientations']})")
+             + describe_configs(sc, " ({})")
              + f", {sc['periods']} periods, gait {sc['gait']} {sc['chirality']}, model `{report.get('model')}`, "
              f"backend {sc['backend']}; "
              f"written by {report['versions'].get('package')}, mujoco {report['versions'].get('mujoco')}.", "",
              "| α_max | valid | P_b end [95% CI] | P_b throughout [95% CI] | C1 basin | C2 basin | "
-             "C1 lifetime (mean, censored) | C2 lifetime | gliders | β (long delays) | V_com (W/period) | steady \\|r\\| (W) |",
-             "|" + "---|" * 12]
+             "C1 lifetime (mean, censored) | C2 lifetime | gliders | β [95% CI] | V_com net (W/period) [95% CI] | "
+             "mean step (W/period) | median turn (°/period) | persistence | steady \\|r\\| (W) |",
+             "|" + "---|" * 15]
     for s in report["runs"]:
         def ci(p):
             return "–" if p[0] is None else f"{p[0]:.3f} [{p[1]:.3f}, {p[2]:.3f}]"
@@ -243,12 +276,14 @@ def markdown(report: dict) -> str:
         def life(c):
             return "–" if not c.get("runs") else f"{c['lifetime_mean']:.1f} ({c['censored_fraction']:.0%})"
 
-        b, v = s.get("beta") or {}, s.get("v_com") or {}
+        b, v, tu = s.get("beta") or {}, s.get("v_com") or {}, s.get("turning") or {}
         lines.append(
             f"| {s['amplitude_deg']:g}° | {s['valid']}/{s['configs']} | {ci(s['pb_end'])} | {ci(s['pb_throughout'])} | "
             f"{_fmt(c1.get('basin_fraction'))} | {_fmt(c2.get('basin_fraction'))} | {life(c1)} | {life(c2)} | "
-            f"{s['gliders']} | {_pm(b.get('value'), b.get('err'), 2)} | "
-            f"{_pm(v.get('W_per_period'), v.get('sem_W_per_period'), 4)} | "
+            f"{s['gliders']} | {_ci(b.get('value'), b.get('lo'), b.get('hi'), 2)} | "
+            f"{_ci(v.get('net_W_per_period'), v.get('net_lo'), v.get('net_hi'), 4)} | "
+            f"{_fmt(v.get('mean_step_W_per_period'), 4)} | {_fmt(tu.get('median_direction_change_deg'), 1)} | "
+            f"{_fmt(tu.get('direction_persistence'), 2)} | "
             f"{_pm(s['steady_r']['mean_W'], s['steady_r']['std_W'], 2)} ({s['steady_r']['pairs']}) |")
     o = report["runs"][0]["options"] if report["runs"] else {}
     lines += ["", "Definitions: bound in a period = the robots touched in it; basin = fraction of valid starts that "
@@ -256,8 +291,12 @@ def markdown(report: dict) -> str:
               f"({o.get('clusters')}) of per-period (|r|, θ, φ) of bound pairs after period {o.get('burn_in')}, named "
               "by their mean φ (C1 anti-aligned); lifetime = length of a bound run, typed by its majority (censored = "
               f"still bound at the end); gliders = bound runs ≥ {o.get('glider_min_periods')} periods; β = slope of "
-              f"log MSD over delays {o.get('fit_lags')} periods (± bootstrap over tracks); V_com = mean distance per "
-              f"period of glider centres of mass; steady |r| = mean over the last {o.get('steady_window')} periods of "
+              f"log of the centred MSD ⟨x²⟩ − ⟨x⟩² over delays {o.get('fit_lags')} periods (95 % bootstrap interval "
+              "over gliders); V_com = net gliding speed, |end − start| of a glider's once-per-period centre of mass "
+              "over its bound periods (mean over gliders, 95 % bootstrap interval); mean step = mean distance per "
+              "period (counts a zig-zag as speed); median turn = median |change| of the direction of travel per "
+              "period; persistence = mean cosine between successive steps (1 straight, 0 random, −1 shuttle); "
+              f"steady |r| = mean over the last {o.get('steady_window')} periods of "
               "pairs bound in all of them (± std over pairs, pair count).", ""]
     for s in report["runs"]:
         if s.get("clusters"):

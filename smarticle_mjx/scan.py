@@ -28,7 +28,9 @@ class ScanConfig:
 
     ``configs`` "random": ``n`` uniform (|r|, theta, phi) with |r| in
     ``r_range_W``; "polar": |r| = ``radius_W``, ``positions`` x
-    ``orientations`` grid (the paper's 1000-point scan at 1.3 W).
+    ``orientations`` grid (the paper's 1000-point scan at 1.3 W);
+    "explicit": the (|r| W, theta rad, phi rad) triples in ``initial``
+    (pairs started in a known state, e.g. as gliders).
     """
 
     configs: str = "random"
@@ -50,15 +52,22 @@ class ScanConfig:
     model: str = presets.DEFAULT  # model preset (smarticle_mjx/presets.py)
     collisions: bool = False  # keep the per-period collision record (native backend)
     collision_bins: int = 16  # its bins per gait period
+    initial: tuple[tuple[float, float, float], ...] | None = None  # configs = "explicit"
 
     def scene_params(self) -> SceneParams:
         """The preset's parameters (ValueError naming the known presets if unknown)."""
         return presets.params(self.model)
 
     def validate(self, params: SceneParams) -> None:
-        if self.configs not in ("random", "polar"):
-            raise ValueError(f"--configs must be random or polar, got {self.configs!r}")
-        if self.configs == "random":
+        if self.configs not in ("random", "polar", "explicit"):
+            raise ValueError(f"--configs must be random, polar or explicit, got {self.configs!r}")
+        if self.configs == "explicit":
+            a = np.asarray(self.initial if self.initial is not None else [], float)
+            if a.ndim != 2 or a.shape[1] != 3 or len(a) == 0:
+                raise ValueError("explicit configurations must be a non-empty list of (|r|, theta, phi) triples")
+            if not np.isfinite(a).all() or (a[:, 0] <= 0).any():
+                raise ValueError("explicit configurations must be finite with |r| > 0")
+        elif self.configs == "random":
             if self.n <= 0:
                 raise ValueError(f"--n must be positive, got {self.n}")
             lo, hi = self.r_range_W
@@ -94,12 +103,18 @@ class ScanConfig:
         """[M, 3] (|r| in W, theta, phi in rad); the same for every amplitude."""
         if self.configs == "random":
             return C.random_configs(self.n, np.random.default_rng(self.seed), self.r_range_W)
+        if self.configs == "explicit":
+            return np.asarray(self.initial, float).reshape(-1, 3)
         return C.polar_configs(self.radius_W, self.positions, self.orientations)
 
     def to_json(self) -> dict:
         d = dataclasses.asdict(self)
         d["r_range_W"] = list(self.r_range_W)
         d["amplitudes_deg"] = [float(a) for a in self.amplitudes_deg]
+        if self.initial is None:
+            del d["initial"]  # stores of random and polar scans keep their earlier configuration
+        else:
+            d["initial"] = [[float(x) for x in c] for c in self.initial]
         return d
 
 
@@ -134,6 +149,8 @@ def load_study(path) -> ScanConfig:
     except tomllib.TOMLDecodeError as e:
         raise ValueError(f"study file {path} is not valid TOML: {e}") from None
     study = raw.get("study", raw)
+    if study.get("configs") == "bound":
+        raise ValueError(f"study file {path} starts pairs from another study's gliders; smx validate runs it")
     fields = {f.name for f in dataclasses.fields(ScanConfig)}
     unknown = set(study) - fields - {"description", "figure"}
     if unknown:
@@ -142,6 +159,8 @@ def load_study(path) -> ScanConfig:
     for k in ("r_range_W", "amplitudes_deg"):
         if k in kw:
             kw[k] = tuple(float(x) for x in kw[k])
+    if "initial" in kw:
+        kw["initial"] = tuple(tuple(float(x) for x in c) for c in kw["initial"])
     try:
         return ScanConfig(**kw)
     except TypeError as e:

@@ -61,7 +61,7 @@ def test_ballistic_track_has_beta_two_and_known_speed():
     xy = np.stack([0.05 * k, 0.02 * k], -1)[None]      # v = |(0.05, 0.02)| W per period
     lags, m, _ = transport.msd(xy)
     assert np.allclose(m, (0.05 ** 2 + 0.02 ** 2) * lags ** 2)
-    ex = transport.msd_exponent(xy, (5, 25))
+    ex = transport.msd_exponent(xy, (5, 25), centered=False)  # one track: its centred MSD is zero
     assert ex.beta == pytest.approx(2.0, abs=1e-9)
     sp = transport.speed(xy, period_s=1.6)
     v = np.hypot(0.05, 0.02)
@@ -73,7 +73,23 @@ def test_random_walks_are_diffusive():
     xy = np.cumsum(rng.normal(size=(200, 80, 2)), axis=1)
     ex = transport.msd_exponent(xy, (5, 25), n_boot=100)
     assert abs(ex.beta - 1.0) < max(3 * ex.err, 0.05) and ex.err < 0.1
-    assert ex.method.startswith("bootstrap")
+    assert ex.method.startswith("bootstrap") and ex.centered
+    assert ex.lo < ex.beta < ex.hi and ex.lo < 1.0 < ex.hi
+
+
+def test_ballistic_gliders_in_all_directions_have_centred_beta_two():
+    # the paper's <x^2> - <x>^2 over an ensemble: straight gliders heading every way are ballistic,
+    # and a common drift added to all of them does not change that
+    rng = np.random.default_rng(4)
+    ang = rng.uniform(0, 2 * np.pi, 40)
+    k = np.arange(50)[None, :, None]
+    xy = 0.03 * k * np.stack([np.cos(ang), np.sin(ang)], -1)[:, None, :] + 0.01 * k * np.array([1.0, 0.0])
+    ex = transport.msd_exponent(xy)
+    assert ex.lag_range == (5, 15) and ex.beta == pytest.approx(2.0, abs=1e-6)
+    # the interval comes from resampling whole gliders: a mixed ensemble's interval covers its estimate
+    mixed = np.concatenate([xy[:20], np.cumsum(rng.normal(scale=0.03, size=(20, 50, 2)), 1)])
+    m = transport.msd_exponent(mixed)
+    assert 1.0 < m.beta < 2.0 and m.lo <= m.beta <= m.hi and m.hi - m.lo > 0.01
 
 
 def test_centered_msd_removes_a_common_drift():
@@ -90,6 +106,44 @@ def test_missing_samples_are_skipped_not_zero():
     xy[0, 5:8] = np.nan
     lags, m, counts = transport.msd(xy)
     assert np.allclose(m, lags ** 2) and counts[0] == 19 - 4
+
+
+def test_a_shuttle_has_a_mean_step_but_no_net_speed_and_a_straight_glider_persists():
+    k = np.arange(41)
+    shuttle = np.stack([0.05 * (k % 2), 0 * k], -1).astype(float)   # back and forth every period
+    zigzag = np.stack([0.01 * k, 0.05 * (k % 2)], -1).astype(float)  # slow net motion, large steps
+    line = np.stack([0.03 * k, 0.01 * k], -1).astype(float)
+    assert transport.step_lengths(shuttle).mean() == pytest.approx(0.05)
+    assert transport.net_speed(shuttle)[0] < 0.05 / 40 + 1e-12 and abs(transport.glide_speed(shuttle)[0]) < 1e-3
+    assert transport.direction_persistence(shuttle) == pytest.approx(-1.0)
+    assert transport.net_speed(zigzag)[0] == pytest.approx(0.01, rel=0.15)
+    assert transport.glide_speed(zigzag)[0] == pytest.approx(0.01, rel=0.15)
+    assert transport.step_lengths(zigzag).mean() > 4 * transport.net_speed(zigzag)[0]
+    v = np.hypot(0.03, 0.01)
+    assert transport.net_speed(line)[0] == pytest.approx(v) and transport.glide_speed(line)[0] == pytest.approx(v)
+    assert transport.direction_persistence(line) == pytest.approx(1.0)
+    assert transport.median_direction_change(line) == pytest.approx(0.0, abs=1e-12)
+    assert transport.straightness(line[None], 20) == pytest.approx(1.0)
+    # a random walk: persistence near 0, median turn near 90 deg
+    rng = np.random.default_rng(2)
+    walk = np.cumsum(rng.normal(size=(20, 200, 2)), 1)
+    assert abs(transport.direction_persistence(walk)) < 0.05
+    assert np.degrees(transport.median_direction_change(walk)) == pytest.approx(90, abs=6)
+
+
+def test_signed_turn_per_track_and_bootstrap_interval():
+    k = np.arange(30.0)
+    heading = np.stack([np.radians(2.0) * k, -np.radians(3.0) * k])   # one turns ccw, one cw
+    t = np.degrees(transport.signed_turn_per_track(heading))
+    assert t == pytest.approx([2.0, -3.0])
+    # an interval that must cover the true mean ~95 % of the time and exclude 0 for a clear effect
+    rng = np.random.default_rng(5)
+    cover = [transport.bootstrap_interval(rng.normal(1.0, 2.0, 40), n_boot=400, seed=i) for i in range(200)]
+    frac = np.mean([lo <= 1.0 <= hi for _, lo, hi, _ in cover])
+    assert 0.88 <= frac <= 0.99
+    est, lo, hi, n = transport.bootstrap_interval(rng.normal(1.0, 0.5, 40))
+    assert n == 40 and lo > 0 and lo < est < hi
+    assert np.isnan(transport.bootstrap_interval([1.0, 2.0])[1])
 
 
 def test_mirror_tracks_turn_the_other_way():
@@ -161,6 +215,7 @@ def _synthetic_rows(rng, v=0.05):
     ang = rng.uniform(0, 2 * np.pi, 10)
     com[:10, :, 0] = np.cos(ang)[:, None] * v * np.arange(K)
     com[:10, :, 1] = np.sin(ang)[:, None] * v * np.arange(K)
+    com[:10, :, 2] = np.radians(1.5) * np.arange(K)  # body heading turns 1.5 deg per period, ccw
     touched[10:15, 20:46] = True
     rel[10:15] = _noisy(C2_REL, 5 * K, rng, 0.02).reshape(5, K, 3)
     touched[15:35, :2] = True
@@ -201,7 +256,11 @@ def test_analyse_run_recovers_the_constructed_answers(synthetic_store):
     assert s["C2"]["lifetime_mean"] == 26 and s["C2"]["censored_fraction"] == 0.0
     assert s["gliders"] == 10
     assert s["beta"]["value"] == pytest.approx(2.0, abs=1e-3)
-    assert s["v_com"]["W_per_period"] == pytest.approx(0.10, rel=1e-3)
+    assert s["v_com"]["net_W_per_period"] == pytest.approx(0.10, rel=1e-3)
+    assert s["v_com"]["mean_step_W_per_period"] == pytest.approx(0.10, rel=1e-3)
+    assert s["turning"]["direction_persistence"] == pytest.approx(1.0, abs=1e-3)
+    assert s["signed_heading_turn"]["deg_per_period"] == pytest.approx(1.5, abs=1e-3)
+    assert s["signed_heading_turn"]["gliders"] == 10
     assert s["steady_r"]["mean_W"] == pytest.approx(1.6, abs=0.01) and s["steady_r"]["pairs"] == 10
 
 

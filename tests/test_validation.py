@@ -7,15 +7,19 @@ import pathlib
 from typer.testing import CliRunner
 
 from smarticle_mjx.cli import app
+from smarticle_mjx.presets import DEFAULT
+from smarticle_mjx.store import Store
 from smarticle_mjx.validation import STUDIES
 
 TINY = {
-    "random_90": 'configs = "random"\nn = 10\nr_range_W = [0.9, 1.6]\namplitudes_deg = [90]\nperiods = 3\n',
+    "random_90": 'configs = "random"\nn = 24\nr_range_W = [0.9, 1.4]\namplitudes_deg = [90]\nperiods = 8\n',
     "polar": 'configs = "polar"\nradius_W = 1.3\npositions = 6\norientations = 1\namplitudes_deg = [90]\nperiods = 2\n',
     "amplitude": 'configs = "random"\nn = 4\nr_range_W = [0.9, 1.6]\namplitudes_deg = [20, 50, 70, 90]\nperiods = 2\n',
     "cw_90": 'configs = "random"\nn = 4\nr_range_W = [0.9, 1.6]\namplitudes_deg = [90]\nperiods = 2\nchirality = "cw"\n',
-    "diagonal_90": 'configs = "random"\nn = 4\nr_range_W = [0.9, 1.6]\namplitudes_deg = [90]\nperiods = 2\n'
-                   'gait = "diagonal"\n',
+    "descent": 'configs = "bound"\nsource = "random_90"\npairs = 2\namplitudes_deg = [90, 80]\nperiods = 2\n'
+               'continuation = true\nsteady_window = 2\nkeep_window = 1\n',
+    "diagonal_90": 'configs = "bound"\nsource = "random_90"\npairs = 2\namplitudes_deg = [90]\nperiods = 2\n'
+                   'gait = "diagonal"\nsteady_window = 2\nkeep_window = 1\n',
 }
 
 
@@ -27,28 +31,74 @@ def _sweeps(tmp_path):
     return d
 
 
+def _hashes(folder):
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in folder.glob("*.h5")}
+
+
 def test_validate_writes_a_row_per_claim_and_reuses_stores(tmp_path):
     sweeps, data, out = _sweeps(tmp_path), tmp_path / "data", tmp_path / "validation.md"
     args = ["validate", "--data", data, "--out", out, "--sweeps", sweeps, "--single-periods", "3", "--quiet"]
     r = CliRunner().invoke(app, [str(a) for a in args])
     assert r.exit_code == 0, r.output
-    rows = json.loads((tmp_path / "validation" / "validation.json").read_text())["rows"]
-    assert len(rows) == 10
+    res = json.loads((tmp_path / "validation" / "validation.json").read_text())
+    rows = res["rows"]
+    assert len(rows) == 10 and res["model"] == DEFAULT
     assert all(row["verdict"] in ("holds", "does not hold", "not measurable") for row in rows)
     page = out.read_text()
-    assert page.count("\n| ") >= 10 and "smx validate --data" in page
+    assert page.count("\n| ") >= 10 and f"smx validate --data DIR --out PAGE --model {DEFAULT}" in page
+    assert str(tmp_path) not in page  # no path of this machine on the page
     assert (tmp_path / "validation" / "pb.png").stat().st_size > 1000
+    stores = data / DEFAULT
+    # the started-bound studies ran from the random study's gliders: one store per stage
+    names = {p.name for p in stores.glob("*.h5")}
+    assert {"validation_random.h5", "validation_descent_a0900.h5", "validation_diagonal_a0900.h5"} <= names
+    st = Store(stores / "validation_descent_a0900.h5")
+    assert st.config["scan"]["configs"] == "explicit" and st.model == DEFAULT
+    assert len(st.config["scan"]["initial"]) == 2
     # a second run reuses the stores bit for bit
-    before = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in data.glob("*.h5")}
-    assert len(before) == len(STUDIES)
+    before = _hashes(stores)
     r = CliRunner().invoke(app, [str(a) for a in args])
     assert r.exit_code == 0, r.output
-    assert before == {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in data.glob("*.h5")}
-    # a changed study never overwrites the old store
+    assert before == _hashes(stores)
+    # a changed study is rerun; the old store is kept aside, byte for byte
     (sweeps / STUDIES["polar"]).write_text("[study]\n" + TINY["polar"].replace("positions = 6", "positions = 7"))
-    r = CliRunner().invoke(app, [str(a) for a in args])
-    assert r.exit_code == 2 and "different study" in r.output
-    assert before == {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in data.glob("*.h5")}
+    r = CliRunner().invoke(app, [str(a) for a in args] + ["--studies", "polar"])
+    assert r.exit_code == 0, r.output
+    assert "different study file" in r.output
+    after = _hashes(stores)
+    aside = [n for n in after if n.startswith("validation_polar.replaced-")]
+    assert len(aside) == 1 and after[aside[0]] == before["validation_polar.h5"]
+    assert Store(stores / "validation_polar.h5").config["scan"]["positions"] == 7
+    assert {k: v for k, v in after.items() if "polar" not in k} == {k: v for k, v in before.items() if "polar" not in k}
+
+
+def test_a_store_of_another_package_version_is_rerun_and_kept(tmp_path, monkeypatch):
+    from smarticle_mjx import validation
+    sweeps, data, out = _sweeps(tmp_path), tmp_path / "data", tmp_path / "v.md"
+    r = CliRunner().invoke(app, ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps),
+                                 "--single-periods", "3", "--quiet", "--studies", "polar"])
+    assert r.exit_code == 0, r.output
+    # only the chosen study ran; the others are reported as not run yet
+    assert [p.name for p in (data / DEFAULT).glob("*.h5")] == ["validation_polar.h5"]
+    rows = json.loads((tmp_path / "v" / "validation.json").read_text())["rows"]
+    assert sum("not run yet" in row["measured"] for row in rows) == 8
+    old = _hashes(data / DEFAULT)["validation_polar.h5"]
+    monkeypatch.setattr(validation, "__version__", "99.0")
+    monkeypatch.setattr("smarticle_mjx.store.versions", lambda: {"package": "smarticle-mjx 99.0"})
+    r = CliRunner().invoke(app, ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps),
+                                 "--single-periods", "3", "--quiet", "--studies", "polar"])
+    assert r.exit_code == 0, r.output
+    assert "made by smarticle-mjx" in r.output
+    h = _hashes(data / DEFAULT)
+    assert len(h) == 2 and old in h.values() and h["validation_polar.h5"] != old
+    assert Store(data / DEFAULT / "validation_polar.h5").attrs["package"] == "smarticle-mjx 99.0"
+
+
+def test_validate_rejects_an_unknown_study_in_one_line(tmp_path):
+    r = CliRunner().invoke(app, ["validate", "--data", str(tmp_path / "d"), "--out", str(tmp_path / "v.md"),
+                                 "--studies", "random_90,nope"])
+    assert r.exit_code == 2 and "nope" in r.output and len(r.output.strip().splitlines()) == 1
+    assert not (tmp_path / "d").exists() and not (tmp_path / "v.md").exists()
 
 
 def test_validate_refuses_missing_study_files(tmp_path):

@@ -140,29 +140,36 @@ def typed_lifetimes(kinds, touched) -> dict:
     return runs
 
 
-def glider_tracks(com, touched, min_periods: int = 30) -> np.ndarray:
-    """Centre-of-mass tracks of gliders: each lane's longest bound run if it
-    lasts at least ``min_periods`` periods (the paper keeps gliders that
-    survive more than 30 cycles).
-
-    Args:
-      com: [M, K, 2] pair centre of mass at the end of each period.
-      touched: [M, K] bool.
-
-    Returns:
-      [G, L, 2] tracks, NaN-padded to the longest.
-    """
+def glider_runs(touched, min_periods: int = 30) -> list[tuple[int, int, int]]:
+    """Each lane's longest bound run if it lasts at least ``min_periods``
+    periods (the paper keeps gliders that survive more than 30 cycles), as
+    (lane, first period, length), in lane order."""
     runs = binding.bound_runs(touched)
-    com = np.asarray(com, float)
     best: dict[int, tuple[int, int]] = {}
     for m, s, n in zip(runs["lane"], runs["start"], runs["length"]):
         if n >= min_periods and n > best.get(m, (0, 0))[1]:
-            best[m] = (s, n)
-    if not best:
-        return np.zeros((0, 0, 2))
-    out = np.full((len(best), max(n for _, n in best.values()), 2), np.nan)
-    for g, (m, (s, n)) in enumerate(sorted(best.items())):
-        out[g, :n] = com[m, s:s + n, :2]
+            best[int(m)] = (int(s), int(n))
+    return [(m, s, n) for m, (s, n) in sorted(best.items())]
+
+
+def glider_tracks(com, touched, min_periods: int = 30) -> np.ndarray:
+    """Per-period tracks of gliders (see :func:`glider_runs`).
+
+    Args:
+      com: [M, K, D] per-period values, e.g. the pair centre of mass (D = 2)
+        or (x, y, heading) (D = 3); every column is kept.
+      touched: [M, K] bool.
+
+    Returns:
+      [G, L, D] tracks, NaN-padded to the longest.
+    """
+    com = np.asarray(com, float)
+    runs = glider_runs(touched, min_periods)
+    if not runs:
+        return np.zeros((0, 0, com.shape[-1]))
+    out = np.full((len(runs), max(n for _, _, n in runs), com.shape[-1]), np.nan)
+    for g, (m, s, n) in enumerate(runs):
+        out[g, :n] = com[m, s:s + n]
     return out
 
 

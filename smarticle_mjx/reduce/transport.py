@@ -71,6 +71,9 @@ class Exponent:
         of whole tracks when there are >= 5 tracks, else the regression
         standard error (``method`` says which).
       tracks: number of tracks used.
+      lo, hi: the 95 % percentile interval over the bootstrap resamples of
+        whole tracks (NaN with fewer than 5 tracks).
+      centered: whether the MSD was the paper's centred form.
     """
 
     beta: float
@@ -78,10 +81,16 @@ class Exponent:
     tracks: int
     lag_range: tuple[int, int]
     method: str
+    lo: float = np.nan
+    hi: float = np.nan
+    centered: bool = False
 
 
-def msd_exponent(xy, lag_range=(5, 25), centered: bool = False, n_boot: int = 200, seed: int = 0) -> Exponent:
+def msd_exponent(xy, lag_range=(5, 15), centered: bool = True, n_boot: int = 200, seed: int = 0) -> Exponent:
     """beta from the long-delay slope of the MSD, with an uncertainty.
+
+    The defaults are the paper's: the centred MSD <x^2> - <x>^2 fitted at
+    long delays (5 to 15 periods, within the > 30-period tracks it keeps).
 
     Args:
       xy: [M, K, 2] tracks (NaN = missing).
@@ -96,7 +105,7 @@ def msd_exponent(xy, lag_range=(5, 25), centered: bool = False, n_boot: int = 20
     lags, m, _ = msd(xy, hi, centered)
     beta, se, _ = fit_exponent(lags, m, lag_range)
     if len(xy) < 5:
-        return Exponent(beta, se, len(xy), tuple(lag_range), "regression")
+        return Exponent(beta, se, len(xy), tuple(lag_range), "regression", centered=centered)
     rng = np.random.default_rng(seed)
     boots = []
     for _ in range(n_boot):
@@ -105,7 +114,32 @@ def msd_exponent(xy, lag_range=(5, 25), centered: bool = False, n_boot: int = 20
         if np.isfinite(b):
             boots.append(b)
     err = float(np.std(boots, ddof=1)) if len(boots) > 1 else np.nan
-    return Exponent(beta, err, len(xy), tuple(lag_range), "bootstrap over tracks")
+    lo, up = (np.percentile(boots, [2.5, 97.5]) if len(boots) > 1 else (np.nan, np.nan))
+    return Exponent(beta, err, len(xy), tuple(lag_range), "bootstrap over tracks", float(lo), float(up), centered)
+
+
+def bootstrap_interval(values, stat=np.mean, level: float = 0.95, n_boot: int = 2000, seed: int = 0):
+    """Percentile bootstrap interval of ``stat`` over independent units.
+
+    Args:
+      values: [N] one number per unit (a glider, a trial); NaNs dropped.
+      stat: statistic of a 1-D sample.
+
+    Returns:
+      (estimate, lo, hi, n); NaN interval with fewer than 3 units.
+    """
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if len(v) == 0:
+        return np.nan, np.nan, np.nan, 0
+    est = float(stat(v))
+    if len(v) < 3:
+        return est, np.nan, np.nan, len(v)
+    rng = np.random.default_rng(seed)
+    boots = np.array([stat(v[rng.integers(0, len(v), len(v))]) for _ in range(n_boot)])
+    a = (1 - level) / 2 * 100
+    lo, hi = np.percentile(boots, [a, 100 - a])
+    return est, float(lo), float(hi), len(v)
 
 
 def step_lengths(xy):
@@ -220,3 +254,36 @@ def net_speed(xy) -> np.ndarray:
         if len(ok) >= 2:
             out[g] = np.linalg.norm(tr[ok[-1]] - tr[ok[0]]) / (ok[-1] - ok[0])
     return out
+
+
+def glide_speed(xy) -> np.ndarray:
+    """[M] gliding speed per track along its mean direction of travel: the
+    least-squares slope of the displacement projected on the unit vector from
+    the first to the last finite sample, vs period (units per period; NaN if
+    < 3 samples). Unlike the mean step it is ~0 for a shuttle; unlike
+    :func:`net_speed` it uses every sample, not only the two ends."""
+    xy = np.asarray(xy, float)
+    if xy.ndim == 2:
+        xy = xy[None]
+    out = np.full(len(xy), np.nan)
+    for g, tr in enumerate(xy):
+        ok = np.flatnonzero(np.isfinite(tr).all(-1))
+        if len(ok) < 3:
+            continue
+        d = tr[ok[-1]] - tr[ok[0]]
+        n = np.linalg.norm(d)
+        if n == 0:
+            out[g] = 0.0
+            continue
+        proj = (tr[ok] - tr[ok[0]]) @ (d / n)
+        out[g] = float(np.polyfit(ok.astype(float), proj, 1)[0])
+    return out
+
+
+def signed_turn_per_track(angles) -> np.ndarray:
+    """[M] mean signed change per period of an angle track (rad; counter-
+    clockwise positive), e.g. a glider's body heading; NaN where a track has
+    no two consecutive samples."""
+    t = turning(np.atleast_2d(np.asarray(angles, float)))
+    with np.errstate(invalid="ignore"):
+        return np.array([np.nanmean(r) if np.isfinite(r).any() else np.nan for r in t])
