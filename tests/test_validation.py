@@ -20,6 +20,8 @@ TINY = {
                'continuation = true\nsteady_window = 2\nkeep_window = 1\n',
     "diagonal_90": 'configs = "bound"\nsource = "random_90"\npairs = 2\namplitudes_deg = [90]\nperiods = 2\n'
                    'gait = "diagonal"\nsteady_window = 2\nkeep_window = 1\n',
+    "diagonal_random": 'configs = "random"\nn = 4\nr_range_W = [0.9, 1.6]\namplitudes_deg = [90]\nperiods = 2\n'
+                       'gait = "diagonal"\n',
 }
 
 
