@@ -1,11 +1,19 @@
-"""Calibration on synthetic data with hidden effects: is the right effect named,
-is the truth inside the interval, how much does the held-out error fall, and
-how often is an effect added to clean data.
+"""Calibration on data with hidden effects: is the right effect named, is the
+truth inside the interval, how much does the held-out error fall, and how
+often is an effect added to clean data.
 
-    python benchmarks/calibration.py                 # every case, 3 clean seeds (~10 min on 2 cores)
-    python benchmarks/calibration.py --cases servo_response clean
+Two suites:
+* ``synth``: data the library's own model made (``smx synth``), calibrated
+  with ``--no-nominal`` (the structural stage alone);
+* ``mismatch``: data an independent MuJoCo smarticle made
+  (tests/independent_smarticle.py: other arm shape, masses, hinge, servo law,
+  time step), calibrated as a user would (nominal parameters first).
 
-Writes benchmarks/results/calibration.json and prints a table.
+    python benchmarks/calibration.py                          # both suites
+    python benchmarks/calibration.py --suite mismatch --cases clean lag_30ms --clean-seeds 5
+    python benchmarks/calibration.py --max-minutes 60         # stop starting cases after an hour
+
+Writes benchmarks/results/calibration.json (or --out) and prints the tables.
 """
 
 from __future__ import annotations
@@ -13,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+import sys
 import tempfile
 import time
 
@@ -21,12 +30,66 @@ from smarticle_mjx.calibrate.fit import calibrate
 from smarticle_mjx.calibrate.synth import CASES, case_truth, make_case
 
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
+import independent_smarticle as IND  # noqa: E402
+
+# mismatch cases: generator keywords per amplitude series, and the library effect that should be named
+# (None: no structural effect; "nominal:<param>": a nominal finding)
+MISMATCH = {
+    "clean": (dict(), None),
+    "lag_30ms": (dict(lag_s=0.03), "servo_lag"),
+    "lag_20ms_low": (dict(lag_s=0.02, amplitudes=(10, 20)), "servo_lag"),
+    "tilt_0.5deg": (dict(tilt_deg=(0.5, 0.0)), "plate_tilt"),
+    "friction_0.25": (dict(friction=0.25), "nominal:plate_friction"),
+    "outside_arm2_bias": (dict(arm2_bias_deg=5.0), None),
+    "dead_time_30ms": (dict(dead_s=0.03), "servo_dead_time"),
+    "phase_offset_0.1": (dict(phase_offset=0.1, robots=2), "phase_offset"),
+    "tilt_2deg": (dict(tilt_deg=(2.0, 0.0)), "plate_tilt"),
+    "lag_10ms": (dict(lag_s=0.01), "servo_lag"),
+    "tilt_0.25deg": (dict(tilt_deg=(0.25, 0.0)), "plate_tilt"),
+}
+
+
+def make_mismatch(name: str, out, seed: int) -> None:
+    kw, _ = MISMATCH[name]
+    kw = dict(kw)
+    amps = kw.pop("amplitudes", (15, 60))
+    for a in amps:
+        IND.write_case(out, amplitude_deg=float(a), name=f"a{a}", trials=3, periods=5, seed=seed * 100 + a, **kw)
+
+
+def run_mismatch(name: str, seed: int) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        make_mismatch(name, tmp, seed)
+        trials = load(tmp)
+        t = time.perf_counter()
+        res = calibrate(trials)
+        wall = time.perf_counter() - t
+    _, want = MISMATCH[name]
+    added = [a["effect"] for a in res["added"]]
+    findings = [f["param"] for f in res["nominal_findings"]]
+    if want is None:
+        ok = not added
+    elif want.startswith("nominal:"):
+        ok = not added and want.split(":")[1] in findings
+    else:
+        ok = added[:1] == [want]
+    b, f = res["before"]["err_heldout"], res["after"]["err_heldout"]
+    return {"suite": "mismatch", "case": name, "seed": seed, "verdict": res["verdict"], "added": added,
+            "expected": want, "named_first": ok, "generator": {k: v for k, v in MISMATCH[name][0].items()},
+            "fitted": {a["effect"]: a["values"] for a in res["added"]},
+            "intervals": {a["effect"]: a["interval"] for a in res["added"]},
+            "nominal_findings": res["nominal_findings"], "conventions_warning": res["conventions"]["warning"],
+            "heldout_before": b, "heldout_after_nominal": res["after_nominal"]["err_heldout"], "heldout_after": f,
+            "heldout_drop": 1 - f / b, "wall_s": wall, "model_runs": res["model_runs"]}
+
+
 def run_case(name: str, seed: int) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         make_case(name, tmp, seed=seed)
         trials = load(tmp)
         t = time.perf_counter()
-        res = calibrate(trials)
+        res = calibrate(trials, nominal=False)
         wall = time.perf_counter() - t
     truth = case_truth(name)
     added = [a["effect"] for a in res["added"]]
@@ -36,7 +99,7 @@ def run_case(name: str, seed: int) -> dict:
             lo, hi = a["interval"][k]
             inside[f"{a['effect']}.{k}"] = bool(lo <= v <= hi)
     b, f = res["before"]["err_heldout"], res["after"]["err_heldout"]
-    return {"case": name, "seed": seed, "verdict": res["verdict"], "added": added,
+    return {"suite": "synth", "case": name, "seed": seed, "verdict": res["verdict"], "added": added,
             "fitted": {a["effect"]: a["values"] for a in res["added"]},
             "intervals": {a["effect"]: a["interval"] for a in res["added"]}, "truth": truth,
             "named_first": (added[:1] == list(truth)[:1]) if truth else (not added),
@@ -46,24 +109,61 @@ def run_case(name: str, seed: int) -> dict:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cases", nargs="*", default=list(CASES))
-    ap.add_argument("--clean-seeds", type=int, default=3)
+    ap.add_argument("--suite", choices=("synth", "mismatch", "all"), default="all")
+    ap.add_argument("--cases", nargs="*", default=None, help="case names (default: every case of the suite)")
+    ap.add_argument("--clean-seeds", type=int, default=5)
+    ap.add_argument("--max-minutes", type=float, default=None, help="start no case after this long")
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "calibration.json"))
     args = ap.parse_args()
+    t0 = time.perf_counter()
+    plan = []
+    if args.suite in ("synth", "all"):
+        plan += [("synth", n) for n in (args.cases or CASES) if n in CASES]
+    if args.suite in ("mismatch", "all"):
+        plan += [("mismatch", n) for n in (args.cases or MISMATCH) if n in MISMATCH]
     rows = []
-    for name in args.cases:
+    for suite, name in plan:
         for seed in (range(1, 1 + args.clean_seeds) if name == "clean" else [1]):
-            r = run_case(name, seed)
+            if args.max_minutes is not None and time.perf_counter() - t0 > 60 * args.max_minutes:
+                print(f"time cap reached; {suite}/{name} seed {seed} not run", flush=True)
+                continue
+            r = (run_case if suite == "synth" else run_mismatch)(name, seed)
             rows.append(r)
-            print(f"{name:22s} seed {seed}: {r['verdict']:45s} added {r['added']} fitted {r['fitted']} "
-                  f"truth inside {r['truth_inside']} held-out {r['heldout_before']:.2f} -> {r['heldout_after']:.2f} "
-                  f"({r['heldout_drop']:+.0%}) {r['wall_s']:.0f} s", flush=True)
-    clean = [r for r in rows if r["case"] == "clean"]
-    summary = {"false_positive_rate": (sum(bool(r["added"]) for r in clean) / len(clean)) if clean else None,
-               "clean_runs": len(clean)}
+            print(f"{suite}/{name:22s} seed {seed}: {r['verdict']:45s} added {r['added']} fitted {r['fitted']} "
+                  f"held-out {r['heldout_before']:.2f} -> {r['heldout_after']:.2f} ({r['heldout_drop']:+.0%}) "
+                  f"{r['wall_s']:.0f} s", flush=True)
+    summary = {}
+    for suite in ("synth", "mismatch"):
+        clean = [r for r in rows if r["suite"] == suite and r["case"] == "clean"]
+        summary[suite] = {"false_positive_rate": (sum(bool(r["added"]) for r in clean) / len(clean)) if clean
+                          else None, "clean_runs": len(clean)}
     pathlib.Path(args.out).write_text(json.dumps({"rows": rows, "summary": summary}, indent=1, default=float))
     print(summary)
-    print(markdown(rows))
+    print(markdown([r for r in rows if r["suite"] == "synth"]))
+    print(mismatch_markdown([r for r in rows if r["suite"] == "mismatch"]))
+
+
+def mismatch_markdown(rows) -> str:
+    """The mismatch table and its confusion table (cases × what was named) for docs/calibration.md."""
+    out = ["| case (seed) | generator | expected | verdict | structural effects added [95 % interval] | nominal "
+           "findings (× preset) | named right | held-out error: preset → nominal → final |",
+           "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        fit = "; ".join(f"{e}: " + ", ".join(f"{k} = {v:.3g} [{r['intervals'][e][k][0]:.3g}, "
+                                             f"{r['intervals'][e][k][1]:.3g}]" for k, v in vals.items())
+                        for e, vals in r["fitted"].items()) or "–"
+        nom = ", ".join(f"{f['param']} {f['ratio']:.2f}" for f in r["nominal_findings"]) or "–"
+        gen = ", ".join(f"{k} = {v}" for k, v in r["generator"].items()) or "nothing"
+        out.append(f"| {r['case']} ({r['seed']}) | {gen} | {r['expected'] or 'none'} | {r['verdict']} | {fit} | {nom} | "
+                   f"{'yes' if r['named_first'] else 'no'} | {r['heldout_before']:.3g} → "
+                   f"{r['heldout_after_nominal']:.3g} → {r['heldout_after']:.3g} |")
+    names = sorted({a for r in rows for a in r["added"]} | {"(none)"})
+    out += ["", "| case | runs | " + " | ".join(names) + " |", "|---|---|" + "---|" * len(names)]
+    for case in dict.fromkeys(r["case"] for r in rows):
+        rs = [r for r in rows if r["case"] == case]
+        cnt = [sum((n in r["added"][:1]) if n != "(none)" else (not r["added"]) for r in rs) for n in names]
+        out.append(f"| {case} | {len(rs)} | " + " | ".join(str(c) for c in cnt) + " |")
+    return "\n".join(out)
 
 
 def markdown(rows) -> str:

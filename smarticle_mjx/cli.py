@@ -418,6 +418,8 @@ def calibrate(
     overwrite: bool = typer.Option(False, help="replace an existing report"),
     model: Optional[str] = typer.Option(None, help="model preset to fit from (default: the sidecar's, else the "
                                                    "default preset)"),
+    nominal: bool = typer.Option(True, help="fit the robot's nominal parameters first (servo, arm lengths, "
+                                             "masses, plate μ); --no-nominal takes the preset's as exact"),
 ):
     """Residuals of the model against measured tracks, ranked candidate effects, the fit, before/after."""
     from .calibrate import fit, report
@@ -432,7 +434,7 @@ def calibrate(
         if not out.exists() and not out.parent.is_dir():
             raise UserError(f"output directory {out.parent} does not exist")
         trials = load(data, model)
-        result = fit.calibrate(trials, on_step=typer.echo)
+        result = fit.calibrate(trials, on_step=typer.echo, nominal=nominal)
         report.write(result, trials, out)
     except (UserError, ValueError) as e:
         _fail(str(e))

@@ -4,7 +4,9 @@ CSV: one row per robot per frame, ``trial, t, robot, x, y, theta, alpha1,
 alpha2`` in s, m, rad; ``alpha1``/``alpha2`` may be empty; frames need not
 be evenly spaced; rows may be missing. Sidecar ``NAME.json``: robots, gait
 (kind square|symmetric, amplitude_deg, period_s, chirality cw|ccw),
-optional robot overrides, plate friction, frame rate.
+optional robot overrides, plate friction, frame rate, and an optional circular
+boundary ``{"radius": m, "centre": [x, y]}`` (positions are shifted so that it
+is centred on the origin, where the model's wall is).
 """
 
 from __future__ import annotations
@@ -105,6 +107,13 @@ def _params(meta: dict, gait: GaitSpec, where: str, model: str | None = None) ->
     plate = meta.get("plate") or {}
     if "friction" in plate:
         params = params.replace(plate_friction=float(plate["friction"]))
+    bnd = meta.get("boundary")
+    if bnd is not None:
+        try:
+            radius = float(bnd["radius"])
+        except (KeyError, TypeError, ValueError):
+            raise DataError(f"{where}: boundary needs a radius in m, got {bnd!r}") from None
+        params = params.replace(boundary_radius=radius)
     try:
         params.validate()
         gait.validate(robot.servo_speed, robot.arm_limit_deg)
@@ -138,6 +147,12 @@ def load_csv(path, model: str | None = None) -> list[Trial]:
     n = int(meta["robots"])
     if n < 1:
         raise DataError(f"{where}: robots must be >= 1")
+    centre = np.zeros(2)
+    if meta.get("boundary") is not None:
+        try:
+            centre = np.asarray(meta["boundary"].get("centre", [0.0, 0.0]), float).reshape(2)
+        except (TypeError, ValueError):
+            raise DataError(f"{where}: boundary centre must be [x, y] in m") from None
     rows: dict[int, dict[float, dict[int, tuple]]] = {}
     try:
         f = path.open(newline="")
@@ -167,6 +182,7 @@ def load_csv(path, model: str | None = None) -> list[Trial]:
         for j, t in enumerate(times):
             for robot, v in frames[t].items():
                 data[j, robot] = v
+        data[..., :2] -= centre  # the model's circular wall is centred on the origin
         for i in range(n):
             if not np.isfinite(data[0, i, :3]).all():
                 raise DataError(f"{where} trial {trial}: robot {i} is not tracked in the first frame "

@@ -45,7 +45,7 @@ def _same(p: SceneParams, v: dict) -> SceneParams:
     return p
 
 
-def _no_phase(v: dict, n: int) -> np.ndarray:
+def _no_phase(v: dict, n: int, period: float) -> np.ndarray:
     return np.zeros(n)
 
 
@@ -60,7 +60,7 @@ class Effect:
       signature: the residuals it moves, in words (the report quotes it).
       measurement: True for effects of the camera, not of the robot.
       scene: (SceneParams, values) -> SceneParams.
-      phases: (values, n robots) -> [N] gait phase offsets (periods).
+      phases: (values, n robots, gait period s) -> [N] gait phase offsets (periods).
     """
 
     name: str
@@ -69,7 +69,7 @@ class Effect:
     signature: str
     measurement: bool = False
     scene: Callable[[SceneParams, dict], SceneParams] = _same
-    phases: Callable[[dict, int], np.ndarray] = _no_phase
+    phases: Callable[[dict, int, float], np.ndarray] = _no_phase
 
     def null(self) -> dict:
         return {p.name: p.null for p in self.params}
@@ -104,9 +104,20 @@ def _arm_plate(p: SceneParams, v: dict) -> SceneParams:
     return p.replace(robot=dataclasses.replace(p.robot, arm_clearance=0.0), arm_plate_friction=mu)
 
 
-def _phase(v: dict, n: int) -> np.ndarray:
+def _phase(v: dict, n: int, period: float) -> np.ndarray:
     # robot i runs i * offset periods ahead of robot 0
     return np.arange(n) * v["phase_offset"]
+
+
+def _lag(p: SceneParams, v: dict) -> SceneParams:
+    # an extra first-order lag on top of the model's own (the default preset already has 10 ms)
+    r = p.robot
+    return p.replace(robot=dataclasses.replace(r, servo_timeconst=r.servo_timeconst + float(v["extra_lag_s"])))
+
+
+def _delay(v: dict, n: int, period: float) -> np.ndarray:
+    # a dead time: every robot's servo acts on the command of delay seconds ago
+    return np.full(n, -float(v["dead_time_s"]) / period)
 
 
 LIBRARY: tuple[Effect, ...] = (
@@ -114,6 +125,15 @@ LIBRARY: tuple[Effect, ...] = (
            (Param("servo_scale", 0.12, 1.0, 1.0, 0.4, "× nominal", log=True),),
            "arm angles lag and fall short of the commanded gait, most at small amplitudes; both arms, all robots",
            scene=_servo),
+    Effect("servo_lag", "servo response lag (first-order, beyond the model's own)",
+           (Param("extra_lag_s", 0.0, 0.1, 0.0, 0.02, "s"),),
+           "arms follow the command late and round its corners, most visibly at small amplitudes, where a lag "
+           "is a larger part of each move; both arms, all robots",
+           scene=_lag),
+    Effect("servo_dead_time", "servo dead time (the command acts late by a fixed time)",
+           (Param("dead_time_s", 0.0, 0.1, 0.0, 0.02, "s"),),
+           "the whole arm trajectory shifted later in time, by the same time at every amplitude; all robots",
+           phases=_delay),
     Effect("phase_offset", "gait phase offset between robots",
            (Param("phase_offset", -0.25, 0.25, 0.0, 0.08, "periods"),),
            "arm-angle error in every robot but the first, a time shift of the whole gait; none for lone robots",
@@ -162,10 +182,10 @@ class EffectSet:
             p = BY_NAME[name].scene(p, v)
         return p
 
-    def phases(self, n: int) -> np.ndarray:
+    def phases(self, n: int, period: float) -> np.ndarray:
         out = np.zeros(n)
         for name, v in self.as_dict().items():
-            out = out + BY_NAME[name].phases(v, n)
+            out = out + BY_NAME[name].phases(v, n, period)
         return out
 
     def noise(self) -> tuple[float, float]:

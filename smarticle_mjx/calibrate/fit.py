@@ -32,14 +32,19 @@ import numpy as np
 
 from .data import Trial
 from .effects import BY_NAME, LIBRARY, Effect, EffectSet
-from .residuals import Features, features, masked, residual_blocks
+from .nominal import apply as apply_nominal, fit_nominal
+from .residuals import CONTACT_W, Features, features, masked, residual_blocks
 from .sim import simulate_trials
 
 MIN_HELDOUT_GAIN = 0.2
 UNEXPLAINED = 4.0
 MAX_EFFECTS = 2
 FIT_CANDIDATES = 2
-MIN_SHARE = 0.25  # fit a candidate only if its signature explains >= this share of the leader's
+MIN_SHARE = 0.25  # fit a candidate only if its grid gain is >= this share of the leader's
+NOMINAL_EFFECTS = ("servo_response", "friction_scale")
+SERVO_HYPOTHESES = ("servo_lag", "servo_dead_time")  # fitted jointly with the nominal servo
+NOMINAL_NFEV, HYPOTHESIS_NFEV = 15, 10  # least-squares iterations (each costs a Jacobian: one run per parameter)  # rescale parameters the nominal fit already fits
+CONVENTION_FACTOR = 4.0  # an alternative convention this much better than the declared one is reported
 
 
 def split(trials: list[Trial]) -> tuple[list[Trial], list[Trial]]:
@@ -50,33 +55,44 @@ def split(trials: list[Trial]) -> tuple[list[Trial], list[Trial]]:
 
 
 class Problem:
-    """Residuals of a set of trials under any EffectSet (model runs cached)."""
+    """Residuals of a set of trials under any EffectSet (model runs cached).
+
+    ``nominal`` holds fitted nominal parameters (calibrate.nominal), applied
+    to every trial's scene before any effect.
+    """
 
     def __init__(self, trials: list[Trial]):
         self.trials = trials
         self.meas: list[Features] = [features(tr.t, tr.pose, tr.arms, tr.gait.period()) for tr in trials]
         self._cache: dict = {}
         self.runs = 0
+        self.nominal: dict = {}
 
-    def model(self, eff: EffectSet):
+    def model(self, eff: EffectSet, nominal: dict | None = None):
+        nom = self.nominal if nominal is None else nominal
         key = EffectSet.of({k: v for k, v in eff.as_dict().items() if not BY_NAME[k].measurement})
-        if key not in self._cache:
-            tracks = simulate_trials(self.trials, scene_for=lambda tr: key.scene(tr.params),
-                                     phase_for=lambda tr: key.phases(tr.robots))
+        ck = (key, tuple(sorted(nom.items())))
+        if ck not in self._cache:
+            tracks = simulate_trials(self.trials, scene_for=lambda tr: key.scene(apply_nominal(tr.params, nom)),
+                                     phase_for=lambda tr: key.phases(tr.robots, tr.gait.period()))
             feats = []
             for tr, mt in zip(self.trials, tracks):
                 pose, arms = masked(mt, tr)
                 feats.append(features(tr.t, pose, arms, tr.gait.period()))
-            self._cache[key] = (tracks, feats)
+            self._cache[ck] = (tracks, feats)
             self.runs += 1
-        return self._cache[key]
+        return self._cache[ck]
 
-    def blocks(self, eff: EffectSet) -> list[dict[str, np.ndarray]]:
-        _, feats = self.model(eff)
+    def blocks(self, eff: EffectSet, nominal: dict | None = None) -> list[dict[str, np.ndarray]]:
+        _, feats = self.model(eff, nominal)
         return [residual_blocks(m, f, eff.noise()) for m, f in zip(self.meas, feats)]
 
     def vector(self, eff: EffectSet) -> np.ndarray:
         return np.concatenate([v for b in self.blocks(eff) for v in b.values()])
+
+    def vector_with(self, nominal: dict, eff: EffectSet | None = None) -> np.ndarray:
+        """The residual vector of the model with these nominal values (and effects; default none)."""
+        return np.concatenate([v for b in self.blocks(eff or EffectSet(), nominal) for v in b.values()])
 
     def error(self, eff: EffectSet) -> float:
         """Mean squared normalised residual (about 1 when the model agrees within measurement error)."""
@@ -208,30 +224,105 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
                test.error(EffectSet.of(vals)))
 
 
-def signatures(train: Problem, base: dict, candidates: list[Effect]) -> list[dict]:
-    """How much of the current residual each candidate's signature can remove.
+def signatures(train: Problem, base: dict, candidates: list[Effect], points: int = 4) -> list[dict]:
+    """Rank the candidates by the gain each actually achieves.
 
-    Returns rows sorted best first: effect, explained (0..1), step (the
-    linear estimate of the parameters), block shares of the signature.
+    For every candidate: a coarse grid over its parameters (``points`` per
+    parameter in normalised units, 3 x 3 for two; 16 per parameter for a
+    measurement effect, which needs no model run), the lowest training chi^2
+    on it, and the linear projection of its probe signature (the change of
+    the residual when it is switched on at its probe value). A nonlinear
+    effect whose linear signature explains nothing (a servo lag: it moves
+    the arms by a whole phase bin, not a little) still shows its real gain
+    on the grid.
+
+    Returns rows sorted by the achieved gain, best first: effect,
+    grid_gain (1 - best chi^2 / current chi^2), estimate (the best grid
+    point), explained (the linear share, 0..1).
     """
     r0 = train.vector(EffectSet.of(base))
+    c0 = max(float(r0 @ r0), 1e-300)
     rows = []
     for e in candidates:
-        cols, steps = [], []
+        cols = []
         for p in e.params:
             probe = {**base, e.name: {**e.null(), p.name: p.probe}}
             rp = train.vector(EffectSet.of(probe))
             cols.append((rp - r0) / (p.probe - p.null))
-            steps.append(p)
         J = np.stack(cols, 1)
         delta, *_ = np.linalg.lstsq(J, -r0, rcond=None)
         left = r0 + J @ delta
-        explained = 1.0 - float(left @ left) / max(float(r0 @ r0), 1e-300)
-        est = {p.name: float(np.clip(p.null + d, p.lo, p.hi)) for p, d in zip(steps, delta)}
-        rows.append({"effect": e.name, "explained": max(0.0, explained), "estimate": est,
-                     "signature_norm": float(np.linalg.norm(J))})
-    rows.sort(key=lambda r: -r["explained"])
+        explained = 1.0 - float(left @ left) / c0
+        g = 16 if e.measurement else (points if len(e.params) == 1 else 3)
+        axes = [(np.arange(g) + 0.5) / g for _ in e.params]
+        best, best_v = c0, e.null()
+        for point in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(e.params), -1).T:
+            v = {p.name: _from_u(p, x) for p, x in zip(e.params, point)}
+            r = train.vector(EffectSet.of({**base, e.name: v}))
+            c = float(r @ r)
+            if c < best:
+                best, best_v = c, v
+        rows.append({"effect": e.name, "grid_gain": max(0.0, 1.0 - best / c0), "estimate": best_v,
+                     "explained": max(0.0, explained), "signature_norm": float(np.linalg.norm(J))})
+    rows.sort(key=lambda r: -r["grid_gain"])
     return rows
+
+
+def conventions(problem: Problem) -> dict:
+    """Do the arm data fit the declared gait, or a convention mix-up far better?
+
+    Compares the arms block of the preset model under the declared gait with
+    the same data read with the arms swapped, with the angle signs flipped,
+    with both, and with the opposite chirality (one more model run). The
+    interchange format's conventions are in docs/calibration.md.
+
+    Returns {"declared": error, "alternatives": {name: error}, "warning":
+    one line or None}.
+    """
+    with_arms = [k for k, tr in enumerate(problem.trials) if tr.arms is not None]
+    if not with_arms:
+        return {"declared": None, "alternatives": {}, "warning": None}
+    _, feats = problem.model(EffectSet(), {})
+
+    def arms_error(meas, model_feats):
+        v = [residual_blocks(m, f)["arms"] for m, f in zip(meas, model_feats)
+             if m.arms is not None and f.arms is not None]
+        v = np.concatenate(v) if v else np.zeros(0)
+        return float(np.mean(v ** 2)) if len(v) else float("nan")
+
+    declared = arms_error(problem.meas, feats)
+    alt = {}
+    for name, fn in (("arms swapped", lambda a: a[..., ::-1]), ("angle signs flipped", lambda a: -a),
+                     ("arms swapped and signs flipped", lambda a: -a[..., ::-1])):
+        meas = [features(tr.t, tr.pose, fn(tr.arms) if tr.arms is not None else None, tr.gait.period())
+                for tr in problem.trials]
+        alt[name] = arms_error(meas, feats)
+    other = [dataclasses.replace(tr, gait=dataclasses.replace(tr.gait, chirality="cw" if tr.gait.chirality == "ccw"
+                                                              else "ccw")) for tr in problem.trials]
+    po = Problem(other)
+    alt["opposite chirality"] = arms_error(po.meas, po.model(EffectSet(), {})[1])
+    problem.runs += po.runs
+    best = min(alt, key=lambda k: alt[k] if np.isfinite(alt[k]) else np.inf)
+    warning = None
+    if np.isfinite(alt[best]) and alt[best] * CONVENTION_FACTOR < declared and declared > UNEXPLAINED:
+        warning = (f"the arm data fit the gait far better read with {best} (arm error {alt[best]:.3g} against "
+                   f"{declared:.3g} as declared): check the data's conventions (docs/calibration.md)")
+    return {"declared": declared, "alternatives": alt, "warning": warning}
+
+
+def nominal_findings(nf) -> list[dict]:
+    """Nominal parameters whose 95 % interval excludes the preset value (what the data say differs),
+    leaving out those at a bound or correlated above 0.9 with another: the data do not identify them."""
+    out = []
+    tangled = {c[0] for c in nf.correlated} | {c[1] for c in nf.correlated} | set(nf.at_bound)
+    for name, v in nf.values.items():
+        lo, hi = nf.interval[name]
+        pre = nf.preset[name]
+        if not lo <= pre <= hi and name not in tangled:
+            out.append({"param": name, "value": v, "interval": [lo, hi], "preset": pre,
+                        "ratio": v / pre if pre else float("nan"), "at_bound": name in nf.at_bound,
+                        "correlated": [c for c in nf.correlated if name in c[:2]]})
+    return out
 
 
 def where_residual(problem: Problem, eff: EffectSet) -> dict[str, float]:
@@ -243,31 +334,87 @@ def where_residual(problem: Problem, eff: EffectSet) -> dict[str, float]:
     return {k: float(np.mean(np.concatenate(v) ** 2)) for k, v in acc.items()}
 
 
-def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_step=None) -> dict:
-    """The whole loop: residual -> ranked diagnosis -> fit -> selection.
+def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_step=None, nominal: bool = True) -> dict:
+    """The whole loop: conventions -> nominal parameters -> residual -> ranked
+    diagnosis -> fit -> selection.
 
     Returns a JSON-ready dict (see report.write).
     """
     say = on_step or (lambda msg: None)
     train_t, test_t = split(trials)
     train, test = Problem(train_t), Problem(test_t)
+    if all(m.arms is None and m.in_contact for m in train.meas + test.meas):
+        raise ValueError("nothing to compare: no arm angles are tracked and in every trial the robots come within "
+                         f"{CONTACT_W} W of each other, where body motion is chaotic and not compared")
     null = EffectSet()
     before = {"err_train": train.error(null), "err_heldout": test.error(null),
               "where_heldout": where_residual(test, null)}
-    say(f"nominal model: held-out error {before['err_heldout']:.2f}")
+    say(f"preset model: held-out error {before['err_heldout']:.2f}")
+    conv = conventions(train)
+    if conv.get("warning"):
+        say(conv["warning"])
+    nominal_fit = None
     base: dict = {}
     chosen: list[Effect] = []
-    current = {"err_heldout": before["err_heldout"], "chi2_train": float(train.vector(null) @ train.vector(null))}
+    found: dict = {}  # effect -> (values, interval) of its latest accepted fit
+    hypotheses = []
+    if nominal:
+        nominal_fit = fit_nominal(train, max_nfev=NOMINAL_NFEV)
+        nom0 = {k: nominal_fit.values[k] for k in nominal_fit.preset}
+        train.nominal = test.nominal = dict(nom0)
+        err0 = test.error(null)
+        chi2_0 = float(train.vector(null) @ train.vector(null))
+        say(f"nominal parameters fitted ({nominal_fit.evaluations} runs): held-out error {err0:.2f}")
+        # a servo lag or dead time changes the arms like a slower, softer servo does at one amplitude:
+        # each is fitted jointly with the nominal parameters and kept only if it beats them alone
+        best_h = None
+        for name in SERVO_HYPOTHESES:
+            if name not in {e.name for e in library}:
+                continue
+            e = BY_NAME[name]
+            fe = fit_nominal(train, effect=e, start=nom0, max_nfev=HYPOTHESIS_NFEV)
+            nom_e = {k: fe.values[k] for k in fe.preset}
+            eff_e = EffectSet.of({name: fe.values[name]})
+            chi2_e = float(train.vector_with(nom_e, eff_e) @ train.vector_with(nom_e, eff_e))
+            err_e = float(np.mean(test.vector_with(nom_e, eff_e) ** 2))
+            n = len(train.vector(null))
+            bic_gain = chi2_0 - chi2_e - len(e.params) * math.log(max(n, 2))
+            gain = 1.0 - err_e / max(err0, 1e-12)
+            present = any(not fe.interval[p.name][0] <= p.null <= fe.interval[p.name][1] for p in e.params)
+            ok = bic_gain > 0 and gain >= MIN_HELDOUT_GAIN and present
+            hypotheses.append({"effect": name, "values": fe.values[name],
+                               "interval": {p.name: fe.interval[p.name] for p in e.params}, "err_heldout": err_e,
+                               "heldout_gain": gain, "bic_gain": bic_gain, "present": present, "accepted": ok,
+                               "evaluations": fe.evaluations})
+            say(f"  nominal + {name}: held-out error {err_e:.2f} ({gain:+.0%}), BIC gain {bic_gain:.1f}")
+            if ok and (best_h is None or gain > best_h[1]):
+                best_h = (fe, gain, e, nom_e)
+        if best_h is not None:
+            fe, _, e, nom_e = best_h
+            chosen.append(e)
+            base = {e.name: fe.values[e.name]}
+            found[e.name] = (fe.values[e.name], {p.name: fe.interval[p.name] for p in e.params})
+            train.nominal = test.nominal = dict(nom_e)
+            nominal_fit = dataclasses.replace(fe, values=dict(nom_e))
+            say(f"added {e.name} (fitted with the nominal parameters)")
+        # the library's effects that rescale a fitted nominal parameter would fit it twice
+        library = tuple(e for e in library if e.name not in NOMINAL_EFFECTS and e.name not in SERVO_HYPOTHESES)
+    if max(tr.robots for tr in trials) == 1:
+        library = tuple(e for e in library if e.name != "phase_offset")  # no second robot to offset
+    after_nominal = {"err_train": train.error(EffectSet.of(base)), "err_heldout": test.error(EffectSet.of(base)),
+                     "where_heldout": where_residual(test, EffectSet.of(base))}
+    current = {"err_heldout": after_nominal["err_heldout"],
+               "chi2_train": float(train.vector(EffectSet.of(base)) @ train.vector(EffectSet.of(base)))}
     rounds = []
     accepted_fit = None
     for _ in range(MAX_EFFECTS):
         remaining = [e for e in library if e not in chosen]
         ranking = signatures(train, base, remaining)
         tried = []
-        lead = ranking[0]["explained"] if ranking else 0.0
+        lead = ranking[0]["grid_gain"] if ranking else 0.0
         for row in ranking[:FIT_CANDIDATES]:
             e = BY_NAME[row["effect"]]
-            if row["explained"] < max(0.05, MIN_SHARE * lead):
+            if row["grid_gain"] < max(0.05, MIN_SHARE * lead):
                 continue
             start = {**base, e.name: row["estimate"]}
             f = fit_effects(train, test, chosen + [e], start)
@@ -290,6 +437,8 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         chosen.append(BY_NAME[best["effect"]])
         accepted_fit = best["_fit"]
         base = accepted_fit.values
+        for name in accepted_fit.effects:
+            found[name] = (accepted_fit.values[name], accepted_fit.interval[name])
         current = {"err_heldout": accepted_fit.err_heldout, "chi2_train": accepted_fit.chi2_train}
         say(f"added {best['effect']}")
     final = EffectSet.of(base)
@@ -300,11 +449,13 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     elif chosen:
         verdict = "explained by " + " + ".join(e.name for e in chosen)
     return {"trials": {"train": [t.name for t in train_t], "heldout": [t.name for t in test_t]},
-            "before": before, "after": after, "rounds": rounds,
-            "added": [{"effect": e.name, "title": e.title, "values": accepted_fit.values[e.name],
-                       "interval": accepted_fit.interval[e.name],
-                       "units": {p.name: p.unit for p in e.params}} for e in chosen] if chosen else [],
+            "conventions": conv, "nominal": nominal_fit.as_dict() if nominal_fit else None,
+            "nominal_findings": nominal_findings(nominal_fit) if nominal_fit else [],
+            "before": before, "after_nominal": after_nominal, "after": after, "rounds": rounds,
+            "nominal_hypotheses": hypotheses,
+            "added": [{"effect": e.name, "title": e.title, "values": found[e.name][0], "interval": found[e.name][1],
+                       "units": {p.name: p.unit for p in e.params}} for e in chosen],
             "verdict": verdict, "model_runs": train.runs + test.runs,
             "criteria": {"min_heldout_gain": MIN_HELDOUT_GAIN, "unexplained_error": UNEXPLAINED,
                          "bic": "chi2 drop > k ln n on training trials"},
-            "_effects": final}
+            "_effects": final, "_nominal": dict(train.nominal)}

@@ -11,6 +11,7 @@ from ..plots import _mpl
 from ..report import json_default
 from .data import Trial
 from .effects import BY_NAME, EffectSet
+from .nominal import apply as apply_nominal
 from .residuals import BINS, DEG, metrics
 from .sim import simulate_trials
 
@@ -43,8 +44,8 @@ def _figures(result, heldout: list[Trial], tracks_before, tracks_after, out: pat
     rk = result["rounds"][0]["ranking"] if result["rounds"] else []
     if rk:
         fig, ax = plt.subplots(figsize=(5, 3.2))
-        ax.barh([r["effect"] for r in rk][::-1], [r["explained"] for r in rk][::-1])
-        ax.set(xlabel="fraction of the nominal residual its signature removes", xlim=(0, 1))
+        ax.barh([r["effect"] for r in rk][::-1], [r["grid_gain"] for r in rk][::-1])
+        ax.set(xlabel="share of the training χ² removed on a coarse grid", xlim=(0, 1))
         fig.tight_layout()
         fig.savefig(out / "diagnosis.png", dpi=130)
         plt.close(fig)
@@ -81,9 +82,10 @@ def write(result: dict, trials: list[Trial], out_dir) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     held = [t for t in trials if t.name in set(result["trials"]["heldout"])]
     final: EffectSet = result.pop("_effects")
+    nominal = result.pop("_nominal", {})
     before_tracks = simulate_trials(held, scene_for=lambda tr: tr.params)
-    after_tracks = simulate_trials(held, scene_for=lambda tr: final.scene(tr.params),
-                                   phase_for=lambda tr: final.phases(tr.robots))
+    after_tracks = simulate_trials(held, scene_for=lambda tr: final.scene(apply_nominal(tr.params, nominal)),
+                                   phase_for=lambda tr: final.phases(tr.robots, tr.gait.period()))
     # the metrics compare what the camera saw with what it would see of the model:
     # a fitted tracking noise is added to the model's track (seeded)
     sxy, sth = final.noise()
@@ -101,12 +103,31 @@ def write(result: dict, trials: list[Trial], out_dir) -> dict:
 
 def markdown(r: dict) -> str:
     b, a = r["before"], r["after"]
-    lines = ["# Calibration report", "",
+    an = r.get("after_nominal") or b
+    warn = (r.get("conventions") or {}).get("warning")
+    lines = ["# Calibration report", ""] + ([f"**Conventions: {warn}.**", ""] if warn else []) + [
              f"**Verdict: {r['verdict']}.** Held-out error (mean squared residual in units of its measurement "
              f"error; about 1 = within error) {b['err_heldout']:.2f} → {a['err_heldout']:.2f} "
-             f"({1 - a['err_heldout'] / max(b['err_heldout'], 1e-12):+.0%}).", "",
+             f"({1 - a['err_heldout'] / max(b['err_heldout'], 1e-12):+.0%}); after the nominal parameters alone "
+             f"{an['err_heldout']:.2f}.", "",
              f"{len(r['trials']['train'])} training trials, {len(r['trials']['heldout'])} held out; "
              f"{r['model_runs']} batched model runs.", ""]
+    nom = r.get("nominal")
+    if nom:
+        lines += ["## Nominal parameters (fitted first)", "",
+                  f"Bounded least squares over {nom['evaluations']} model runs; training error "
+                  f"{nom['err_before']:.3g} → {nom['err_after']:.3g}. Bold: the 95 % interval excludes the preset "
+                  "value (the data say it differs).", "",
+                  "| parameter | preset | fitted | 95 % interval | flags |", "|---|---|---|---|---|"]
+        for k, v in nom["values"].items():
+            lo, hi = nom["interval"][k]
+            pre = nom["preset"][k]
+            flags = (["at a bound"] if k in nom["at_bound"] else []) + \
+                [f"r = {c[2]:+.2f} with {c[1] if c[0] == k else c[0]}" for c in nom["correlated"] if k in c[:2]]
+            mark = "**" if not lo <= pre <= hi else ""
+            lines.append(f"| {mark}{k}{mark} | {_num(pre, '.4g')} | {mark}{_num(v, '.4g')}{mark} | "
+                         f"[{_num(lo, '.4g')}, {_num(hi, '.4g')}] | {'; '.join(flags)} |")
+        lines.append("")
     if r["added"]:
         lines += ["## Added effects", "", "| effect | parameter | fitted | 95 % interval |", "|---|---|---|---|"]
         for e in r["added"]:
@@ -123,15 +144,17 @@ def markdown(r: dict) -> str:
                   "No effect in the library explains what remains. Its signature (held-out mean squared normalised "
                   "residual per block; 1 = measurement error): " + ", ".join(f"{k} {v:.1f}" for k, v in where) + ".", ""]
     lines += ["## Diagnosis (first round)", "",
-              "Fraction of the nominal model's training residual that a least-squares step along each effect's "
-              "signature removes, then the fit of the leading candidates:", "",
-              "| effect | signature explains | what it moves | fitted alone: held-out change | accepted |",
-              "|---|---|---|---|---|"]
+              "Each candidate on a coarse grid of its parameters: the share of the training χ² it removes (the rank), "
+              "beside the share a linear step along its probe signature would remove; then the fit of the leading "
+              "candidates:", "",
+              "| effect | grid gain | linear signature | what it moves | fitted alone: held-out change | accepted |",
+              "|---|---|---|---|---|---|"]
     tried = {t["effect"]: t for rd in r["rounds"][:1] for t in rd["tried"]}
     for row in (r["rounds"][0]["ranking"] if r["rounds"] else []):
         t = tried.get(row["effect"])
         gain = f"{t['heldout_gain']:+.0%}" if t else "–"
-        lines.append(f"| {row['effect']} | {row['explained']:.0%} | {BY_NAME[row['effect']].signature} | {gain} | "
+        lines.append(f"| {row['effect']} | {row['grid_gain']:.0%} | {row['explained']:.0%} | "
+                     f"{BY_NAME[row['effect']].signature} | {gain} | "
                      f"{'yes' if t and t['accepted'] else 'no'} |")
     lines += ["", f"Criteria: add an effect only if it lowers the training χ² by more than k ln n (BIC) and the "
               f"held-out error by ≥ {r['criteria']['min_heldout_gain']:.0%}; call the residual unexplained above "

@@ -111,7 +111,7 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
             arms[0] = start[:, 3:]
             templates.append(Trial(f"synth:{k}", t, pose, arms, gait, params, frame_rate_hz))
         tracks = simulate_trials(templates, scene_for=lambda tr: eff.scene(tr.params),
-                                 phase_for=lambda tr: eff.phases(tr.robots))
+                                 phase_for=lambda tr: eff.phases(tr.robots, tr.gait.period()))
         path = out_dir / f"a{amp:05.1f}.csv"
         tmp = path.with_name(path.name + ".part")
         with open(tmp, "w", newline="") as f:
@@ -145,6 +145,8 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
 BASE_CASE = dict(trials=6, periods=8, amplitudes=(30.0,), noise_xy_mm=0.02, noise_theta_deg=0.02)
 CASES: dict[str, dict] = {
     "servo_response": dict(effects={"servo_response": {"servo_scale": 0.35}}),
+    "servo_lag": dict(effects={"servo_lag": {"extra_lag_s": 0.03}}),
+    "servo_dead_time": dict(effects={"servo_dead_time": {"dead_time_s": 0.03}}),
     "phase_offset": dict(robots=2, effects={"phase_offset": {"phase_offset": 0.1}}),
     "plate_tilt": dict(effects={"plate_tilt": {"tilt_x_deg": 3.5, "tilt_y_deg": -1.0}}),
     "friction_scale": dict(effects={"friction_scale": {"friction_scale": 0.55}}),

@@ -1,0 +1,215 @@
+"""Nominal parameters first: fit the robot's continuous parameters before judging structural effects.
+
+Real tracks come from a robot whose arm lengths, masses, servo and plate
+differ from the preset's. Left unfitted, those differences show up as a
+residual that the structural library then either fails to explain or,
+worse, explains with the wrong effect. So the calibration first fits the
+continuous parameters of the model it already has:
+
+* servo: ramp speed, position gain, stall torque, the gearbox's reflected
+  inertia (armature: it sets how much of an arm's acceleration torque the
+  body feels as a reaction, hence how much the body turns within a cycle);
+* geometry and mass: each arm's length (separately: a manufacturing
+  asymmetry is then named as such), arm mass, total mass;
+* plate friction μ.
+
+Method: bounded least squares (``scipy.optimize.least_squares``, trust
+region reflective) on the normalised residual vector of the training trials,
+in normalised coordinates (log for scales), with forward differences of 2 %
+of each range: wide enough that a single stick-slip flip does not dominate
+a derivative (see docs/calibration.md on roughness). Every evaluation is one
+batched native rollout of all training trials. Intervals come from the
+Gauss-Newton covariance at the optimum, scaled by the reduced chi^2 when it
+exceeds 1; parameters at a bound and pairs correlated above 0.9 are flagged
+(their intervals then mean little on their own).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..scene import SceneParams
+
+
+@dataclasses.dataclass(frozen=True)
+class NominalParam:
+    """A continuous model parameter, bounded relative to its preset value.
+
+    Attributes:
+      name: ``RobotParams`` field, or ``plate_friction``.
+      lo, hi: bounds as factors of the preset value.
+      log: fitted in log space.
+      unit: for the report.
+    """
+
+    name: str
+    lo: float
+    hi: float
+    log: bool
+    unit: str
+
+    def preset(self, p: SceneParams) -> float:
+        if self.name == "plate_friction":
+            return p.plate_friction
+        if self.name == "arm2_length":
+            return p.robot.arm_lengths[1]
+        return float(getattr(p.robot, self.name))
+
+    def bounds(self, p: SceneParams) -> tuple[float, float]:
+        v = self.preset(p)
+        return v * self.lo, v * self.hi
+
+    def to_u(self, p: SceneParams, x: float) -> float:
+        lo, hi = self.bounds(p)
+        if self.log:
+            return (math.log(x) - math.log(lo)) / (math.log(hi) - math.log(lo))
+        return (x - lo) / (hi - lo)
+
+    def from_u(self, p: SceneParams, u: float) -> float:
+        lo, hi = self.bounds(p)
+        u = min(max(float(u), 0.0), 1.0)
+        if self.log:
+            return math.exp(math.log(lo) + u * (math.log(hi) - math.log(lo)))
+        return lo + u * (hi - lo)
+
+
+NOMINAL: tuple[NominalParam, ...] = (
+    NominalParam("servo_speed", 0.6, 1.4, False, "rad/s"),
+    NominalParam("servo_kp", 0.25, 4.0, True, "N m/rad"),
+    NominalParam("servo_torque", 0.5, 2.0, True, "N m"),
+    NominalParam("servo_armature", 0.1, 10.0, True, "kg m^2"),
+    NominalParam("arm_length", 0.8, 1.2, False, "m"),
+    NominalParam("arm2_length", 0.8, 1.2, False, "m"),
+    NominalParam("arm_mass", 0.5, 2.0, True, "kg"),
+    NominalParam("mass", 0.7, 1.3, False, "kg"),
+    NominalParam("plate_friction", 0.5, 2.0, True, ""),
+)
+BY_NAME = {p.name: p for p in NOMINAL}
+
+
+def apply(p: SceneParams, values: dict) -> SceneParams:
+    """Scene parameters with nominal values replaced ({name: value})."""
+    robot = {k: v for k, v in values.items() if k != "plate_friction"}
+    out = p.replace(robot=dataclasses.replace(p.robot, **robot)) if robot else p
+    if "plate_friction" in values:
+        out = out.replace(plate_friction=float(values["plate_friction"]))
+    return out
+
+
+@dataclasses.dataclass
+class NominalFit:
+    """The fitted nominal parameters (JSON-ready through ``as_dict``)."""
+
+    values: dict  # {name: fitted value}
+    preset: dict  # {name: preset value}
+    interval: dict  # {name: (lo, hi)} 95 %
+    at_bound: list  # names
+    correlated: list  # [(a, b, r)] with |r| > 0.9
+    err_before: float
+    err_after: float
+    evaluations: int
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: int = 40, effect=None,
+                start: dict | None = None) -> NominalFit:
+    """Fit ``params`` on ``problem`` (a ``fit.Problem`` of training trials).
+
+    Args:
+      effect: optionally a structural effect (``effects.Effect``) fitted
+        jointly with the nominal parameters, its values then in
+        ``values[effect.name]`` (a servo lag must be fitted with the servo's
+        speed and gain, or those absorb it).
+      start: nominal values to start from (default: the preset's).
+
+    The reference scene is the first trial's (all trials of a data set share
+    a model preset). Returns the fit; ``problem`` is left at the preset.
+    """
+    from scipy.optimize import least_squares
+    from .effects import EffectSet
+    from .fit import _from_u, _to_u
+    ref = problem.trials[0].params
+    start = start or {}
+    eparams = tuple(effect.params) if effect is not None else ()
+    u0 = np.array([min(max(p.to_u(ref, start.get(p.name, p.preset(ref))), 0.0), 1.0) for p in params]
+                  + [_to_u(q, q.probe) for q in eparams])
+    calls = {"n": 0}
+    kn = len(params)
+
+    def values(u):
+        return {p.name: p.from_u(ref, x) for p, x in zip(params, u[:kn])}
+
+    def effects(u):
+        if effect is None:
+            return EffectSet()
+        return EffectSet.of({effect.name: {q.name: _from_u(q, x) for q, x in zip(eparams, u[kn:])}})
+
+    def vec(u):
+        return problem.vector_with(values(u), effects(u))
+
+    last: dict = {}
+    step = 0.02  # of each normalised range
+
+    def fun(u):
+        u = np.clip(np.asarray(u, float), 0.0, 1.0)
+        key = u.tobytes()
+        if key not in last:
+            calls["n"] += 1
+            last.clear()
+            last[key] = vec(u)
+        return last[key]
+
+    def jac(u):
+        u = np.clip(np.asarray(u, float), 0.0, 1.0)
+        f0 = fun(u)
+        cols = []
+        for j in range(len(u)):
+            h = step if u[j] + step <= 1.0 else -step  # forward, backward at the upper bound
+            v = u.copy()
+            v[j] += h
+            calls["n"] += 1
+            cols.append((vec(v) - f0) / h)
+        return np.stack(cols, 1)
+
+    r0 = fun(u0).copy()
+    res = least_squares(fun, u0, jac=jac, bounds=(0.0, 1.0), method="trf", max_nfev=max_nfev, x_scale=1.0)
+    u = np.clip(res.x, 0.0, 1.0)
+    r = res.fun
+    names = [p.name for p in params] + [q.name for q in eparams]
+    n, k = len(r), len(names)
+    J = res.jac
+    red = max(1.0, float(r @ r) / max(n - k, 1))
+    at_bound = [nm for nm, x in zip(names, u) if x <= 0.01 or x >= 0.99]
+    free = [j for j, nm in enumerate(names) if nm not in at_bound]
+    # the covariance of the parameters inside their bounds (one on a bound has no Gauss-Newton interval)
+    sd = np.full(k, np.nan)
+    cc = np.full((k, k), np.nan)
+    if free:
+        Jf = J[:, free]
+        cov = np.linalg.pinv(Jf.T @ Jf) * red
+        s_f = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        sd[free] = s_f
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cc[np.ix_(free, free)] = np.clip(cov / np.outer(s_f, s_f), -1.0, 1.0)
+
+    def conv(j, x):
+        return params[j].from_u(ref, x) if j < kn else _from_u(eparams[j - kn], x)
+
+    interval = {}
+    for j, (nm, x, s_) in enumerate(zip(names, u, sd)):
+        if np.isfinite(s_):
+            interval[nm] = (conv(j, x - 1.96 * s_), conv(j, x + 1.96 * s_))
+        else:  # on a bound: the bound itself
+            interval[nm] = (conv(j, 0.0), conv(j, 0.0)) if x <= 0.01 else (conv(j, 1.0), conv(j, 1.0))
+    corr = [(names[a], names[b], float(cc[a, b])) for a in range(k) for b in range(a + 1, k)
+            if np.isfinite(cc[a, b]) and abs(cc[a, b]) > 0.9]
+    vals = values(u)
+    if effect is not None:
+        vals[effect.name] = effects(u).as_dict()[effect.name]
+    return NominalFit(vals, {p.name: p.preset(ref) for p in params}, interval, at_bound, corr,
+                      float(np.mean(r0 ** 2)), float(np.mean(r ** 2)), calls["n"])
