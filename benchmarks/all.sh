@@ -13,7 +13,7 @@ $PY benchmarks/timestep_convergence.py --configs 100 --periods 20
 $PY benchmarks/label_sensitivity.py
 $PY benchmarks/early_exit.py --configs 850 --periods 75
 $PY benchmarks/full_scan.py --n 5000 --periods 75
-$PY benchmarks/calibration.py
+$PY benchmarks/calibration.py --max-minutes 90  # both suites; about an hour
 # fidelity study (docs/fidelity.md): screen, confirm, time step, mechanism; resumable
 $PY benchmarks/fidelity_screen.py --pairs 48 --periods 40
 $PY benchmarks/fidelity_screen.py --models lab-lag,paper --pairs 128 --periods 100 --pb 0

@@ -11,7 +11,7 @@ Two suites:
 
     python benchmarks/calibration.py                          # both suites
     python benchmarks/calibration.py --suite mismatch --cases clean lag_30ms --clean-seeds 5
-    python benchmarks/calibration.py --max-minutes 60         # stop starting cases after an hour
+    python benchmarks/calibration.py --max-minutes 60         # start no case after an hour (default: 90 min)
 
 Writes benchmarks/results/calibration.json (or --out) and prints the tables.
 """
@@ -48,6 +48,32 @@ MISMATCH = {
     "lag_10ms": (dict(lag_s=0.01), "servo_lag"),
     "tilt_0.25deg": (dict(tilt_deg=(0.25, 0.0)), "plate_tilt"),
 }
+
+
+# where the generator's law is the library's, the library's value that equals the generator's truth
+# (the generator's tilt (tx, ty) turns gravity toward -y for tx and +x for ty; the library's
+# plate_tilt_deg = (x, y) toward +x and +y); lags: the laws differ (the generator lags its slewed
+# corner, the library its ramp, on top of the preset's own 10 ms), so no truth is checked
+SAME_LAW = {
+    "tilt_0.5deg": {"plate_tilt": {"tilt_x_deg": 0.0, "tilt_y_deg": -0.5}},
+    "tilt_2deg": {"plate_tilt": {"tilt_x_deg": 0.0, "tilt_y_deg": -2.0}},
+    "tilt_0.25deg": {"plate_tilt": {"tilt_x_deg": 0.0, "tilt_y_deg": -0.25}},
+    "dead_time_30ms": {"servo_dead_time": {"dead_time_s": 0.03}},
+    "phase_offset_0.1": {"phase_offset": {"phase_offset": 0.1}},
+}
+
+
+def truth_inside(r: dict):
+    """True/False where the case has a same-law truth and the named effect was fitted; else None."""
+    want = SAME_LAW.get(r["case"])
+    if not want:
+        return None
+    out = []
+    for e, vals in want.items():
+        if e not in r["intervals"]:
+            return False
+        out += [r["intervals"][e][k][0] <= v <= r["intervals"][e][k][1] for k, v in vals.items()]
+    return all(out)
 
 
 def make_mismatch(name: str, out, seed: int) -> None:
@@ -112,9 +138,15 @@ def main():
     ap.add_argument("--suite", choices=("synth", "mismatch", "all"), default="all")
     ap.add_argument("--cases", nargs="*", default=None, help="case names (default: every case of the suite)")
     ap.add_argument("--clean-seeds", type=int, default=5)
-    ap.add_argument("--max-minutes", type=float, default=None, help="start no case after this long")
+    ap.add_argument("--max-minutes", type=float, default=90.0, help="start no case after this long (default 90)")
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "calibration.json"))
+    ap.add_argument("--tables", action="store_true", help="print the tables of an existing --out and stop")
     args = ap.parse_args()
+    if args.tables:
+        rows = json.loads(pathlib.Path(args.out).read_text())["rows"]
+        print(markdown([r for r in rows if r.get("suite", "synth") == "synth"]))
+        print(mismatch_markdown([r for r in rows if r.get("suite") == "mismatch"]))
+        return
     t0 = time.perf_counter()
     plan = []
     if args.suite in ("synth", "all"):
@@ -146,8 +178,8 @@ def main():
 def mismatch_markdown(rows) -> str:
     """The mismatch table and its confusion table (cases × what was named) for docs/calibration.md."""
     out = ["| case (seed) | generator | expected | verdict | structural effects added [95 % interval] | nominal "
-           "findings (× preset) | named right | held-out error: preset → nominal → final |",
-           "|---|---|---|---|---|---|---|---|"]
+           "findings (× preset) | named right | truth inside (same law) | held-out error: preset → nominal → final |",
+           "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         fit = "; ".join(f"{e}: " + ", ".join(f"{k} = {v:.3g} [{r['intervals'][e][k][0]:.3g}, "
                                              f"{r['intervals'][e][k][1]:.3g}]" for k, v in vals.items())
@@ -155,7 +187,8 @@ def mismatch_markdown(rows) -> str:
         nom = ", ".join(f"{f['param']} {f['ratio']:.2f}" for f in r["nominal_findings"]) or "–"
         gen = ", ".join(f"{k} = {v}" for k, v in r["generator"].items()) or "nothing"
         out.append(f"| {r['case']} ({r['seed']}) | {gen} | {r['expected'] or 'none'} | {r['verdict']} | {fit} | {nom} | "
-                   f"{'yes' if r['named_first'] else 'no'} | {r['heldout_before']:.3g} → "
+                   f"{'yes' if r['named_first'] else 'no'} | "
+                   f"{ {True: 'yes', False: 'no', None: '–'}[truth_inside(r)]} | {r['heldout_before']:.3g} → "
                    f"{r['heldout_after_nominal']:.3g} → {r['heldout_after']:.3g} |")
     names = sorted({a for r in rows for a in r["added"]} | {"(none)"})
     out += ["", "| case | runs | " + " | ".join(names) + " |", "|---|---|" + "---|" * len(names)]

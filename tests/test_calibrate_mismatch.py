@@ -106,6 +106,14 @@ def test_swapped_arm_columns_are_reported_in_one_line(tmp_path):
     assert conv["alternatives"]["arms swapped"] * 4 < conv["declared"]
 
 
+def test_a_clock_a_quarter_period_off_is_reported(tmp_path):
+    trials = _independent(tmp_path)
+    for tr in trials:
+        tr.t = tr.t + tr.gait.period() / 4  # the data's t = 0 is a quarter period after the gait's start
+    conv = conventions(Problem(split(trials)[0]))
+    assert conv["warning"] and "quarter period earlier" in conv["warning"]
+
+
 def test_correct_conventions_raise_no_warning_on_independent_data(tmp_path):
     conv = conventions(Problem(split(_independent(tmp_path))[0]))
     assert conv["warning"] is None
@@ -164,3 +172,12 @@ def test_clean_data_from_another_simulator_get_no_structural_effect(tmp_path, se
     assert res["added"] == [], (res["verdict"], res["nominal_hypotheses"])
     # what the nominal fit did absorb: most of the preset's disagreement with this robot
     assert res["after_nominal"]["err_heldout"] < 0.25 * res["before"]["err_heldout"]
+
+
+def test_an_effect_fitted_onto_its_null_bound_is_not_present():
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.fit import is_present
+    lag = BY_NAME["servo_lag"]
+    assert not is_present(lag, {"extra_lag_s": (float("nan"), float("nan"))})   # on the bound: no interval
+    assert not is_present(lag, {"extra_lag_s": (0.0, 0.01)})                    # includes 0: absent
+    assert is_present(lag, {"extra_lag_s": (0.02, 0.03)})

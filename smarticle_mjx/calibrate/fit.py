@@ -268,13 +268,22 @@ def signatures(train: Problem, base: dict, candidates: list[Effect], points: int
     return rows
 
 
+def is_present(effect: Effect, interval: dict) -> bool:
+    """An effect is present when some parameter has a finite 95 % interval (a
+    parameter on a bound has none) that excludes the value at which the
+    effect is absent."""
+    return any(np.isfinite(interval[p.name]).all() and not interval[p.name][0] <= p.null <= interval[p.name][1]
+               for p in effect.params)
+
+
 def conventions(problem: Problem) -> dict:
     """Do the arm data fit the declared gait, or a convention mix-up far better?
 
     Compares the arms block of the preset model under the declared gait with
     the same data read with the arms swapped, with the angle signs flipped,
-    with both, and with the opposite chirality (one more model run). The
-    interchange format's conventions are in docs/calibration.md.
+    with both, with the opposite chirality, and with the gait clock a
+    quarter period off either way (three more model runs). The interchange
+    format's conventions are in docs/calibration.md.
 
     Returns {"declared": error, "alternatives": {name: error}, "warning":
     one line or None}.
@@ -299,9 +308,15 @@ def conventions(problem: Problem) -> dict:
         alt[name] = arms_error(meas, feats)
     other = [dataclasses.replace(tr, gait=dataclasses.replace(tr.gait, chirality="cw" if tr.gait.chirality == "ccw"
                                                               else "ccw")) for tr in problem.trials]
-    po = Problem(other)
-    alt["opposite chirality"] = arms_error(po.meas, po.model(EffectSet(), {})[1])
-    problem.runs += po.runs
+    variants = {"opposite chirality": other}
+    # the clock: t = 0 should be phase 0 (the first corner); a quarter period off starts at another corner
+    for sign, word in ((1, "later"), (-1, "earlier")):
+        variants[f"the gait a quarter period {word}"] = [
+            dataclasses.replace(tr, t=tr.t + sign * tr.gait.period() / 4) for tr in problem.trials]
+    for name, trs in variants.items():
+        po = Problem(trs)
+        alt[name] = arms_error(po.meas, po.model(EffectSet(), {})[1])
+        problem.runs += po.runs
     best = min(alt, key=lambda k: alt[k] if np.isfinite(alt[k]) else np.inf)
     warning = None
     if np.isfinite(alt[best]) and alt[best] * CONVENTION_FACTOR < declared and declared > UNEXPLAINED:
@@ -312,13 +327,14 @@ def conventions(problem: Problem) -> dict:
 
 def nominal_findings(nf) -> list[dict]:
     """Nominal parameters whose 95 % interval excludes the preset value (what the data say differs),
-    leaving out those at a bound or correlated above 0.9 with another: the data do not identify them."""
+    leaving out those without an interval, at a bound or correlated above 0.9 with another: the data do
+    not identify them."""
     out = []
     tangled = {c[0] for c in nf.correlated} | {c[1] for c in nf.correlated} | set(nf.at_bound)
     for name, v in nf.values.items():
         lo, hi = nf.interval[name]
         pre = nf.preset[name]
-        if not lo <= pre <= hi and name not in tangled:
+        if np.isfinite([lo, hi]).all() and not lo <= pre <= hi and name not in tangled:
             out.append({"param": name, "value": v, "interval": [lo, hi], "preset": pre,
                         "ratio": v / pre if pre else float("nan"), "at_bound": name in nf.at_bound,
                         "correlated": [c for c in nf.correlated if name in c[:2]]})
@@ -354,6 +370,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     if conv.get("warning"):
         say(conv["warning"])
     nominal_fit = None
+    nominal_only = None
     base: dict = {}
     chosen: list[Effect] = []
     found: dict = {}  # effect -> (values, interval) of its latest accepted fit
@@ -365,6 +382,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         err0 = test.error(null)
         chi2_0 = float(train.vector(null) @ train.vector(null))
         say(f"nominal parameters fitted ({nominal_fit.evaluations} runs): held-out error {err0:.2f}")
+        nominal_only = {"err_train": train.error(null), "err_heldout": err0, "where_heldout": where_residual(test, null)}
         # a servo lag or dead time changes the arms like a slower, softer servo does at one amplitude:
         # each is fitted jointly with the nominal parameters and kept only if it beats them alone
         best_h = None
@@ -380,7 +398,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
             n = len(train.vector(null))
             bic_gain = chi2_0 - chi2_e - len(e.params) * math.log(max(n, 2))
             gain = 1.0 - err_e / max(err0, 1e-12)
-            present = any(not fe.interval[p.name][0] <= p.null <= fe.interval[p.name][1] for p in e.params)
+            present = is_present(e, fe.interval)
             ok = bic_gain > 0 and gain >= MIN_HELDOUT_GAIN and present
             hypotheses.append({"effect": name, "values": fe.values[name],
                                "interval": {p.name: fe.interval[p.name] for p in e.params}, "err_heldout": err_e,
@@ -401,8 +419,8 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         library = tuple(e for e in library if e.name not in NOMINAL_EFFECTS and e.name not in SERVO_HYPOTHESES)
     if max(tr.robots for tr in trials) == 1:
         library = tuple(e for e in library if e.name != "phase_offset")  # no second robot to offset
-    after_nominal = {"err_train": train.error(EffectSet.of(base)), "err_heldout": test.error(EffectSet.of(base)),
-                     "where_heldout": where_residual(test, EffectSet.of(base))}
+    # the nominal parameters alone (before any effect), or the preset when they are not fitted
+    after_nominal = nominal_only if nominal else before
     current = {"err_heldout": after_nominal["err_heldout"],
                "chi2_train": float(train.vector(EffectSet.of(base)) @ train.vector(EffectSet.of(base)))}
     rounds = []
@@ -422,8 +440,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
             k = sum(len(BY_NAME[x].params) for x in f.effects)
             bic_gain = current["chi2_train"] - f.chi2_train - len(e.params) * math.log(max(n, 2))
             gain = 1.0 - f.err_heldout / max(current["err_heldout"], 1e-12)
-            # the effect must be present: its interval excludes the value at which it is absent
-            present = any(not (lo <= p.null <= hi) for p in e.params for lo, hi in [f.interval[e.name][p.name]])
+            present = is_present(e, f.interval[e.name])
             ok = bic_gain > 0 and gain >= MIN_HELDOUT_GAIN and present
             tried.append({"effect": e.name, "values": f.values, "interval": f.interval,
                           "err_train": f.err_train, "err_heldout": f.err_heldout, "heldout_gain": gain,

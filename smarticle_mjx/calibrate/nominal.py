@@ -191,8 +191,14 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     cc = np.full((k, k), np.nan)
     if free:
         Jf = J[:, free]
-        cov = np.linalg.pinv(Jf.T @ Jf) * red
+        H = Jf.T @ Jf
+        cov = np.linalg.pinv(H) * red
         s_f = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        # directions the data do not constrain (JtJ singular there): the parameters along them get no interval
+        w, V = np.linalg.eigh(H)
+        flat = w < 1e-8 * max(float(w.max()), 1e-300)
+        if flat.any():
+            s_f[(np.abs(V[:, flat]) > 0.1).any(1)] = np.nan
         sd[free] = s_f
         with np.errstate(invalid="ignore", divide="ignore"):
             cc[np.ix_(free, free)] = np.clip(cov / np.outer(s_f, s_f), -1.0, 1.0)
@@ -204,8 +210,8 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     for j, (nm, x, s_) in enumerate(zip(names, u, sd)):
         if np.isfinite(s_):
             interval[nm] = (conv(j, x - 1.96 * s_), conv(j, x + 1.96 * s_))
-        else:  # on a bound: the bound itself
-            interval[nm] = (conv(j, 0.0), conv(j, 0.0)) if x <= 0.01 else (conv(j, 1.0), conv(j, 1.0))
+        else:  # on a bound: no Gauss-Newton interval
+            interval[nm] = (float("nan"), float("nan"))
     corr = [(names[a], names[b], float(cc[a, b])) for a in range(k) for b in range(a + 1, k)
             if np.isfinite(cc[a, b]) and abs(cc[a, b]) > 0.9]
     vals = values(u)

@@ -117,14 +117,16 @@ def markdown(r: dict) -> str:
         lines += ["## Nominal parameters (fitted first)", "",
                   f"Bounded least squares over {nom['evaluations']} model runs; training error "
                   f"{nom['err_before']:.3g} → {nom['err_after']:.3g}. Bold: the 95 % interval excludes the preset "
-                  "value (the data say it differs).", "",
+                  "value and the parameter is neither on a bound nor correlated above 0.9 with another (the data "
+                  "say it differs). No interval: on a bound.", "",
                   "| parameter | preset | fitted | 95 % interval | flags |", "|---|---|---|---|---|"]
         for k, v in nom["values"].items():
             lo, hi = nom["interval"][k]
             pre = nom["preset"][k]
             flags = (["at a bound"] if k in nom["at_bound"] else []) + \
                 [f"r = {c[2]:+.2f} with {c[1] if c[0] == k else c[0]}" for c in nom["correlated"] if k in c[:2]]
-            mark = "**" if not lo <= pre <= hi else ""
+            finding = any(f["param"] == k for f in r.get("nominal_findings", []))
+            mark = "**" if finding else ""
             lines.append(f"| {mark}{k}{mark} | {_num(pre, '.4g')} | {mark}{_num(v, '.4g')}{mark} | "
                          f"[{_num(lo, '.4g')}, {_num(hi, '.4g')}] | {'; '.join(flags)} |")
         lines.append("")
