@@ -84,7 +84,10 @@ def _check_case(tmp_path, name, seed=1):
     pytest.param("servo_lag", marks=pytest.mark.slow),
     pytest.param("servo_dead_time", marks=pytest.mark.slow),
     pytest.param("phase_offset", marks=pytest.mark.slow),
-    pytest.param("plate_tilt", marks=pytest.mark.slow),
+    # under the lab-lag default a 3.5 deg tilt at 30 deg moves nothing the data resolve (held-out error 0.58
+    # with no effect, benchmarks/results/calibration.json): strict, so it reports when that changes
+    pytest.param("plate_tilt", marks=[pytest.mark.slow, pytest.mark.xfail(
+        strict=True, reason="below detection under the lab-lag default (docs/calibration.md, Limits)")]),
     pytest.param("friction_scale", marks=pytest.mark.slow),
     pytest.param("anisotropic_friction", marks=pytest.mark.slow),
     pytest.param("arm_plate_contact", marks=pytest.mark.slow),

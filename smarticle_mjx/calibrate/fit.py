@@ -228,8 +228,9 @@ def signatures(train: Problem, base: dict, candidates: list[Effect], points: int
     """Rank the candidates by the gain each actually achieves.
 
     For every candidate: a coarse grid over its parameters (``points`` per
-    parameter in normalised units, 3 x 3 for two; 16 per parameter for a
-    measurement effect, which needs no model run), the lowest training chi^2
+    parameter in normalised units, 3 x 3 for two; for a measurement effect,
+    which needs no model run, 9 log-spaced points per parameter from 0.25 %
+    of its range), the lowest training chi^2
     on it, and the linear projection of its probe signature (the change of
     the residual when it is switched on at its probe value). A nonlinear
     effect whose linear signature explains nothing (a servo lag: it moves
@@ -237,8 +238,8 @@ def signatures(train: Problem, base: dict, candidates: list[Effect], points: int
     on the grid.
 
     Returns rows sorted by the achieved gain, best first: effect,
-    grid_gain (1 - best chi^2 / current chi^2), estimate (the best grid
-    point), explained (the linear share, 0..1).
+    grid_gain (1 - best chi^2 / current chi^2 over the grid), estimate
+    (the best grid point), explained (the linear share, 0..1).
     """
     r0 = train.vector(EffectSet.of(base))
     c0 = max(float(r0 @ r0), 1e-300)
@@ -253,8 +254,11 @@ def signatures(train: Problem, base: dict, candidates: list[Effect], points: int
         delta, *_ = np.linalg.lstsq(J, -r0, rcond=None)
         left = r0 + J @ delta
         explained = 1.0 - float(left @ left) / c0
-        g = 16 if e.measurement else (points if len(e.params) == 1 else 3)
-        axes = [(np.arange(g) + 0.5) / g for _ in e.params]
+        if e.measurement:  # no model run: log-spaced down to small levels (0.25 mm of noise is u = 0.0025)
+            axes = [0.0025 * 2.0 ** np.arange(9) for _ in e.params]
+        else:
+            g = points if len(e.params) == 1 else 3
+            axes = [(np.arange(g) + 0.5) / g for _ in e.params]
         best, best_v = c0, e.null()
         for point in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(e.params), -1).T:
             v = {p.name: _from_u(p, x) for p, x in zip(e.params, point)}
