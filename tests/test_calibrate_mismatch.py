@@ -150,7 +150,7 @@ def _two_amplitudes(tmp_path, trials=2, periods=4, seed=5, **effects):
 def test_a_hidden_servo_lag_in_another_simulators_robot_is_named_through_smx_calibrate(tmp_path):
     # a robot built differently (arm shape, masses, hinge, servo law, time step), with a 30 ms servo lag:
     # the nominal fit absorbs the build; the lag, fitted with it, beats it alone and is named
-    data = _two_amplitudes(tmp_path / "data", lag_s=0.03)
+    data = _two_amplitudes(tmp_path / "data", periods=3, lag_s=0.03)
     out = tmp_path / "report"
     r = CliRunner().invoke(app, ["calibrate", str(data), "--out", str(out)])
     assert r.exit_code == 0, r.output
