@@ -50,6 +50,12 @@ class ReportOptions:
         return dataclasses.replace(self, burn_in=burn, glider_min_periods=gmin, steady_window=win, fit_lags=lags)
 
 
+def _finite_mean(v) -> float:
+    v = np.asarray(v, float)
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if len(v) else float("nan")
+
+
 def _r(x, nd=4):
     return None if x is None or not np.isfinite(x) else round(float(x), nd)
 
@@ -123,7 +129,7 @@ def analyse_run(store: Store, run: str, opts: ReportOptions = ReportOptions()) -
         st_m, st_lo, st_hi, _ = transport.bootstrap_interval(per_track_step)
         s["v_com"] = {"net_W_per_period": _r(v, 5), "net_lo": _r(vlo, 5), "net_hi": _r(vhi, 5),
                       "net_W_per_s": _r(v / period, 5),
-                      "glide_W_per_period": _r(transport.bootstrap_interval(transport.glide_speed(tracks))[0], 5),
+                      "glide_W_per_period": _r(_finite_mean(transport.glide_speed(tracks)), 5),
                       "mean_step_W_per_period": _r(st_m, 5), "step_lo": _r(st_lo, 5), "step_hi": _r(st_hi, 5)}
         s["turning"] = {"median_direction_change_deg": _r(np.degrees(transport.median_direction_change(tracks)), 2),
                         "direction_persistence": _r(transport.direction_persistence(tracks), 3),

@@ -150,11 +150,16 @@ def _normalised(config: dict, want: dict, params: SceneParams) -> dict:
     return have
 
 
+def _wanted(cfg: ScanConfig) -> tuple[SceneParams, dict]:
+    """The scene parameters of scan ``cfg`` and the configuration its store must hold."""
+    params = cfg.scene_params()
+    return params, {"model": cfg.model, "scan": cfg.to_json(), "scene": _params_json(params)}
+
+
 def stale_reason(cfg: ScanConfig, path: pathlib.Path) -> str | None:
     """Why the complete store at ``path`` cannot stand for scan ``cfg``
     (another model, package version or configuration), or None if it can."""
-    params = cfg.scene_params()
-    want = {"model": cfg.model, "scan": cfg.to_json(), "scene": _params_json(params)}
+    params, want = _wanted(cfg)
     st = Store(path)
     have = _normalised(st.config, want, params)
     if have["model"] != cfg.model:
@@ -173,8 +178,7 @@ def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict
     if interrupted; else run (or, with ``run=False``, None). A store (or
     journal) made otherwise is moved aside, never deleted, and the scan is
     rerun."""
-    params = cfg.scene_params()
-    want = {"model": cfg.model, "scan": cfg.to_json(), "scene": _params_json(params)}
+    params, want = _wanted(cfg)
     package = f"smarticle-mjx {__version__}"
     journal = _journal(path)
 
@@ -200,14 +204,6 @@ def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict
             move_aside(journal, "an interrupted run of another configuration or version", meta.get("created"))
     run_scan(cfg, path, mode="resume" if journal.exists() else "new", on_progress=on_progress)
     return path
-
-
-def ensure_store(study: pathlib.Path, data: pathlib.Path, model: str = presets.DEFAULT,
-                 on_progress: Callable[[dict], None] | None = None, notes: list | None = None) -> pathlib.Path:
-    """The complete store of scan study file ``study`` in ``data``, made by
-    model preset ``model`` (see :func:`ensure_scan`)."""
-    cfg = dataclasses.replace(load_study(study), model=model)
-    return ensure_scan(cfg, pathlib.Path(data) / f"{pathlib.Path(study).stem}.h5", on_progress, notes)
 
 
 def glider_starts(store: Store, kind: str, pairs: int) -> np.ndarray:

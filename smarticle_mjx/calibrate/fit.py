@@ -384,7 +384,8 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         nom0 = {k: nominal_fit.values[k] for k in nominal_fit.preset}
         train.nominal = test.nominal = dict(nom0)
         err0 = test.error(null)
-        chi2_0 = float(train.vector(null) @ train.vector(null))
+        v0 = train.vector(null)
+        chi2_0, n = float(v0 @ v0), len(v0)
         say(f"nominal parameters fitted ({nominal_fit.evaluations} runs): held-out error {err0:.2f}")
         nominal_only = {"err_train": train.error(null), "err_heldout": err0, "where_heldout": where_residual(test, null)}
         # a servo lag or dead time changes the arms like a slower, softer servo does at one amplitude:
@@ -397,9 +398,9 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
             fe = fit_nominal(train, effect=e, start=nom0, max_nfev=HYPOTHESIS_NFEV)
             nom_e = {k: fe.values[k] for k in fe.preset}
             eff_e = EffectSet.of({name: fe.values[name]})
-            chi2_e = float(train.vector_with(nom_e, eff_e) @ train.vector_with(nom_e, eff_e))
+            v_e = train.vector_with(nom_e, eff_e)
+            chi2_e = float(v_e @ v_e)
             err_e = float(np.mean(test.vector_with(nom_e, eff_e) ** 2))
-            n = len(train.vector(null))
             bic_gain = chi2_0 - chi2_e - len(e.params) * math.log(max(n, 2))
             gain = 1.0 - err_e / max(err0, 1e-12)
             present = is_present(e, fe.interval)

@@ -12,6 +12,12 @@ import dataclasses
 import numpy as np
 
 
+def _as_tracks(xy) -> np.ndarray:
+    """[M, K, D] float tracks; a single [K, D] track becomes [1, K, D]."""
+    xy = np.asarray(xy, float)
+    return xy[None] if xy.ndim == 2 else xy
+
+
 def msd(xy, max_lag: int | None = None, centered: bool = False):
     """Mean-square displacement vs delay, pooled over tracks and time origins.
 
@@ -24,9 +30,7 @@ def msd(xy, max_lag: int | None = None, centered: bool = False):
     Returns:
       lags [L] (periods), msd [L], counts [L] (displacements averaged).
     """
-    xy = np.asarray(xy, float)
-    if xy.ndim == 2:
-        xy = xy[None]
+    xy = _as_tracks(xy)
     k = xy.shape[1]
     max_lag = k - 1 if max_lag is None else min(max_lag, k - 1)
     lags = np.arange(1, max_lag + 1)
@@ -98,9 +102,7 @@ def msd_exponent(xy, lag_range=(5, 15), centered: bool = True, n_boot: int = 200
       centered: see :func:`msd`.
       n_boot: bootstrap resamples of whole tracks.
     """
-    xy = np.asarray(xy, float)
-    if xy.ndim == 2:
-        xy = xy[None]
+    xy = _as_tracks(xy)
     hi = int(lag_range[1])
     lags, m, _ = msd(xy, hi, centered)
     beta, se, _ = fit_exponent(lags, m, lag_range)
@@ -157,21 +159,15 @@ def speed(xy, period_s: float) -> dict:
        "net": mean over tracks of |end - start| / duration (units/s),
        "sem": standard error of ``per_period`` over tracks}.
     """
-    xy = np.asarray(xy, float)
-    if xy.ndim == 2:
-        xy = xy[None]
+    xy = _as_tracks(xy)
     steps = step_lengths(xy)
     per_track = np.array([np.nanmean(s) if np.isfinite(s).any() else np.nan for s in steps])
     per_track = per_track[np.isfinite(per_track)]
-    nets = []
-    for tr in xy:
-        ok = np.isfinite(tr).all(-1)
-        if ok.sum() >= 2:
-            i = np.nonzero(ok)[0]
-            nets.append(np.linalg.norm(tr[i[-1]] - tr[i[0]]) / ((i[-1] - i[0]) * period_s))
+    nets = net_speed(xy)
+    nets = nets[np.isfinite(nets)] / period_s
     pp = float(per_track.mean()) if len(per_track) else np.nan
     sem = float(per_track.std(ddof=1) / np.sqrt(len(per_track))) if len(per_track) > 1 else np.nan
-    return {"per_period": pp, "mean": pp / period_s, "net": float(np.mean(nets)) if nets else np.nan,
+    return {"per_period": pp, "mean": pp / period_s, "net": float(nets.mean()) if len(nets) else np.nan,
             "sem": sem, "tracks": int(len(per_track))}
 
 
@@ -225,9 +221,7 @@ def straightness(xy, window: int = 20) -> float:
     """Net displacement over ``window`` periods divided by the once-per-period
     path length over them, averaged over every complete window of every
     track (1: a straight line)."""
-    xy = np.asarray(xy, float)
-    if xy.ndim == 2:
-        xy = xy[None]
+    xy = _as_tracks(xy)
     _, n = _steps(xy)
     vals = []
     for tr, st in zip(xy, n):
@@ -245,9 +239,7 @@ def net_speed(xy) -> np.ndarray:
     """[M] net gliding speed per track: |last - first| / periods between them
     (units per period), over the track's finite samples; NaN if < 2.
     A zig-zag or a shuttle has a large mean step but a small net speed."""
-    xy = np.asarray(xy, float)
-    if xy.ndim == 2:
-        xy = xy[None]
+    xy = _as_tracks(xy)
     out = np.full(len(xy), np.nan)
     for g, tr in enumerate(xy):
         ok = np.flatnonzero(np.isfinite(tr).all(-1))
@@ -262,9 +254,7 @@ def glide_speed(xy) -> np.ndarray:
     the first to the last finite sample, vs period (units per period; NaN if
     < 3 samples). Unlike the mean step it is ~0 for a shuttle; unlike
     :func:`net_speed` it uses every sample, not only the two ends."""
-    xy = np.asarray(xy, float)
-    if xy.ndim == 2:
-        xy = xy[None]
+    xy = _as_tracks(xy)
     out = np.full(len(xy), np.nan)
     for g, tr in enumerate(xy):
         ok = np.flatnonzero(np.isfinite(tr).all(-1))
