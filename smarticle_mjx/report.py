@@ -15,7 +15,7 @@ import numpy as np
 
 from . import plots
 from .reduce import binding, gliders as GL, transport
-from .store import Store
+from .store import BAD_STATUS, Store
 
 
 @dataclasses.dataclass(frozen=True)
@@ -81,7 +81,7 @@ def analyse_run(store: Store, run: str, opts: ReportOptions = ReportOptions()) -
                "valid": int(valid.sum()), "options": dataclasses.asdict(o)}
     pb = binding.binding_probability(touched, valid)
     s["pb_end"], s["pb_throughout"] = [list(map(_r, pb["end"][:3])), list(map(_r, pb["throughout"][:3]))]
-    s["bad_status"] = int(((d["status"] & 0b110) != 0).sum())
+    s["bad_status"] = int(((d["status"] & int(BAD_STATUS)) != 0).sum())
     runs = binding.bound_runs(touched)
     s["bound_runs"] = int(len(runs["length"]))
     arrays: dict = {"touched": touched}

@@ -86,8 +86,12 @@ class ScanConfig:
             raise ValueError("amplitudes must be distinct")
         for a in self.amplitudes_deg:
             self.gait_spec(a).validate(params.robot.servo_speed, params.robot.arm_limit_deg)
-        if self.backend not in ("native", "mjx"):
-            raise ValueError(f"--backend must be native or mjx, got {self.backend!r}")
+        if self.backend not in ("native", "mjx", "warp"):
+            raise ValueError(f"--backend must be native, mjx or warp, got {self.backend!r}")
+        if self.backend == "warp":
+            from .engine import mjwarp
+            if not mjwarp.available():
+                raise ValueError(mjwarp.MISSING)
         if self.batch_size <= 0 or self.chunk_periods <= 0 or self.quiet_periods < 0:
             raise ValueError("batch size and chunk periods must be positive, quiet periods >= 0")
         if self.collisions and self.backend != "native":

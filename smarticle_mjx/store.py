@@ -16,7 +16,8 @@ Schema (version 1; see docs/store.md)::
                                   period_s, chirality, gait, periods, pairs
         config    [M, 3]   initial (|r| in W, theta, phi in rad)
         valid     [M]      bool, False: overlapping start, never simulated
-        status    [M]      int32 Status bits (engine.Status)
+        status    [M]      int32 Status bits (engine.Status): 1 invalid start, 2 non-finite,
+                           4 penetration, 8 retired early, 16 buffer overflow (warp)
         periods_run [M]    int32
         touched   [M, K, P] bool, touched at least once in period k
         min_dist  [M, K, P] float32, deepest contact (m), inf if none
@@ -41,6 +42,10 @@ import shutil
 
 import h5py
 import numpy as np
+
+# Status bits (engine.Status) that make a lane's records untrustworthy: non-finite
+# state, penetration, buffer overflow. Readers count them without importing the engine.
+BAD_STATUS = 2 | 4 | 16
 
 SCHEMA_VERSION = 1
 ROW_FIELDS = ("config", "valid", "status", "periods_run", "touched", "min_dist", "poses", "rel", "com", "lifetime")

@@ -1,10 +1,10 @@
-"""Rollout engine: one interface, two backends (``native`` and ``mjx``)."""
+"""Rollout engine: one interface, three backends (``native``, ``mjx`` and ``warp``)."""
 
 from __future__ import annotations
 
 from .core import Lanes, PeriodRecords, Scene, Status, steps_per_period
 
-BACKENDS = ("native", "mjx")
+BACKENDS = ("native", "mjx", "warp")
 
 
 def make_backend(name: str, scene: Scene, nthread: int | None = None, **kw):
@@ -15,6 +15,9 @@ def make_backend(name: str, scene: Scene, nthread: int | None = None, **kw):
     if name == "mjx":
         from .mjx import MjxBackend
         return MjxBackend(scene, **kw)
+    if name == "warp":
+        from .mjwarp import WarpBackend
+        return WarpBackend(scene, **kw)
     raise ValueError(f"unknown backend {name!r}; choose one of {', '.join(BACKENDS)}")
 
 

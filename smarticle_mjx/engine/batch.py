@@ -34,8 +34,8 @@ class RetireRule:
         pair touched (0 disables early exit).
       min_separation_W: and only if every pair's |r| (in W) at the last
         period boundary exceeds this.
-      on_bad_status: retire lanes whose status turned non-finite or
-        penetrating.
+      on_bad_status: retire lanes whose status turned non-finite,
+        penetrating or overflowing.
     """
 
     quiet_periods: int = 2
@@ -89,6 +89,16 @@ def _put_state(state, idx, new):
 def _blank(b, k, n, p):
     """Records of lanes that did not run: poses NaN, no touch, no contact."""
     return np.full((b, k, n, 5), np.nan), np.zeros((b, k, p), bool), np.full((b, k, p), np.inf)
+
+
+def _pad_to_bucket(idx: np.ndarray, b: int, smallest: int = 16) -> np.ndarray:
+    """``idx`` (occupied slots) padded with idle ones to the next power of two
+    (at least ``smallest``, at most ``b``): few distinct sub-batch sizes."""
+    size = min(b, max(smallest, 1 << int(np.ceil(np.log2(max(1, len(idx)))))))
+    if size <= len(idx):
+        return idx
+    idle = np.setdiff1d(np.arange(b), idx)[:size - len(idx)]
+    return np.sort(np.concatenate([idx, idle]))
 
 
 def _scatter_records(rec, idx, b):
@@ -163,7 +173,12 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
     if b == 0:
         return dict(lanes=m, lane_periods=0, full_lane_periods=0, backend_seconds=0.0)
 
-    shrink = getattr(backend, "name", "") == "native"
+    # native: idle slots cost real work, run only the occupied ones. warp: the
+    # same, in power-of-two sub-batches (each size allocates device buffers
+    # and captures a graph once). mjx: idle slots keep running a finished
+    # lane, so the batch shape, and so the compiled function, stays the same.
+    shrink = getattr(backend, "name", "")
+    shrink = shrink if shrink in ("native", "warp") else None
     slot_lane = np.array(queue[:b])
     qpos = b
     slot_lanes = lanes.take(slot_lane)
@@ -182,8 +197,9 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
         n_adv = int(min(chunk_periods, (periods - slot_done[active]).max()))
         t = time.perf_counter()
         if shrink and not active.all():
-            # native: idle slots cost real work, run only the occupied ones
             idx = np.flatnonzero(active)
+            if shrink == "warp":
+                idx = _pad_to_bucket(idx, b)
             sub_state, sub_rec, _ = backend.advance(_take_state(state, idx), slot_lanes.take(idx), n_adv,
                                                     record=record)
             state = _put_state(state, idx, sub_state)
@@ -207,7 +223,7 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
             lane_periods += used
             if k1 >= periods:
                 finished.append(s)
-            elif rule.on_bad_status and buf_status[s] & (Status.NONFINITE | Status.PENETRATION):
+            elif rule.on_bad_status and buf_status[s] & (Status.NONFINITE | Status.PENETRATION | Status.OVERFLOW):
                 buf_status[s] |= int(Status.RETIRED)
                 finished.append(s)
             elif rule.quiet_periods and k1 >= rule.quiet_periods and \

@@ -28,6 +28,7 @@ class Status(enum.IntFlag):
     NONFINITE = 2  # NaN/inf appeared in the state
     PENETRATION = 4  # robots interpenetrated deeper than the bound
     RETIRED = 8  # stopped early: outcome decided (engine.batch)
+    OVERFLOW = 16  # contact/constraint buffers overflowed (warp backend): records not trustworthy
 
 
 # contact sensor output per pair: number of contacts, deepest distance

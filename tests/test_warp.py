@@ -1,0 +1,198 @@
+"""The warp backend (MuJoCo Warp) against MuJoCo C and against itself.
+
+These run on Warp's CPU device where no GPU is present (CI), and on the GPU
+where one is. MuJoCo Warp compiles its kernels on first use (about a minute
+on two cores, cached in Warp's kernel cache afterwards), so every test here
+shares one module-scoped backend of the default model. The periods are kept
+short (0.1 s: 400 steps) because Warp's CPU device runs these small batches
+at a few hundred steps per second; the physics checked does not need a full
+gait period.
+"""
+
+import mujoco
+import numpy as np
+import pytest
+
+from smarticle_mjx import configs as C
+from smarticle_mjx import presets
+from smarticle_mjx.engine import Lanes, Scene, Status, make_backend
+from smarticle_mjx.engine import mjwarp
+from smarticle_mjx.engine.batch import RetireRule, run_lanes
+from smarticle_mjx.gait import GaitSpec
+
+needs_warp = pytest.mark.skipif(not mjwarp.available(), reason="MuJoCo Warp is not installed (pip install -e '.[gpu]')")
+
+P = presets.params()
+GAIT = GaitSpec(90.0)
+A0 = GAIT.setpoints(0.0, P.robot.servo_speed)
+# A start whose robots hit arm-arm at step 176 and arm-body at step 185 (MuJoCo C, default model)
+IMPACT = (1.1492, 5.9529, 6.2625)
+SHORT = 0.05  # s: a 200-step "period" for the engine checks
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return Scene.build(P, 2)
+
+
+@pytest.fixture(scope="module")
+def warp(scene):
+    return make_backend("warp", scene)
+
+
+@pytest.fixture(scope="module")
+def native(scene):
+    be = make_backend("native", scene, nthread=1)
+    yield be
+    be.close()
+
+
+def _lanes(n, seed, period=SHORT, r_range=(0.8, 1.4)):
+    poses = C.sample_valid_pairs(n, np.random.default_rng(seed), r_range, A0[0], A0[1])
+    lanes = Lanes.from_gait(poses, GAIT)
+    return Lanes(lanes.poses, lanes.amplitude, lanes.chirality, lanes.kind, lanes.phase, period)
+
+
+@needs_warp
+def test_buffers_cover_every_pair_mujoco_warp_collides(scene):
+    """The contact buffer is sized from the same candidate pairs MuJoCo Warp's
+    own filter keeps (its nxn list without the excluded ones), at the most
+    contacts each pair of geom types can produce."""
+    import warp as wp
+    import mujoco_warp as mjw
+    with wp.ScopedDevice("cpu"):
+        mw = mjw.put_model(scene.model)
+    pairs = mw.nxn_geom_pair.numpy()[mw.nxn_pairid.numpy()[:, 0] != -2]
+    assert sorted(map(tuple, pairs.tolist())) == mjwarp.collision_pairs(scene.model)
+    nconmax, njmax = mjwarp.buffer_sizes(scene.model)
+    # two bodies on the plate (4 corners each) and nine box-box robot pairs (8 each)
+    assert nconmax == 2 * 4 + 9 * 8
+    assert njmax >= 3 * nconmax
+
+
+@needs_warp
+def test_warp_follows_mujoco_c_step_by_step_through_the_first_impacts(scene, warp, native):
+    """Same scene, same controls: MuJoCo Warp (float32) follows MuJoCo C
+    (float64) over the first 300 steps, which span the first arm-arm and
+    arm-body impacts of the IMPACT start: arm angles within 2 mrad, body
+    positions within 0.1 mm. (The impacts are where float32 contact
+    resolution could part the paths; the bound is set by the arm-angle
+    resolution the touch labels need, well under a degree.)"""
+    poses = np.stack([C.pair_poses(*IMPACT, A0[0], A0[1])] + list(_lanes(2, 7).poses))
+    lanes = Lanes.from_gait(poses, GAIT)
+    nsteps = 300
+    qw = warp.step_qpos(lanes, nsteps)
+    qn = native.step_qpos(lanes, nsteps)
+    # the window does hold the impacts: MuJoCo C's robot-robot contacts, stepped by hand
+    m, lay = scene.model, scene.layout
+    d = mujoco.MjData(m)
+    kinds = set()
+    for s in range(nsteps):
+        d.qpos[:] = qn[0, s]
+        mujoco.mj_forward(m, d)
+        for c in d.contact[:d.ncon]:
+            r1, r2 = lay.geom_robot[c.geom1], lay.geom_robot[c.geom2]
+            if r1 >= 0 and r2 >= 0 and r1 != r2:
+                arm1 = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, c.geom1).endswith(("arm1", "arm2"))
+                arm2 = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, c.geom2).endswith(("arm1", "arm2"))
+                kinds.add("arm-arm" if arm1 and arm2 else "arm-body" if arm1 or arm2 else "body-body")
+    assert {"arm-arm", "arm-body"} <= kinds, f"the window must span both impacts, saw {kinds}"
+    arms = np.abs(qw[..., lay.arm_qpos.ravel()] - qn[..., lay.arm_qpos.ravel()]).max()
+    body = max(np.abs(qw[..., a:a + 2] - qn[..., a:a + 2]).max() for a in lay.free_qpos)
+    assert np.abs(qn[:, -1, lay.arm_qpos[0]] - qn[:, 0, lay.arm_qpos[0]]).max() > 0.1, "arms must have moved"
+    assert arms < 2e-3 and body < 1e-4, (arms, body)
+
+
+@needs_warp
+def test_one_lane_alone_equals_the_same_lane_in_a_batch(scene, warp):
+    """A lane's records do not depend on its batch: bit for bit on Warp's CPU
+    device (kernels run in order); on a GPU the contact pool's float32
+    atomics may sum in another order, which moved poses by ~1e-10 m over 200
+    steps on an H100, so there the bound is 1e-6 (m and rad)."""
+    lanes = _lanes(5, 1)
+    _, batch, _ = warp.advance(warp.initial_state(lanes), lanes, 1)
+    one = lanes.take([3])
+    _, alone, _ = warp.advance(warp.initial_state(one), one, 1)
+    exact = not warp.device.is_cuda
+    np.testing.assert_allclose(alone.poses[0], batch.poses[3], rtol=0, atol=0 if exact else 1e-6)
+    np.testing.assert_array_equal(alone.touched[0], batch.touched[3])
+    np.testing.assert_allclose(alone.min_dist[0], batch.min_dist[3], rtol=0, atol=0 if exact else 1e-6)
+
+
+@needs_warp
+def test_refill_keeps_every_lane_and_matches_a_full_batch(scene, warp):
+    """Slots refilled mid-run (a new lane's state written into a running
+    batch) give each lane the records it gets in a batch of all lanes."""
+    lanes = _lanes(4, 2)
+    got = {}
+    run_lanes(warp, lanes, 2, batch_size=2, chunk_periods=1, rule=RetireRule(quiet_periods=0, on_bad_status=False),
+              on_lanes=lambda r: got.update({int(i): r.poses[k] for k, i in enumerate(r.index)}))
+    _, full, _ = warp.advance(warp.initial_state(lanes), lanes, 2)
+    assert sorted(got) == [0, 1, 2, 3]
+    for i in range(4):
+        np.testing.assert_array_equal(got[i], full.poses[i])
+
+
+@needs_warp
+def test_touch_records_agree_with_native(scene, warp, native):
+    """Per lane and period, whether the robots touched (the bound/unbound
+    label's input) is the same in MuJoCo Warp and MuJoCo C; the deepest
+    contact distance agrees within 0.2 mm where both touched. Bodies end
+    the 800 steps within 2 mm (4 % of W): colliding pairs amplify float32
+    rounding, as for MJX (tests/test_engine.py uses the same bound)."""
+    lanes = _lanes(8, 3, period=0.2, r_range=(0.8, 2.2))
+    _, w, _ = warp.advance(warp.initial_state(lanes), lanes, 1)
+    _, n, _ = native.advance(native.initial_state(lanes), lanes, 1)
+    assert n.touched.any() and (~n.touched).any(), "the sample must hold touching and apart lanes"
+    np.testing.assert_array_equal(w.touched, n.touched)
+    both = w.touched & n.touched
+    assert np.abs(w.min_dist[both] - n.min_dist[both]).max() < 2e-4
+    np.testing.assert_allclose(w.poses[..., :2], n.poses[..., :2], atol=2e-3)
+    assert not (w.status & Status.OVERFLOW).any()
+
+
+@needs_warp
+def test_a_buffer_overflow_is_flagged_never_silent(scene):
+    """With a contact buffer too small for two bodies resting on the plate
+    (4 corners each), MuJoCo Warp drops contacts: every lane says so in its
+    status, and the batch runner retires it."""
+    be = make_backend("warp", scene)
+    be.nconmax = 2
+    lanes = _lanes(2, 4)
+    _, rec, _ = be.advance(be.initial_state(lanes), lanes, 1)
+    assert (rec.status & Status.OVERFLOW).all()
+    got = {}
+    run_lanes(be, lanes, 2, batch_size=2, chunk_periods=1, rule=RetireRule(quiet_periods=0),
+              on_lanes=lambda r: got.update({int(i): (int(r.status[k]), int(r.periods_run[k]))
+                                             for k, i in enumerate(r.index)}))
+    assert all(s & Status.OVERFLOW and s & Status.RETIRED and n == 1 for s, n in got.values())
+
+
+@needs_warp
+def test_scan_cli_runs_on_the_warp_backend(tmp_path):
+    """``smx scan --backend warp`` writes a complete store."""
+    from typer.testing import CliRunner
+    from smarticle_mjx.cli import app
+    from smarticle_mjx.store import Store
+    out = tmp_path / "w.h5"
+    res = CliRunner().invoke(app, ["scan", "--n", "3", "--periods", "1", "--amplitude", "10", "--backend", "warp",
+                                   "--quiet", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    st = Store(out)
+    d = st.run(st.runs[0], fields=("valid", "touched", "status", "poses"))
+    assert d["touched"].shape[:2] == (3, 1)
+    assert np.isfinite(d["poses"][d["valid"]]).all() and not (d["status"] & Status.OVERFLOW).any()
+    assert st.config["scan"]["backend"] == "warp"
+
+
+def test_warp_backend_without_mujoco_warp_is_one_line_exit_2(tmp_path, monkeypatch):
+    """Without the gpu extra, ``--backend warp`` says what to install, exit 2, nothing written."""
+    from typer.testing import CliRunner
+    from smarticle_mjx.cli import app
+    monkeypatch.setattr(mjwarp, "available", lambda: False)
+    out = tmp_path / "w.h5"
+    res = CliRunner().invoke(app, ["scan", "--n", "2", "--periods", "1", "--backend", "warp", "--quiet",
+                                   "--out", str(out)])
+    assert res.exit_code == 2
+    assert "pip install -e '.[gpu]'" in res.output and len(res.output.strip().splitlines()) == 1
+    assert not out.exists()
