@@ -19,6 +19,12 @@ def scene():
     return Scene.build(P, 2)
 
 
+@pytest.fixture(scope="module")
+def mjx_backend(scene):
+    """One MJX backend for the module (building one traces and compiles MJX's forward)."""
+    return make_backend("mjx", scene)
+
+
 def _lanes(n, seed=0, r_range=(0.9, 2.0)):
     poses = C.sample_valid_pairs(n, np.random.default_rng(seed), r_range, A0[0], A0[1])
     return Lanes.from_gait(poses, GAIT)
@@ -121,11 +127,11 @@ def test_unknown_backend_is_refused(scene):
         make_backend("cuda", scene)
 
 
-def test_mjx_backend_runs_the_batch_runner_with_refill(scene):
+def test_mjx_backend_runs_the_batch_runner_with_refill(scene, mjx_backend):
     """Refilling slots works on device arrays too, and the first period's
     touches match the native backend (float32 vs float64, one period)."""
     lanes = _lanes(4, seed=5)
-    be = make_backend("mjx", scene)
+    be = mjx_backend
     got, summary = _collect(be, lanes, 1, batch_size=2, chunk_periods=1, rule=RetireRule(quiet_periods=0))
     assert sorted(got) == [0, 1, 2, 3] and summary["lane_periods"] == 4
     nat = make_backend("native", scene)
@@ -134,3 +140,16 @@ def test_mjx_backend_runs_the_batch_runner_with_refill(scene):
     np.testing.assert_array_equal(touched, ref.touched)
     poses = np.stack([got[i][1] for i in range(4)])
     np.testing.assert_allclose(poses[..., :2], ref.poses[..., :2], atol=2e-3)
+
+
+def test_mjx_backend_runs_at_full_matmul_precision(mjx_backend):
+    """On GPUs JAX defaults to TF32 matmuls; the MJX backend must not: after it
+    is built, JAX's default precision is 'highest', and a traced matmul of
+    float32 numbers that TF32 would round (1 + 2^-12) keeps its low bits."""
+    import jax
+    import jax.numpy as jnp
+    assert mjx_backend is not None
+    assert jax.config.jax_default_matmul_precision == "highest"
+    a = jnp.full((1, 4), 1 + 2.0 ** -12, jnp.float32)
+    got = float(jax.jit(lambda x: x @ x.T)(a)[0, 0])
+    assert abs(got - 4 * (1 + 2.0 ** -12) ** 2) < 1e-5

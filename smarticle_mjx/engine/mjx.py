@@ -56,6 +56,11 @@ def _contact_slots(scene: Scene, model: mujoco.MjModel, mx) -> np.ndarray:
 # of 10 (benchmarks/solver_convergence.py).
 LS_ITERATIONS = 10
 
+# JAX's default matmul precision on recent GPUs is TF32 (10-bit mantissa):
+# contact Jacobians and inertia products at millimetre scale lose digits the
+# solver needs. The backend runs every trace at full float32 precision.
+MATMUL_PRECISION = "highest"
+
 
 class MjxBackend:
     """Batched MJX rollouts; runs on whatever device JAX chose (CPU or GPU)."""
@@ -64,6 +69,7 @@ class MjxBackend:
 
     def __init__(self, scene: Scene, penetration_limit: float = 0.002, ls_iterations: int = LS_ITERATIONS):
         self.scene = scene
+        jax.config.update("jax_default_matmul_precision", MATMUL_PRECISION)
         mjx_collision.install()  # before any trace: MJX's capsule-box misses contacts at this scale
         self.model = mujoco.MjModel.from_xml_string(_strip_sensors(scene.xml))
         if ls_iterations < 1:
