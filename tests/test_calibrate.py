@@ -80,7 +80,8 @@ def _check_case(tmp_path, name, seed=1):
 
 
 @pytest.mark.parametrize("name", [
-    "servo_response",
+    # servo_response is also named through the CLI in test_smx_synth_and_calibrate_write_the_report_...
+    pytest.param("servo_response", marks=pytest.mark.slow),
     pytest.param("servo_lag", marks=pytest.mark.slow),
     pytest.param("servo_dead_time", marks=pytest.mark.slow),
     pytest.param("phase_offset", marks=pytest.mark.slow),

@@ -216,6 +216,7 @@ def test_contact_forces_come_from_a_converged_solve():
     assert capped.unconverged > 0, capped
 
 
+@pytest.mark.slow  # a solver census of ~3200 steps (90 s); benchmarks/solver_convergence.py measures it at scale
 def test_mjx_contact_forces_are_converged_and_match_mujoco_at_impacts():
     """MJX's line search is a fixed-length scan, so the MJX backend caps it
     lower than MuJoCo C (it pays for every evaluation under vmap). At every
