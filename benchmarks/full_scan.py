@@ -3,6 +3,8 @@
 
     python benchmarks/full_scan.py --n 5000 --periods 75      # the paper's scan (hours on 2 cores)
     python benchmarks/full_scan.py --n 5000 --periods 3       # memory check, minutes
+    python benchmarks/full_scan.py --backend warp --batch-size 4096 \
+        --out benchmarks/results/full_scan_gpu.json               # on a GPU
 
 Prints wall time, steps/s, lane-periods simulated vs the full count, peak
 RSS, and an extrapolation of the 75-period wall time from the measured
@@ -26,10 +28,11 @@ def main():
     ap.add_argument("--n", type=int, default=5000)
     ap.add_argument("--periods", type=int, default=75)
     ap.add_argument("--backend", default="native")
+    ap.add_argument("--batch-size", type=int, default=256, help="lanes simulated together (GPU: thousands)")
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "full_scan.json"))
     ap.add_argument("--store", default=None, help="keep the scan's store at this path (default: a temporary one)")
     args = ap.parse_args()
-    cfg = ScanConfig(n=args.n, periods=args.periods, backend=args.backend)
+    cfg = ScanConfig(n=args.n, periods=args.periods, backend=args.backend, batch_size=args.batch_size)
     with tempfile.TemporaryDirectory() as tmp:
         path = pathlib.Path(args.store) if args.store else pathlib.Path(tmp) / "scan.h5"
         t = time.perf_counter()
@@ -40,7 +43,8 @@ def main():
     rss = usage.ru_maxrss / 1024
     cpu = usage.ru_utime + usage.ru_stime
     run = next(iter(s["runs"].values()))
-    out = dict(n=args.n, periods=args.periods, backend=args.backend, wall_s=wall, steps=s["steps"],
+    out = dict(n=args.n, periods=args.periods, backend=args.backend, batch_size=args.batch_size,
+               model=cfg.model, device=_device(args.backend), wall_s=wall, steps=s["steps"],
                steps_per_s=s["steps_per_s"], valid=run["valid"], bound_end_fraction=run["bound_end_fraction"],
                peak_rss_mib=rss, store_mib=size / 2 ** 20, cpu_s=cpu, cpu_per_wall=cpu / wall)
     print(f"{args.n} configurations ({run['valid']} valid) x {args.periods} periods, {args.backend}: "
@@ -56,6 +60,18 @@ def main():
         print(f"estimated 75-period wall time with early exit (saves {saved:.0%} of lane-periods): "
               f"{est / 3600:.1f} h")
     pathlib.Path(args.out).write_text(json.dumps(out, indent=2))
+
+
+def _device(backend: str) -> str:
+    """What ran the engine: the GPU's name for warp and mjx, else the CPU."""
+    import platform
+    if backend == "warp":
+        import warp as wp
+        return str(wp.get_device("cuda:0" if wp.is_cuda_available() else "cpu").name)
+    if backend == "mjx":
+        import jax
+        return str(jax.devices()[0].device_kind)
+    return platform.processor() or platform.machine()
 
 
 if __name__ == "__main__":

@@ -9,9 +9,13 @@ distance each finds. It repeats the comparison in float64 and with every
 length in the scene multiplied by ``--scale`` (distances divided back), to
 tell precision and MJX's absolute thresholds (e.g. 1e-6 on squared lengths)
 from the algorithm, and finally with smarticle_mjx's own capsule–box
-collider (smarticle_mjx/engine/mjx_collision.py).
+collider (smarticle_mjx/engine/mjx_collision.py). With ``--warp`` it also runs
+MuJoCo Warp's colliders (float32, one ``mujoco_warp.forward`` over all poses
+as worlds) on the same poses, for the paper's capsule arms and the lab
+robot's box arms (``--warp-models``).
 
     python benchmarks/mjx_collision.py --poses 2000
+    python benchmarks/mjx_collision.py --poses 2000 --warp --out benchmarks/results/warp_collision.json
 
 Prints a table and writes results/mjx_collision.json.
 """
@@ -123,6 +127,64 @@ def mjx_deepest(model, qpos: np.ndarray, pairs, x64: bool) -> tuple[np.ndarray, 
     return out, dtype
 
 
+def warp_deepest(model, qpos: np.ndarray, pairs) -> np.ndarray:
+    """Same as :func:`native_deepest` from MuJoCo Warp's collision (one world per pose)."""
+    import warp as wp
+    wp.config.quiet = True
+    import mujoco_warp as mjw
+    from smarticle_mjx.engine.mjwarp import buffer_sizes
+    nconmax, njmax = buffer_sizes(model)
+    mw = mjw.put_model(model)
+    d = mjw.make_data(model, nworld=len(qpos), nconmax=nconmax, njmax=njmax)
+    d.qpos.assign(wp.array(qpos.astype(np.float32)))
+    mjw.forward(mw, d)
+    wp.synchronize()
+    n = int(d.nacon.numpy()[0])
+    if n > d.naconmax:
+        raise RuntimeError(f"MuJoCo Warp's contact buffer overflowed ({n} > {d.naconmax})")
+    dist, geom, world = d.contact.dist.numpy()[:n], d.contact.geom.numpy()[:n], d.contact.worldid.numpy()[:n]
+    index = {(g1, g2): j for j, (g1, g2, _) in enumerate(pairs)}
+    out = np.full((len(qpos), len(pairs)), np.inf)
+    for c in range(n):
+        j = index.get((min(geom[c]), max(geom[c])))
+        if j is not None and dist[c] < 0:
+            out[world[c], j] = min(out[world[c], j], dist[c])
+    return out
+
+
+def warp_census(args, tol, shallow) -> list[dict]:
+    """MuJoCo Warp's deepest contacts against MuJoCo C (and the exact capsule-box distance)."""
+    from smarticle_mjx import presets
+    from smarticle_mjx.engine.mjx import _strip_sensors
+    import mujoco
+    rows = []
+    for name in args.warp_models.split(","):
+        scene = Scene.build(presets.params(name), 2)
+        model = mujoco.MjModel.from_xml_string(_strip_sensors(scene.xml))
+        pairs = cross_pairs(model)
+        kinds = sorted({k for _, _, k in pairs})
+        qpos = scene.qpos_from_poses(random_poses(scene, args.poses, np.random.default_rng(args.seed)))
+        nat = native_deepest(model, qpos, pairs)
+        exact = exact_capsule_box(model, qpos, pairs)
+        cb = np.array([p[2] == "box-capsule" for p in pairs])
+        ref = np.where(cb, np.where(exact < 0, exact, np.inf), nat)
+        keep = np.where(cb, np.abs(exact) <= shallow, ~np.isfinite(nat) | (nat >= -shallow))
+        t = time.perf_counter()
+        w = warp_deepest(model, qpos, pairs)
+        for kind in kinds:
+            cols = [j for j, p in enumerate(pairs) if p[2] == kind]
+            r = dict(model=name, dtype="float32", collider="mujoco_warp", pair=kind,
+                     reference="exact" if kind == "box-capsule" else "mujoco",
+                     **compare(ref[:, cols], w[:, cols], tol, keep[:, cols]))
+            rows.append(r)
+            print(f"{'mujoco_warp':13s} {name:8s} {kind:16s} reference {r['reference_contacts']:5d}  "
+                  f"warp {r['mjx_contacts']:5d}  missed {r['missed']:4d}  extra {r['extra']:4d}  "
+                  f"max |Δdist| {r['max_abs_err_mm']:.3f} mm  > {args.tol_mm} mm: {r['frac_err_over_tol']:5.1%}  "
+                  f"deeper than 2 mm: {r['mjx_deeper_than_limit']}")
+        print(f"  ({time.perf_counter() - t:.0f} s)")
+    return rows
+
+
 def scale_model(model, k: float):
     """Multiply every length the collision sees by ``k``: body, inertial-frame and geom offsets
     (geoms that share their body's inertial frame are placed from ``body_ipos``), geom sizes."""
@@ -160,7 +222,14 @@ def main():
                     help="compare where the reference distance is within this of touching")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "mjx_collision.json"))
+    ap.add_argument("--warp", action="store_true", help="census of MuJoCo Warp's colliders instead of MJX's")
+    ap.add_argument("--warp-models", default="paper,lab-lag", help="model presets for --warp")
     args = ap.parse_args()
+    if args.warp:
+        rows = warp_census(args, args.tol_mm * 1e-3, args.shallow_mm * 1e-3)
+        pathlib.Path(args.out).write_text(json.dumps(dict(poses=args.poses, tol_mm=args.tol_mm,
+                                                          shallow_mm=args.shallow_mm, rows=rows), indent=2))
+        return
     scene = Scene.build(SceneParams(), 2)
     from smarticle_mjx.engine.mjx import _strip_sensors
     import mujoco

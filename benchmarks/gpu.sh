@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# The GPU figures of docs/engine.md, in one command, on a machine with an NVIDIA
+# GPU and the gpu extra installed (pip install -e '.[gpu]'; JAX with CUDA for mjx):
+#
+#   bash benchmarks/gpu.sh            # every stage (about 25 minutes on one H100)
+#   bash benchmarks/gpu.sh tests      # one stage: tests | throughput | mjx | agreement | scan
+#
+# Results go to benchmarks/results/*_gpu.json (RESULTS=DIR to put them elsewhere).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+R=${RESULTS:-benchmarks/results}
+mkdir -p "$R"
+stage=${1:-all}
+run() { [ "$stage" = all ] || [ "$stage" = "$1" ]; }
+export PYTHONUNBUFFERED=1
+if run tests; then
+  # the warp backend's tests and MJX's precision setting, on the GPU
+  python -m pytest -q -p no:cacheprovider tests/test_warp.py \
+    "tests/test_engine.py::test_mjx_backend_runs_at_full_matmul_precision"
+fi
+if run throughput; then
+  python benchmarks/engine.py --backends warp --model lab-lag --warp-batches 1024,4096,16384 \
+    --warp-steps 2000 --out "$R/engine_gpu_warp.json"
+fi
+if run mjx; then
+  python benchmarks/engine.py --backends mjx --model lab-lag --mjx-batches 1024,4096,16384 \
+    --mjx-steps 200 --out "$R/engine_gpu_mjx.json"
+fi
+if run agreement; then
+  python benchmarks/backend_agreement.py --backends native,warp,mjx --model lab-lag --configs 200 --periods 20 \
+    --out "$R/backend_agreement_gpu.json"
+fi
+if run scan; then
+  python benchmarks/full_scan.py --backend warp --batch-size "${BATCH:-4096}" --n 5000 --periods 75 \
+    --out "$R/full_scan_gpu.json"
+fi
