@@ -145,8 +145,27 @@ def _progress(quiet: bool):
     return bar, progress
 
 
-def _scan_common(cfg, out: pathlib.Path, resume: bool, overwrite: bool, quiet: bool, flush_rows: int = 64):
+def _executor(executor: str, scheduler: Optional[str], workers: Optional[int], threads_per_worker: int,
+              shard_size: int, dashboard: bool):
+    """None (run here) or a DaskExecutor from the command line's options (ValueError on bad ones)."""
+    if executor == "local":
+        if scheduler is not None:
+            raise ValueError("--scheduler needs --executor dask")
+        return None
+    if executor != "dask":
+        raise ValueError(f"--executor must be local or dask, got {executor!r}")
+    from .executors import DaskExecutor
+    return DaskExecutor(scheduler=scheduler, workers=workers, threads_per_worker=threads_per_worker,
+                        shard_size=shard_size, dashboard=dashboard)
+
+
+_EXECUTOR_HELP = "local (this machine) or dask (a Dask cluster: --scheduler ADDRESS, or a local one)"
+
+
+def _scan_common(cfg, out: pathlib.Path, resume: bool, overwrite: bool, quiet: bool, flush_rows: int = 64,
+                 executor=None):
     """Run a scan/sweep with a progress bar and print the summary."""
+    from .executors import ExecutorError
     from .scan import run_scan
     from .store import StoreError
 
@@ -158,8 +177,8 @@ def _scan_common(cfg, out: pathlib.Path, resume: bool, overwrite: bool, quiet: b
             raise ValueError("--flush-rows must be positive")
         bar, progress = _progress(quiet)
         with bar:
-            summary = run_scan(cfg, out, mode=mode, on_progress=progress, flush_rows=flush_rows)
-    except (ValueError, StoreError) as e:
+            summary = run_scan(cfg, out, mode=mode, on_progress=progress, flush_rows=flush_rows, executor=executor)
+    except (ValueError, StoreError, ExecutorError) as e:
         _fail(str(e))
     for name, r in summary["runs"].items():
         typer.echo(f"{name}: {r['valid']}/{summary['configs']} valid configurations, "
@@ -197,18 +216,25 @@ def scan(
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
     collisions: bool = typer.Option(False, help="store the per-period collision record (native backend)"),
     collision_bins: int = typer.Option(16, help="collision record: bins per gait period"),
+    executor: str = typer.Option("local", help=_EXECUTOR_HELP),
+    scheduler: Optional[str] = typer.Option(None, help="dask: address of a running scheduler (tcp://host:8786)"),
+    workers: Optional[int] = typer.Option(None, help="dask, local cluster: worker processes (default: one per core)"),
+    threads_per_worker: int = typer.Option(1, help="dask: engine threads per shard (cores per worker)"),
+    shard_size: int = typer.Option(64, help="dask: configurations per shard"),
+    dashboard: bool = typer.Option(False, help="dask, local cluster: serve Dask's dashboard"),
 ):
     """One basin scan at one amplitude into an HDF5 store."""
     from .scan import ScanConfig
     try:
         name = _preset(model).name
-    except UserError as e:
+        ex = _executor(executor, scheduler, workers, threads_per_worker, shard_size, dashboard)
+    except (UserError, ValueError) as e:
         _fail(str(e))
     cfg = ScanConfig(configs=configs, n=n, r_range_W=(r_min, r_max), radius_W=radius, positions=positions,
                      orientations=orientations, amplitudes_deg=(amplitude,), periods=periods, chirality=chirality,
                      gait=gait, period_s=period, backend=backend, seed=seed, batch_size=batch_size, model=name,
                      collisions=collisions, collision_bins=collision_bins)
-    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows)
+    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows, executor=ex)
 
 
 @app.command("sweep-amplitude")
@@ -226,6 +252,12 @@ def sweep_amplitude(
     quiet: bool = typer.Option(False, help="no progress bar"),
     flush_rows: int = typer.Option(64, help="journal finished configurations in blocks of this many"),
     model: Optional[str] = typer.Option(None, help="model preset (default: the study file's, else the default preset)"),
+    executor: str = typer.Option("local", help=_EXECUTOR_HELP),
+    scheduler: Optional[str] = typer.Option(None, help="dask: address of a running scheduler (tcp://host:8786)"),
+    workers: Optional[int] = typer.Option(None, help="dask, local cluster: worker processes (default: one per core)"),
+    threads_per_worker: int = typer.Option(1, help="dask: engine threads per shard (cores per worker)"),
+    shard_size: int = typer.Option(64, help="dask: configurations per shard"),
+    dashboard: bool = typer.Option(False, help="dask, local cluster: serve Dask's dashboard"),
 ):
     """The same scan over several amplitudes, one store, one group per amplitude."""
     import dataclasses
@@ -241,9 +273,10 @@ def sweep_amplitude(
             raise UserError("give --amplitudes or --study")
         cfg = dataclasses.replace(cfg, **changes)
         _preset(cfg.model)
+        ex = _executor(executor, scheduler, workers, threads_per_worker, shard_size, dashboard)
     except (UserError, ValueError) as e:
         _fail(str(e))
-    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows)
+    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows, executor=ex)
 
 
 @app.command("phase-diagram")

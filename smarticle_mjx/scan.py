@@ -192,19 +192,61 @@ def _rows(cfg: np.ndarray, valid: np.ndarray, res, body_length: float) -> dict:
     }
 
 
+@dataclasses.dataclass(frozen=True)
+class RunInputs:
+    """One run's configurations, initial poses and validity (the same on every worker)."""
+
+    cfg: np.ndarray
+    poses: np.ndarray
+    valid: np.ndarray
+    gait: GaitSpec
+
+    @staticmethod
+    def of(config: ScanConfig, params: SceneParams, amplitude_deg: float) -> "RunInputs":
+        cfg = config.initial_configs()
+        g = config.gait_spec(amplitude_deg)
+        a0 = g.setpoints(0.0, params.robot.servo_speed)
+        poses = C.pair_poses(cfg[:, 0], cfg[:, 1], cfg[:, 2], a0[0], a0[1], params.robot)
+        return RunInputs(cfg, poses, C.poses_valid(poses, params.robot), g)
+
+
+def simulate_rows(backend, config: ScanConfig, params: SceneParams, inputs: RunInputs, lo: int, hi: int,
+                  on_rows: Callable[[np.ndarray, dict], None],
+                  on_progress: Callable[[int], None] | None = None) -> None:
+    """Simulate rows ``lo .. hi-1`` of one run; ``on_rows(rows index, rows)`` as lanes finish (any order).
+
+    Every executor runs configurations through this one function, so a row's
+    content does not depend on which executor, shard or batch computed it.
+    """
+    record = Record(collisions=config.collisions, collision_bins=config.collision_bins)
+    lanes = Lanes.from_gait(inputs.poses[lo:hi], inputs.gait)
+
+    def on_lanes(res):
+        idx = lo + res.index
+        on_rows(idx, _rows(inputs.cfg[idx], inputs.valid[idx], res, params.robot.body_length))
+
+    run_lanes(backend, lanes, config.periods, batch_size=config.batch_size, chunk_periods=config.chunk_periods,
+              rule=RetireRule(quiet_periods=config.quiet_periods), valid=inputs.valid[lo:hi], on_lanes=on_lanes,
+              on_progress=(lambda done, total, lp: on_progress(done)) if on_progress else None, record=record)
+
+
 def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | None = None,
-             flush_rows: int = 64, on_progress: Callable[[dict], None] | None = None) -> dict:
+             flush_rows: int = 64, on_progress: Callable[[dict], None] | None = None, executor=None) -> dict:
     """Run a scan or sweep into the store ``out``.
 
     Args:
       config: what to scan.
       out: store path (.h5).
-      mode: "new", "resume" or "overwrite" (see store.Writer).
+      mode: "new", "resume" or "overwrite" (see store.Writer). A resumed
+        scan simulates only the rows its journal lacks.
       params: scene parameters; default: those of ``config.model``. Given
         explicitly, the store records the model as "custom" (with every
         parameter, as always).
       flush_rows: journal finished rows in blocks of at least this many.
-      on_progress: receives dicts with run, done, total, lane_periods, elapsed.
+      on_progress: receives dicts with run, done, total, steps, elapsed.
+      executor: None runs here (all cores); an executor object
+        (``smarticle_mjx.executors.DaskExecutor``) runs shards elsewhere
+        and hands their rows back; this process stays the only writer.
 
     Returns:
       Summary: configurations, valid, bound-at-end fraction per run, wall
@@ -222,23 +264,57 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
         runs[run_name(a)] = {"amplitude_deg": float(a), "period_s": period, "chirality": g.chirality,
                              "gait": g.kind, "periods": config.periods, "n_configs": len(cfg)}
     full = {"model": model, "scan": config.to_json(), "scene": _params_json(params)}
-    scene = Scene.build(params, 2, collisions=config.collisions)
-    record = Record(collisions=config.collisions, collision_bins=config.collision_bins)
-    backend = make_backend(config.backend, scene)
+    if executor is not None:
+        full["executor"] = executor.describe()
     t0 = time.perf_counter()
     summary = {"configs": len(cfg), "runs": {}, "steps": 0}
-    rule = RetireRule(quiet_periods=config.quiet_periods)
+    nsteps = {name: steps_per_period(config.gait_spec(a["amplitude_deg"]).period(), params.timestep)
+              for name, a in runs.items()}
+    with Writer(out, full, runs, mode=mode) as w:
+        done = {name: len(cfg) - sum(b - a for a, b in w.missing(name, len(cfg))) for name in runs}
+
+        def progress(name):
+            if on_progress:
+                on_progress({"run": name, "done": done[name], "total": len(cfg),
+                             "elapsed": time.perf_counter() - t0, "steps": summary["steps"]})
+
+        for name in runs:
+            progress(name)
+        if executor is None:
+            _run_here(config, params, runs, cfg, w, flush_rows, summary, nsteps, done, progress)
+        else:
+            todo = {name: w.missing(name, len(cfg)) for name in runs}
+
+            def on_shard(name, lo, rows):
+                w.append(name, lo, rows)
+                done[name] += len(rows["config"])
+                summary["steps"] += int(rows["periods_run"].sum()) * nsteps[name]
+                progress(name)
+
+            executor.run(config, params, runs, todo, on_shard)
+        w.finalize()
+    from .store import Store
+    st = Store(out)
+    for name in st.runs:
+        d = st.run(name, fields=("valid", "touched"))
+        v = d["valid"]
+        summary["runs"][name] = {"valid": int(v.sum()),
+                                 "bound_end_fraction": float(d["touched"][v, -1, 0].mean()) if v.any() else 0.0}
+    summary["wall_s"] = time.perf_counter() - t0
+    summary["steps_per_s"] = summary["steps"] / max(summary["wall_s"], 1e-9)
+    return summary
+
+
+def _run_here(config, params, runs, cfg, w, flush_rows, summary, nsteps, done, progress):
+    """The local executor: every missing row range of every run, on this machine's cores."""
+    scene = Scene.build(params, 2, collisions=config.collisions)
+    backend = make_backend(config.backend, scene)
     try:
-        with Writer(out, full, runs, mode=mode) as w:
-            for name, attrs in runs.items():
-                g = config.gait_spec(attrs["amplitude_deg"])
-                a0 = g.setpoints(0.0, params.robot.servo_speed)
-                poses = C.pair_poses(cfg[:, 0], cfg[:, 1], cfg[:, 2], a0[0], a0[1], params.robot)
-                valid = C.poses_valid(poses, params.robot)
-                start = w.done_rows(name)
-                nstep = steps_per_period(g.period(), params.timestep)
+        for name, attrs in runs.items():
+            inputs = RunInputs.of(config, params, attrs["amplitude_deg"])
+            for lo, hi in w.missing(name, len(cfg)):
                 pending: dict[int, dict] = {}
-                next_row = start
+                next_row = lo
 
                 def flush(force=False):
                     nonlocal next_row
@@ -253,40 +329,19 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
                             del pending[i]
                         next_row = k
 
-                def on_lanes(res):
-                    rows = _rows(cfg[start + res.index], valid[start + res.index], res, params.robot.body_length)
-                    for j, i in enumerate(res.index):
-                        pending[start + int(i)] = {f: v[j] for f, v in rows.items()}
-                    summary["steps"] += int(res.periods_run.sum()) * nstep
+                def on_rows(idx, rows, name=name):
+                    for j, i in enumerate(idx):
+                        pending[int(i)] = {f: v[j] for f, v in rows.items()}
+                    done[name] += len(idx)
+                    summary["steps"] += int(rows["periods_run"].sum()) * nsteps[name]
                     flush()
+                    progress(name)
 
-                def progress(done, total, lane_periods):
-                    if on_progress:
-                        on_progress({"run": name, "done": start + done, "total": len(cfg),
-                                     "elapsed": time.perf_counter() - t0, "steps": summary["steps"]})
-
-                lanes = Lanes.from_gait(poses[start:], g)
-                if start < len(cfg):
-                    run_lanes(backend, lanes, config.periods, batch_size=config.batch_size,
-                              chunk_periods=config.chunk_periods, rule=rule, valid=valid[start:],
-                              on_lanes=on_lanes, on_progress=progress, record=record)
-                    flush(force=True)
-                elif on_progress:
-                    progress(0, 0, 0)
-            w.finalize()
+                simulate_rows(backend, config, params, inputs, lo, hi, on_rows)
+                flush(force=True)
     finally:
         if hasattr(backend, "close"):
             backend.close()
-    from .store import Store
-    st = Store(out)
-    for name in st.runs:
-        d = st.run(name, fields=("valid", "touched"))
-        v = d["valid"]
-        summary["runs"][name] = {"valid": int(v.sum()),
-                                 "bound_end_fraction": float(d["touched"][v, -1, 0].mean()) if v.any() else 0.0}
-    summary["wall_s"] = time.perf_counter() - t0
-    summary["steps_per_s"] = summary["steps"] / max(summary["wall_s"], 1e-9)
-    return summary
 
 
 def _params_json(params: SceneParams) -> dict:

@@ -142,8 +142,10 @@ class Writer:
             if not journal:
                 raise StoreError(f"nothing to resume at {self.path} (no journal {self.parts.name})")
             saved = json.loads((self.parts / "config.json").read_text())
-            if saved != self.config:
-                diff = sorted(k for k in set(saved) | set(self.config) if saved.get(k) != self.config.get(k))
+            if _data_keys(saved) != _data_keys(self.config):
+                mine = _data_keys(self.config)
+                saved = _data_keys(saved)
+                diff = sorted(k for k in set(saved) | set(mine) if saved.get(k) != mine.get(k))
                 raise StoreError(f"{self.path} was started with a different configuration ({', '.join(diff)}); "
                                  "refusing to append")
         elif self.mode != "overwrite":
@@ -168,15 +170,36 @@ class Writer:
         return False
 
     # -------------------------------------------------------------- journal
-    def done_rows(self, run: str) -> int:
-        """Rows of ``run`` already journaled (they form a prefix 0..n-1)."""
+    def done_ranges(self, run: str) -> list[tuple[int, int]]:
+        """Row ranges [start, stop) of ``run`` already journaled, sorted (parts
+        may arrive in any order: shards of a distributed scan finish so)."""
         if run not in self._done:
-            n = 0
+            ranges = []
             for part in self._parts(run):
                 with h5py.File(part, "r") as f:
-                    n = max(n, int(f.attrs["stop"]))
-            self._done[run] = n
+                    ranges.append((int(f.attrs["start"]), int(f.attrs["stop"])))
+            self._done[run] = sorted(ranges)
         return self._done[run]
+
+    def done_rows(self, run: str) -> int:
+        """Rows of ``run`` journaled as one unbroken prefix 0..n-1."""
+        n = 0
+        for a, b in self.done_ranges(run):
+            if a > n:
+                break
+            n = max(n, b)
+        return n
+
+    def missing(self, run: str, total: int) -> list[tuple[int, int]]:
+        """Row ranges [start, stop) of ``run`` in 0..total-1 not journaled yet."""
+        out, n = [], 0
+        for a, b in self.done_ranges(run):
+            if a > n:
+                out.append((n, min(a, total)))
+            n = max(n, b)
+        if n < total:
+            out.append((n, total))
+        return [(a, b) for a, b in out if b > a]
 
     def _parts(self, run):
         return sorted(self.parts.glob(f"{run}--*.h5"))
@@ -191,8 +214,9 @@ class Writer:
         n = len(rows["config"])
         if any(len(v) != n for v in rows.values()):
             raise StoreError("all row fields must have the same length")
-        if start != self.done_rows(run):
-            raise StoreError(f"rows must be appended in order: expected start {self.done_rows(run)}, got {start}")
+        for a, b in self.done_ranges(run):
+            if start < b and a < start + n:
+                raise StoreError(f"rows {start}..{start + n - 1} of run {run} overlap journaled rows {a}..{b - 1}")
         unknown = set(rows) - set(ROW_FIELDS) - set(OPTIONAL_FIELDS)
         if unknown:
             raise StoreError(f"rows have unknown fields {sorted(unknown)}")
@@ -204,7 +228,7 @@ class Writer:
                 if k in rows:
                     f.create_dataset(k, data=rows[k])
         os.replace(tmp, final)
-        self._done[run] = start + n
+        self._done[run] = sorted(self.done_ranges(run) + [(start, start + n)])
 
     # -------------------------------------------------------------- finalise
     def finalize(self):
@@ -227,6 +251,11 @@ class Writer:
                 parts = self._parts(run)
                 if not parts:
                     raise StoreError(f"run {run} has no results")
+                total = attrs.get("n_configs")
+                gaps = self.missing(run, int(total) if total is not None else self.done_ranges(run)[-1][1])
+                if gaps:
+                    a, b = gaps[0]
+                    raise StoreError(f"run {run} lacks rows {a}..{b - 1}; --resume completes it")
                 fields = None
                 for part in parts:
                     with h5py.File(part, "r") as f:
@@ -239,6 +268,15 @@ class Writer:
             out.attrs["complete"] = True
         os.replace(tmp, self.path)
         shutil.rmtree(self.parts)
+
+
+# configuration keys that say how a store was computed, not what it holds: a
+# scan started on one executor may be resumed on another
+EXECUTOR_KEYS = ("executor",)
+
+
+def _data_keys(config: dict) -> dict:
+    return {k: v for k, v in config.items() if k not in EXECUTOR_KEYS}
 
 
 def _append_rows(group, name, data):

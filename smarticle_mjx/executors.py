@@ -1,0 +1,202 @@
+"""Where a scan's shards run: here (``scan.run_scan`` with no executor) or on Dask.
+
+A *shard* is a range of one run's configurations. On Dask each shard is a
+pure task (:func:`shard_rows`): it builds the scene on the worker (once per
+worker process), runs the engine with early exit and refill through the same
+``scan.simulate_rows`` as a local scan, and returns the rows; workers do no
+I/O. The client is the only writer: it journals each shard as it arrives, in
+any order (the store's journal keeps out-of-order parts), so ``--resume``
+resubmits only the row ranges the journal lacks.
+
+Faults. A worker that dies mid-shard (killed, out of memory, its node gone)
+makes the scheduler run the shard elsewhere; ``allowed-failures`` bounds how
+often (:data:`ALLOWED_FAILURES`). A shard that raises is not retried (the
+engine is deterministic: it would raise again); either way the scan stops
+with one line naming the shard, and ``--resume`` continues.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import math
+import threading
+
+import numpy as np
+
+MISSING = "--executor dask needs Dask: pip install -e '.[dask]'"
+
+# How many worker deaths one shard may be involved in before Dask gives up on
+# it (Dask's default is 3). 2: one death is routine on a shared cluster
+# (pre-emption, a node lost, walltime), a second is chance; a shard present at
+# three deaths most likely kills its worker itself (memory), and retrying it
+# would take down a worker each time.
+ALLOWED_FAILURES = 2
+
+
+def available() -> bool:
+    return all(importlib.util.find_spec(m) is not None for m in ("dask", "distributed"))
+
+
+class ExecutorError(RuntimeError):
+    """A distributed scan stopped (one line, saying that --resume continues)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Shard:
+    run: str
+    lo: int
+    hi: int
+
+    @property
+    def key(self) -> str:
+        return f"smx-shard-{self.run}-{self.lo}-{self.hi}"
+
+    def __str__(self):
+        return f"run {self.run} rows {self.lo}..{self.hi - 1}"
+
+
+def plan_shards(todo: dict[str, list[tuple[int, int]]], size: int) -> list[Shard]:
+    """Shards of at most ``size`` rows covering every missing range, run by run."""
+    out = []
+    for run, ranges in todo.items():
+        for lo, hi in ranges:
+            n = math.ceil((hi - lo) / size)
+            edges = np.linspace(lo, hi, n + 1).round().astype(int) if n else []
+            out += [Shard(run, int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+    return out
+
+
+_WORKER_BACKENDS: dict = {}
+_WORKER_LOCK = threading.Lock()  # a worker with several Dask threads runs its shards one at a time
+
+
+def shard_rows(config, params, amplitude_deg: float, lo: int, hi: int, nthread: int | None) -> dict:
+    """Rows ``lo .. hi-1`` of the run at ``amplitude_deg`` (a Dask task: no I/O, result returned)."""
+    with _WORKER_LOCK:
+        return _shard_rows(config, params, amplitude_deg, lo, hi, nthread)
+
+
+def _shard_rows(config, params, amplitude_deg, lo, hi, nthread):
+    from .engine import Scene, make_backend
+    from .scan import RunInputs, simulate_rows
+    key = (repr(params), config.backend, config.collisions, nthread)
+    if key not in _WORKER_BACKENDS:
+        scene = Scene.build(params, 2, collisions=config.collisions)
+        kw = {"nthread": nthread} if config.backend == "native" else {}
+        _WORKER_BACKENDS.clear()  # one scene per worker process at a time
+        _WORKER_BACKENDS[key] = make_backend(config.backend, scene, **kw)
+    backend = _WORKER_BACKENDS[key]
+    inputs = RunInputs.of(config, params, amplitude_deg)
+    got: dict[int, dict] = {}
+
+    def on_rows(idx, rows):
+        for j, i in enumerate(idx):
+            got[int(i)] = {f: v[j] for f, v in rows.items()}
+
+    simulate_rows(backend, config, params, inputs, lo, hi, on_rows)
+    return {f: np.stack([got[i][f] for i in range(lo, hi)]) for f in got[lo]}
+
+
+class DaskExecutor:
+    """Shards on a Dask cluster: an existing one (``scheduler``) or a LocalCluster started here.
+
+    Args:
+      scheduler: address of a running scheduler ("tcp://host:8786"); None
+        starts a ``LocalCluster`` on the loopback interface.
+      workers: LocalCluster: worker processes (default: one per core).
+      threads_per_worker: engine threads per shard (the native backend's
+        ``nthread``); each worker runs one shard at a time, so a worker
+        uses this many cores. LocalCluster workers get one Dask thread each.
+      shard_size: configurations per shard (a few minutes of work each:
+        the default 64 is ~2 minutes of a 75-period scan on one core).
+      dashboard: LocalCluster: serve Dask's dashboard (off: it is an open
+        HTTP port).
+      security: a ``distributed.Security`` for TLS to a shared scheduler.
+    """
+
+    def __init__(self, scheduler: str | None = None, workers: int | None = None, threads_per_worker: int = 1,
+                 shard_size: int = 64, dashboard: bool = False, security=None):
+        if not available():
+            raise ValueError(MISSING)
+        if shard_size < 1:
+            raise ValueError(f"--shard-size must be positive, got {shard_size}")
+        if workers is not None and workers < 1:
+            raise ValueError(f"--workers must be positive, got {workers}")
+        if threads_per_worker < 1:
+            raise ValueError(f"--threads-per-worker must be positive, got {threads_per_worker}")
+        self.scheduler = scheduler
+        self.workers = workers
+        self.threads_per_worker = threads_per_worker
+        self.shard_size = shard_size
+        self.dashboard = dashboard
+        self.security = security
+        self.address = None  # the scheduler actually used (set while running)
+        self.on_client = None  # test hook: called with the Client once connected
+
+    def describe(self) -> dict:
+        """The executor's own keys, stored beside the scan's configuration."""
+        return {"kind": "dask", "scheduler": self.scheduler or "local", "shard_size": self.shard_size}
+
+    def _connect(self):
+        import dask
+        from distributed import Client, LocalCluster
+        dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES})
+        if self.scheduler is None:
+            import os
+            n = self.workers or max(1, (os.cpu_count() or 1) // self.threads_per_worker)
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   host="127.0.0.1", dashboard_address="127.0.0.1:8787" if self.dashboard else None,
+                                   silence_logs=50)
+            return cluster, Client(cluster)
+        try:
+            return None, Client(self.scheduler, security=self.security, timeout="20s")
+        except (OSError, TimeoutError) as e:
+            raise ExecutorError(f"cannot reach the Dask scheduler at {self.scheduler}: {e}") from None
+
+    def run(self, config, params, runs: dict, todo: dict[str, list[tuple[int, int]]], on_shard) -> None:
+        """Run every shard of ``todo``; ``on_shard(run, lo, rows)`` for each, as they finish."""
+        from distributed import as_completed
+        shards = plan_shards(todo, self.shard_size)
+        if not shards:
+            return
+        cluster, client = self._connect()
+        self.address = client.scheduler.address
+        try:
+            if self.on_client:
+                self.on_client(client)
+            nthread = self.threads_per_worker
+            futures = {}
+            for sh in shards:
+                f = client.submit(shard_rows, config, params, runs[sh.run]["amplitude_deg"], sh.lo, sh.hi, nthread,
+                                  key=sh.key, pure=False, retries=0)
+                futures[f] = sh
+            ac = as_completed(futures)
+            for f in ac:
+                sh = futures[f]
+                try:
+                    rows = f.result()
+                except Exception as e:  # noqa: BLE001 - every failure stops the scan the same way
+                    for g in futures:
+                        g.cancel()
+                    raise ExecutorError(_failure(sh, e, self.address)) from None
+                on_shard(sh.run, sh.lo, rows)
+                del rows
+        finally:
+            try:
+                client.close()
+            finally:
+                if cluster is not None:
+                    cluster.close()
+
+
+def _failure(shard: Shard, e: Exception, address) -> str:
+    name = type(e).__name__
+    if name == "KilledWorker":
+        why = f"its worker died {ALLOWED_FAILURES + 1} times (allowed-failures {ALLOWED_FAILURES})"
+    elif name in ("CancelledError", "FutureCancelledError", "CommClosedError") or isinstance(e, (OSError,
+                                                                                                 TimeoutError)):
+        return f"lost the Dask scheduler at {address} ({name}); --resume continues from the journal"
+    else:
+        why = f"{name}: {str(e).splitlines()[0] if str(e) else ''}".rstrip(": ")
+    return f"shard {shard} failed: {why}; --resume continues from the journal"
