@@ -146,20 +146,26 @@ def _progress(quiet: bool):
 
 
 def _executor(executor: str, scheduler: Optional[str], workers: Optional[int], threads_per_worker: int,
-              shard_size: int, dashboard: bool):
+              shard_size: int, dashboard: bool, slurm: Optional[dict] = None):
     """None (run here) or a DaskExecutor from the command line's options (ValueError on bad ones)."""
     if executor == "local":
         if scheduler is not None:
             raise ValueError("--scheduler needs --executor dask")
         return None
-    if executor != "dask":
-        raise ValueError(f"--executor must be local or dask, got {executor!r}")
-    from .executors import DaskExecutor
+    if executor not in ("dask", "slurm"):
+        raise ValueError(f"--executor must be local, dask or slurm, got {executor!r}")
+    from .executors import DaskExecutor, SlurmSpec
+    spec = None
+    if executor == "slurm":
+        if not slurm or not slurm.get("memory"):
+            raise ValueError("--executor slurm needs --jobs, --job-cores and --job-memory")
+        spec = SlurmSpec(**slurm)
     return DaskExecutor(scheduler=scheduler, workers=workers, threads_per_worker=threads_per_worker,
-                        shard_size=shard_size, dashboard=dashboard)
+                        shard_size=shard_size, dashboard=dashboard, slurm=spec)
 
 
-_EXECUTOR_HELP = "local (this machine) or dask (a Dask cluster: --scheduler ADDRESS, or a local one)"
+_EXECUTOR_HELP = ("local (this machine), dask (a Dask cluster: --scheduler ADDRESS, or a local one) or slurm "
+                  "(Slurm jobs as Dask workers, docs/cluster.md)")
 
 
 def _scan_common(cfg, out: pathlib.Path, resume: bool, overwrite: bool, quiet: bool, flush_rows: int = 64,
@@ -222,12 +228,20 @@ def scan(
     threads_per_worker: int = typer.Option(1, help="dask: engine threads per shard (cores per worker)"),
     shard_size: int = typer.Option(64, help="dask: configurations per shard"),
     dashboard: bool = typer.Option(False, help="dask, local cluster: serve Dask's dashboard"),
+    jobs: int = typer.Option(4, help="slurm: jobs (one worker each)"),
+    job_cores: int = typer.Option(16, help="slurm: cores per job"),
+    job_memory: Optional[str] = typer.Option(None, help="slurm: memory per job, e.g. 32GB"),
+    walltime: str = typer.Option("02:00:00", help="slurm: walltime per job ([D-]HH:MM:SS)"),
+    queue: Optional[str] = typer.Option(None, help="slurm: partition"),
+    account: Optional[str] = typer.Option(None, help="slurm: account"),
 ):
     """One basin scan at one amplitude into an HDF5 store."""
     from .scan import ScanConfig
     try:
         name = _preset(model).name
-        ex = _executor(executor, scheduler, workers, threads_per_worker, shard_size, dashboard)
+        ex = _executor(executor, scheduler, workers, threads_per_worker, shard_size, dashboard,
+                       dict(jobs=jobs, cores=job_cores, memory=job_memory, walltime=walltime, queue=queue,
+                            account=account))
     except (UserError, ValueError) as e:
         _fail(str(e))
     cfg = ScanConfig(configs=configs, n=n, r_range_W=(r_min, r_max), radius_W=radius, positions=positions,
@@ -258,6 +272,12 @@ def sweep_amplitude(
     threads_per_worker: int = typer.Option(1, help="dask: engine threads per shard (cores per worker)"),
     shard_size: int = typer.Option(64, help="dask: configurations per shard"),
     dashboard: bool = typer.Option(False, help="dask, local cluster: serve Dask's dashboard"),
+    jobs: int = typer.Option(4, help="slurm: jobs (one worker each)"),
+    job_cores: int = typer.Option(16, help="slurm: cores per job"),
+    job_memory: Optional[str] = typer.Option(None, help="slurm: memory per job, e.g. 32GB"),
+    walltime: str = typer.Option("02:00:00", help="slurm: walltime per job ([D-]HH:MM:SS)"),
+    queue: Optional[str] = typer.Option(None, help="slurm: partition"),
+    account: Optional[str] = typer.Option(None, help="slurm: account"),
 ):
     """The same scan over several amplitudes, one store, one group per amplitude."""
     import dataclasses
@@ -273,7 +293,9 @@ def sweep_amplitude(
             raise UserError("give --amplitudes or --study")
         cfg = dataclasses.replace(cfg, **changes)
         _preset(cfg.model)
-        ex = _executor(executor, scheduler, workers, threads_per_worker, shard_size, dashboard)
+        ex = _executor(executor, scheduler, workers, threads_per_worker, shard_size, dashboard,
+                       dict(jobs=jobs, cores=job_cores, memory=job_memory, walltime=walltime, queue=queue,
+                            account=account))
     except (UserError, ValueError) as e:
         _fail(str(e))
     _scan_common(cfg, out, resume, overwrite, quiet, flush_rows, executor=ex)

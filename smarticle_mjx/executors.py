@@ -34,8 +34,70 @@ MISSING = "--executor dask needs Dask: pip install -e '.[dask]'"
 ALLOWED_FAILURES = 2
 
 
-def available() -> bool:
-    return all(importlib.util.find_spec(m) is not None for m in ("dask", "distributed"))
+def available(jobqueue: bool = False) -> bool:
+    mods = ("dask", "distributed") + (("dask_jobqueue",) if jobqueue else ())
+    return all(importlib.util.find_spec(m) is not None for m in mods)
+
+
+def _seconds(walltime: str) -> int:
+    """Slurm's [D-]HH:MM:SS (or MM:SS, or minutes) in seconds."""
+    days, _, hms = walltime.rpartition("-")
+    parts = [int(x) for x in hms.split(":")]
+    if len(parts) == 1:
+        parts = [0, parts[0], 0]
+    while len(parts) < 3:
+        parts.insert(0, 0)
+    h, m, sec = parts
+    return (int(days) if days else 0) * 86400 + h * 3600 + m * 60 + sec
+
+
+@dataclasses.dataclass(frozen=True)
+class SlurmSpec:
+    """Slurm jobs that hold Dask workers (dask-jobqueue's ``SLURMCluster``).
+
+    Each job is one worker process on ``cores`` cores that runs one shard at
+    a time with the engine on all of them. Workers retire themselves at
+    ``lifetime`` (below the walltime by ``margin`` and staggered, so jobs do
+    not all end together); their shard, if any, runs again elsewhere and the
+    cluster keeps ``jobs`` jobs queued. The scheduler runs in the ``smx``
+    process with temporary TLS credentials (written to ``shared_dir``, which
+    the compute nodes must see), so only holders of them can reach it.
+    """
+
+    jobs: int
+    cores: int
+    memory: str
+    walltime: str = "02:00:00"
+    queue: str | None = None
+    account: str | None = None
+    shared_dir: str = "."
+
+    def validate(self):
+        if self.jobs < 1 or self.cores < 1:
+            raise ValueError("--jobs and --job-cores must be positive")
+        try:
+            w = _seconds(self.walltime)
+        except ValueError:
+            raise ValueError(f"--walltime must be [D-]HH:MM:SS, got {self.walltime!r}") from None
+        if w < 15 * 60:
+            raise ValueError(f"--walltime {self.walltime} leaves no room for shards: use at least 00:15:00")
+
+    def lifetime(self) -> tuple[int, int]:
+        """(lifetime, stagger) in s: end 10 % (at least 5 min) before the walltime, stagger 5 % of it."""
+        w = _seconds(self.walltime)
+        life = w - max(300, w // 10)
+        return life, max(60, life // 20)
+
+    def cluster(self):
+        from dask_jobqueue import SLURMCluster
+        self.validate()
+        life, stagger = self.lifetime()
+        return SLURMCluster(
+            cores=self.cores, processes=1, memory=self.memory, walltime=self.walltime, queue=self.queue,
+            account=self.account, security=True, shared_temp_directory=self.shared_dir,
+            worker_extra_args=["--lifetime", f"{life}s", "--lifetime-stagger", f"{stagger}s",
+                               "--resources", "shard=1"],
+            scheduler_options={"dashboard_address": None})
 
 
 class ExecutorError(RuntimeError):
@@ -116,9 +178,15 @@ class DaskExecutor:
     """
 
     def __init__(self, scheduler: str | None = None, workers: int | None = None, threads_per_worker: int = 1,
-                 shard_size: int = 64, dashboard: bool = False, security=None):
-        if not available():
-            raise ValueError(MISSING)
+                 shard_size: int = 64, dashboard: bool = False, security=None, slurm: SlurmSpec | None = None):
+        if not available(jobqueue=slurm is not None):
+            raise ValueError(MISSING if slurm is None else "--executor slurm needs dask-jobqueue: "
+                             "pip install -e '.[dask]'")
+        if slurm is not None:
+            slurm.validate()
+            if scheduler is not None:
+                raise ValueError("--executor slurm starts its own scheduler; --scheduler is for --executor dask")
+            threads_per_worker = slurm.cores
         if shard_size < 1:
             raise ValueError(f"--shard-size must be positive, got {shard_size}")
         if workers is not None and workers < 1:
@@ -131,21 +199,32 @@ class DaskExecutor:
         self.shard_size = shard_size
         self.dashboard = dashboard
         self.security = security
+        self.slurm = slurm
         self.address = None  # the scheduler actually used (set while running)
         self.on_client = None  # test hook: called with the Client once connected
 
     def describe(self) -> dict:
         """The executor's own keys, stored beside the scan's configuration."""
-        return {"kind": "dask", "scheduler": self.scheduler or "local", "shard_size": self.shard_size}
+        where = "slurm" if self.slurm else self.scheduler or "local"
+        return {"kind": "dask", "scheduler": where, "shard_size": self.shard_size}
+
+    @property
+    def _owns_workers(self) -> bool:
+        """Workers started here carry the 'shard' resource: one shard at a time each."""
+        return self.scheduler is None
 
     def _connect(self):
         import dask
         from distributed import Client, LocalCluster
         dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES})
+        if self.slurm is not None:
+            cluster = self.slurm.cluster()
+            cluster.adapt(minimum_jobs=self.slurm.jobs, maximum_jobs=self.slurm.jobs)
+            return cluster, Client(cluster, security=cluster.security)
         if self.scheduler is None:
             import os
             n = self.workers or max(1, (os.cpu_count() or 1) // self.threads_per_worker)
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, resources={"shard": 1},
                                    host="127.0.0.1", dashboard_address="127.0.0.1:8787" if self.dashboard else None,
                                    silence_logs=50)
             return cluster, Client(cluster)
@@ -169,7 +248,8 @@ class DaskExecutor:
             futures = {}
             for sh in shards:
                 f = client.submit(shard_rows, config, params, runs[sh.run]["amplitude_deg"], sh.lo, sh.hi, nthread,
-                                  key=sh.key, pure=False, retries=0)
+                                  key=sh.key, pure=False, retries=0,
+                                  resources={"shard": 1} if self._owns_workers else None)
                 futures[f] = sh
             ac = as_completed(futures)
             for f in ac:

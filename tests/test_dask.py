@@ -194,7 +194,7 @@ def test_a_failing_shard_stops_the_scan_in_one_line_and_resume_runs_only_the_res
 def test_dask_executor_without_dask_is_one_line_exit_2(tmp_path, monkeypatch):
     from typer.testing import CliRunner
     from smarticle_mjx.cli import app
-    monkeypatch.setattr(executors, "available", lambda: False)
+    monkeypatch.setattr(executors, "available", lambda jobqueue=False: False)
     res = CliRunner().invoke(app, ["scan", "--n", "2", "--periods", "1", "--executor", "dask", "--quiet",
                                    "--out", str(tmp_path / "x.h5")])
     assert res.exit_code == 2 and "pip install -e '.[dask]'" in res.output
@@ -204,7 +204,65 @@ def test_dask_executor_without_dask_is_one_line_exit_2(tmp_path, monkeypatch):
 def test_unknown_executor_and_scheduler_without_dask_are_refused(tmp_path):
     from typer.testing import CliRunner
     from smarticle_mjx.cli import app
-    for args, msg in ((["--executor", "ray"], "--executor must be local or dask"),
+    for args, msg in ((["--executor", "ray"], "--executor must be local, dask or slurm"),
                       (["--scheduler", "tcp://127.0.0.1:1"], "--scheduler needs --executor dask")):
         res = CliRunner().invoke(app, ["scan", "--n", "2", "--quiet", "--out", str(tmp_path / "x.h5"), *args])
         assert res.exit_code == 2 and msg in res.output
+
+
+@pytest.mark.skipif(not executors.available(jobqueue=True), reason="dask-jobqueue is not installed")
+def test_the_slurm_job_script_holds_the_settings_that_matter(tmp_path):
+    """The job script dask-jobqueue writes for --executor slurm (no Slurm
+    needed): cores, memory, walltime, partition and account for Slurm; one
+    worker per job that takes one shard at a time; its lifetime ends before
+    the walltime (10 %, at least 5 min), staggered, so no job is killed by
+    Slurm mid-shard; TLS to the scheduler with credentials in the shared folder."""
+    import re
+    spec = executors.SlurmSpec(jobs=3, cores=32, memory="64GB", walltime="02:00:00", queue="normal",
+                               account="lab", shared_dir=str(tmp_path))
+    cluster = spec.cluster()
+    try:
+        script = cluster.job_script()
+        assert cluster.scheduler_address.startswith("tls://")
+    finally:
+        cluster.close()
+    for line in ("#SBATCH -p normal", "#SBATCH -A lab", "#SBATCH -n 1", "#SBATCH --cpus-per-task=32",
+                 "#SBATCH -t 02:00:00"):
+        assert line in script, line
+    assert re.search(r"#SBATCH --mem=6\dG", script)
+    life = int(re.search(r"--lifetime (\d+)s", script).group(1))
+    stagger = int(re.search(r"--lifetime-stagger (\d+)s", script).group(1))
+    assert life + stagger <= 2 * 3600 - 300 and life >= 3600
+    assert "--resources shard=1" in script and "--nthreads 32" in script
+    assert "--tls-ca-file " + str(tmp_path) in script and "--protocol tls://" in script
+    with pytest.raises(ValueError, match="walltime"):
+        executors.SlurmSpec(jobs=1, cores=1, memory="1GB", walltime="00:10:00").validate()
+
+
+@needs_dask
+def test_a_lost_scheduler_stops_the_scan_in_one_line_and_resume_continues(tmp_path, local_store):
+    """The scheduler goes away after the first shards are journaled: one line
+    saying so, the journal keeps what arrived, ``--resume`` on a new cluster
+    finishes the identical store."""
+    import dask
+    from distributed import LocalCluster
+    out = tmp_path / "lost.h5"
+    with dask.config.set({"distributed.comm.timeouts.connect": "2s", "distributed.comm.retry.count": 0}):
+        cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None,
+                               silence_logs=50)
+        stopped = []
+
+        def progress(p):
+            if p["done"] >= 4 and not stopped:
+                stopped.append(p["done"])
+                cluster.sync(cluster.scheduler.close)
+
+        try:
+            with pytest.raises(ExecutorError, match="lost the Dask scheduler .* --resume continues from the journal"):
+                run_scan(CFG, out, on_progress=progress,
+                         executor=DaskExecutor(scheduler=cluster.scheduler_address, shard_size=4))
+        finally:
+            cluster.close()
+    assert stopped and not out.exists()
+    run_scan(CFG, out, mode="resume", executor=DaskExecutor(workers=1, shard_size=4))
+    assert_same_store(local_store, out)
