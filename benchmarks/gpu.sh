@@ -31,6 +31,6 @@ if run agreement; then
     --out "$R/backend_agreement_gpu.json"
 fi
 if run scan; then
-  python benchmarks/full_scan.py --backend warp --batch-size "${BATCH:-4096}" --n 5000 --periods 75 \
+  python benchmarks/full_scan.py --backend warp --batch-size "${BATCH:-8192}" --n 5000 --periods 75 \
     --out "$R/full_scan_gpu.json"
 fi
