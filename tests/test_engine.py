@@ -53,7 +53,7 @@ def test_records_do_not_depend_on_batch_size_or_threads(scene):
     runs = []
     for nthread, batch_size in ((1, 3), (2, 10), (2, 4)):
         be = make_backend("native", scene, nthread=nthread)
-        got, _ = _collect(be, lanes, 4, batch_size=batch_size, chunk_periods=2, rule=RetireRule(quiet_periods=0))
+        got, _ = _collect(be, lanes, 2, batch_size=batch_size, chunk_periods=1, rule=RetireRule(quiet_periods=0))
         runs.append(got)
         be.close()
     for other in runs[1:]:
@@ -127,6 +127,7 @@ def test_unknown_backend_is_refused(scene):
         make_backend("cuda", scene)
 
 
+@pytest.mark.slow  # 50 s, mostly MJX compiling; the device-array refill itself is checked below in a second
 def test_mjx_backend_runs_the_batch_runner_with_refill(scene, mjx_backend):
     """Refilling slots works on device arrays too, and the first period's
     touches match the native backend (float32 vs float64, one period)."""
@@ -140,6 +141,21 @@ def test_mjx_backend_runs_the_batch_runner_with_refill(scene, mjx_backend):
     np.testing.assert_array_equal(touched, ref.touched)
     poses = np.stack([got[i][1] for i in range(4)])
     np.testing.assert_allclose(poses[..., :2], ref.poses[..., :2], atol=2e-3)
+
+
+def test_refill_writes_new_lanes_into_device_state_and_leaves_the_rest():
+    """What refill does to an MJX batch (a pytree of JAX arrays): the chosen
+    slots take the new lanes' state, every other slot keeps its own; taking
+    slots back gives exactly what was put."""
+    import jax.numpy as jnp
+    from smarticle_mjx.engine.batch import _put_state, _take_state
+    state = {"qpos": jnp.arange(12.0).reshape(4, 3), "act": jnp.zeros((4, 2))}
+    new = {"qpos": -jnp.ones((2, 3)), "act": jnp.ones((2, 2))}
+    idx = np.array([1, 3])
+    out = _put_state(state, idx, new)
+    np.testing.assert_array_equal(np.asarray(out["qpos"])[[0, 2]], np.arange(12.0).reshape(4, 3)[[0, 2]])
+    np.testing.assert_array_equal(np.asarray(_take_state(out, idx)["qpos"]), -np.ones((2, 3)))
+    np.testing.assert_array_equal(np.asarray(_take_state(out, idx)["act"]), np.ones((2, 2)))
 
 
 def test_mjx_backend_runs_at_full_matmul_precision(mjx_backend):
