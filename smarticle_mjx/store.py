@@ -47,7 +47,8 @@ import numpy as np
 # state, penetration, buffer overflow. Readers count them without importing the engine.
 BAD_STATUS = 2 | 4 | 16
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: dimension scales, units and long names (xarray-ready); 1 is still read
+READABLE_SCHEMAS = (1, 2)
 ROW_FIELDS = ("config", "valid", "status", "periods_run", "touched", "min_dist", "poses", "rel", "com", "lifetime")
 OPTIONAL_FIELDS = ("coll_steps", "coll_impulse", "coll_impulse_r")
 
@@ -265,6 +266,7 @@ class Writer:
                         fields = have
                         for k in have:
                             _append_rows(g, k, f[k][()])
+                _label_run(g)
             out.attrs["complete"] = True
         os.replace(tmp, self.path)
         shutil.rmtree(self.parts)
@@ -294,6 +296,91 @@ def _append_rows(group, name, data):
     ds[n:] = data
 
 
+# ---------------------------------------------------------------- labels
+# Dimension names of every row field (none is a field's name), and what each
+# field holds. Fields that mix quantities carry their units per component in a
+# coordinate along their last dimension (e.g. rel_units: W, rad, rad).
+DIMS = {
+    "config": ("lane", "config_var"), "valid": ("lane",), "status": ("lane",), "periods_run": ("lane",),
+    "touched": ("lane", "period", "pair"), "min_dist": ("lane", "period", "pair"),
+    "poses": ("lane", "period", "robot", "pose_var"), "rel": ("lane", "period", "rel_var"),
+    "com": ("lane", "period", "com_var"), "lifetime": ("lane",),
+    "coll_steps": ("lane", "period", "pair", "contact_kind", "phase_bin"),
+    "coll_impulse": ("lane", "period", "pair", "contact_kind", "phase_bin", "xy"),
+    "coll_impulse_r": ("lane", "period", "pair", "contact_kind", "phase_bin"),
+}
+LABELS = {  # field: (long_name, units; None where per component)
+    "config": ("initial configuration (|r|, theta, phi)", None),
+    "valid": ("initial configuration free of overlap (simulated)", "1"),
+    "status": ("engine status bits", "1"),
+    "periods_run": ("gait periods simulated (early exit stops sooner)", "periods"),
+    "touched": ("robots of the pair touched at least once in the period", "1"),
+    "min_dist": ("deepest contact distance between the pair in the period (negative: penetration)", "m"),
+    "poses": ("pose of each robot at the end of the period", None),
+    "rel": ("relative coordinates of the pair at the end of the period", None),
+    "com": ("pair centre of mass and mean heading at the end of the period", None),
+    "lifetime": ("longest run of consecutive bound periods", "periods"),
+    "coll_steps": ("time steps in contact, per contact kind and gait-phase bin", "steps"),
+    "coll_impulse": ("contact impulse on the pair's first robot (world x, y)", "N s"),
+    "coll_impulse_r": ("contact impulse on the pair's first robot along r (> 0 attracts)", "N s"),
+}
+COMPONENTS = {  # dimension: (labels, units per label or None)
+    "config_var": (("r", "theta", "phi"), ("W", "rad", "rad")),
+    "pose_var": (("x", "y", "heading", "alpha1", "alpha2"), ("m", "m", "rad", "rad", "rad")),
+    "rel_var": (("r", "theta", "phi"), ("W", "rad", "rad")),
+    "com_var": (("x", "y", "heading"), ("m", "m", "rad")),
+    "xy": (("x", "y"), None),
+}
+STATUS_BITS = ((1, "invalid_start"), (2, "non_finite"), (4, "penetration"), (8, "retired_early"),
+               (16, "buffer_overflow"))
+
+
+def _label_run(g) -> None:
+    """Dimension scales, coordinates, units and long names for one finished run group."""
+    sizes: dict[str, int] = {}
+    for k, dims in DIMS.items():
+        if k in g:
+            for d, n in zip(dims, g[k].shape):
+                sizes[d] = n
+    scales = {}
+    for d, n in sizes.items():
+        if d in COMPONENTS:
+            labels, units = COMPONENTS[d]
+            ds = g.create_dataset(d, data=np.array(labels[:n], dtype=h5py.string_dtype()))
+        elif d == "contact_kind":
+            kinds = [f"{a}-{b}" for a in ("body", "arm1", "arm2") for b in ("body", "arm1", "arm2")]
+            ds = g.create_dataset(d, data=np.array(kinds[:n], dtype=h5py.string_dtype()))
+        else:
+            ds = g.create_dataset(d, data=np.arange(1, n + 1) if d == "period" else np.arange(n))
+        ds.make_scale(d)
+        ds.attrs["long_name"] = {"lane": "configuration index", "period": "gait periods completed",
+                                 "pair": "robot pair index", "robot": "robot index",
+                                 "phase_bin": "bin of the gait period"}.get(d, d.replace("_", " "))
+        scales[d] = ds
+    for d, (labels, units) in COMPONENTS.items():
+        if d in scales and units is not None:
+            u = g.create_dataset(d.replace("_var", "") + "_units", data=np.array(units, dtype=h5py.string_dtype()))
+            u.dims[0].attach_scale(scales[d])
+    for k, dims in DIMS.items():
+        if k not in g:
+            continue
+        ds = g[k]
+        for i, d in enumerate(dims):
+            ds.dims[i].attach_scale(scales[d])
+        long_name, units = LABELS[k]
+        ds.attrs["long_name"] = long_name
+        last = dims[-1]
+        if units is None and last in COMPONENTS and COMPONENTS[last][1] is not None:
+            ds.attrs["coordinates"] = last.replace("_var", "") + "_units"
+            ds.attrs["units"] = "per component: " + ", ".join(
+                f"{a} {b}" for a, b in zip(*COMPONENTS[last]))
+        elif units is not None:
+            ds.attrs["units"] = units
+    if "status" in g:
+        g["status"].attrs["flag_masks"] = np.array([b for b, _ in STATUS_BITS], np.int32)
+        g["status"].attrs["flag_meanings"] = " ".join(m for _, m in STATUS_BITS)
+
+
 def _now() -> str:
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
@@ -320,12 +407,13 @@ class Store:
                 self.attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
                 self.runs = list(f["runs"].keys()) if "runs" in f else []
                 self.run_attrs = {r: dict(f["runs"][r].attrs) for r in self.runs}
-                self.run_fields = {r: tuple(f["runs"][r].keys()) for r in self.runs}
+                # row fields only (schema 2 adds dimension scales and unit coordinates beside them)
+                self.run_fields = {r: tuple(k for k in f["runs"][r].keys() if k in DIMS) for r in self.runs}
         except OSError as e:
             raise StoreError(f"{self.path} is not a readable HDF5 store: {e}") from None
-        if self.attrs.get("schema_version") != SCHEMA_VERSION:
+        if self.attrs.get("schema_version") not in READABLE_SCHEMAS:
             raise StoreError(f"{self.path}: schema version {self.attrs.get('schema_version')} "
-                             f"(this reader knows {SCHEMA_VERSION})")
+                             f"(this reader knows {', '.join(map(str, READABLE_SCHEMAS))})")
         self.config = json.loads(self.attrs["config"])
         # the model preset that made the store (stores from before presets: "paper")
         self.model = self.config.get("model", "paper")

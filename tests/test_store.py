@@ -213,3 +213,45 @@ def test_reader_refuses_unfinished_and_foreign_files(tmp_path):
     junk.write_text("not hdf5")
     with pytest.raises(StoreError, match="not a readable"):
         Store(junk)
+
+
+def test_xarray_opens_a_run_group_with_named_dimensions_units_and_booleans(tmp_path):
+    """``xarray.open_dataset(store, group="runs/a090.00", engine="h5netcdf")``:
+    every variable has named dimensions with coordinates (no phony ones),
+    units and a long name; fields that mix quantities carry their units per
+    component; booleans read back as booleans; values equal the reader's."""
+    xr = pytest.importorskip("xarray")
+    pytest.importorskip("h5netcdf")
+    from smarticle_mjx.scan import ScanConfig, run_scan
+    out = tmp_path / "x.h5"
+    run_scan(ScanConfig(n=4, periods=2, r_range_W=(0.8, 1.5), seed=1), out)
+    ds = xr.open_dataset(out, group="runs/a090.00", engine="h5netcdf")
+    assert not [d for d in ds.dims if str(d).startswith("phony")]
+    assert dict(ds.sizes) == {"lane": 4, "period": 2, "pair": 1, "robot": 2, "pose_var": 5, "rel_var": 3,
+                              "com_var": 3, "config_var": 3}
+    assert ds["poses"].dims == ("lane", "period", "robot", "pose_var")
+    assert list(ds["pose_var"].values) == ["x", "y", "heading", "alpha1", "alpha2"]
+    assert list(ds["rel_units"].values) == ["W", "rad", "rad"] and "rel_units" in ds["rel"].coords
+    assert ds["min_dist"].attrs["units"] == "m" and ds["touched"].dtype == bool and ds["valid"].dtype == bool
+    assert all("long_name" in ds[v].attrs for v in ds.data_vars)
+    assert list(ds["period"].values) == [1, 2]
+    ref = Store(out).run()
+    for k in ("touched", "rel", "poses", "status"):
+        np.testing.assert_array_equal(ds[k].values, ref[k])
+    assert ds["status"].attrs["flag_meanings"].split()[2] == "penetration"
+
+
+def test_a_schema_1_store_still_opens(tmp_path):
+    """Stores written before the labels (schema 1) are read as before."""
+    from smarticle_mjx.scan import ScanConfig, run_scan
+    out = tmp_path / "old.h5"
+    run_scan(ScanConfig(n=3, periods=1, r_range_W=(0.8, 1.5), seed=2), out)
+    with h5py.File(out, "r+") as f:  # strip schema 2's additions: what an old store is
+        f.attrs["schema_version"] = 1
+        g = f["runs/a090.00"]
+        for k in list(g.keys()):
+            if k not in ("config", "valid", "status", "periods_run", "touched", "min_dist", "poses", "rel", "com",
+                         "lifetime"):
+                del g[k]
+    st = Store(out)
+    assert st.run()["touched"].shape == (3, 1, 1) and set(st.run_fields[st.runs[0]]) >= {"rel", "com"}
