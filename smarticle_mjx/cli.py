@@ -7,6 +7,7 @@ import pathlib
 import sys
 from typing import Optional
 
+import numpy as np
 import typer
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
@@ -424,6 +425,67 @@ def validate(
     for n in res["extra"].get("notes", []):
         typer.echo(f"note: {n}")
     typer.echo(f"wrote {out}")
+
+
+@app.command("movie")
+def movie(
+    source: pathlib.Path = typer.Argument(..., help="a scan store (.h5, with --lane) or a track from smx simulate "
+                                                     "(.csv with its .json sidecar, or .h5)"),
+    lane: Optional[int] = typer.Option(None, help="scan store: the lane (configuration index) to show"),
+    run: Optional[str] = typer.Option(None, help="scan store: run (amplitude group); default: the first"),
+    out: pathlib.Path = typer.Option(pathlib.Path("movie.mp4"), help="output .mp4 (GIF if no packaged ffmpeg) "
+                                                                     "or .gif"),
+    fps: float = typer.Option(20.0, help="frames per second"),
+    speed: float = typer.Option(4.0, help="real-time factor: simulated seconds per movie second"),
+    duration: Optional[float] = typer.Option(None, help="movie length in s (default: the whole track)"),
+    size: int = typer.Option(480, help="frame width and height in pixels"),
+    trail: float = typer.Option(5.0, help="trail of the body centres, in gait periods"),
+):
+    """Top-view movie of a simulated track, or of one lane of a scan store simulated again exactly."""
+    from .movie import MovieOptions, load_track, render
+    from .store import StoreError
+    opts = MovieOptions(fps=fps, speed=speed, duration=duration, trail_periods=trail, size_px=size)
+    try:
+        opts.validate()
+        if not source.exists():
+            raise UserError(f"{source} does not exist")
+        if out.suffix.lower() not in (".mp4", ".gif"):
+            raise UserError(f"movie must end in .mp4 or .gif, got {out.name!r}")
+        if not out.parent.is_dir():
+            raise UserError(f"output directory {out.parent} does not exist")
+        if _is_scan_store(source):
+            from .scan import resimulate_lane
+            if lane is None:
+                raise UserError("a scan store needs --lane (the configuration index to show)")
+            stride = max(1, int(round(min(0.05, speed / fps) / 2.5e-4)))
+            t, poses, res, params, gait, rows = resimulate_lane(source, run, lane, track_stride=stride)
+            k = int(rows["periods_run"])
+            same = np.array_equal(res.poses[1:k + 1].astype(np.float32), rows["poses"][:k])
+            title = f"{source.name} lane {lane}, {gait.amplitude_deg:g} deg" + ("" if same else " (differs from store!)")
+            robot, period = params.robot, gait.period()
+            if not same:
+                typer.echo("warning: the re-simulation differs from the stored records "
+                           "(another package or MuJoCo version made the store)", err=True)
+        else:
+            if lane is not None:
+                raise UserError("--lane is for scan stores; this is a track")
+            t, poses, robot, period, title = load_track(source)
+        info = render(t, poses, robot, period, out, opts, title=title)
+    except (UserError, ValueError, StoreError) as e:
+        _fail(str(e))
+    typer.echo(f"wrote {info['path']} ({info['format']}, {info['frames']} frames at {info['fps']:g} fps, "
+               f"{info['size'][0]}x{info['size'][1]})")
+
+
+def _is_scan_store(path: pathlib.Path) -> bool:
+    if path.suffix.lower() not in (".h5", ".hdf5"):
+        return False
+    import h5py
+    try:
+        with h5py.File(path, "r") as f:
+            return "runs" in f
+    except OSError:
+        raise UserError(f"{path} is not a readable HDF5 file") from None
 
 
 @app.command("synth")

@@ -344,6 +344,57 @@ def _run_here(config, params, runs, cfg, w, flush_rows, summary, nsteps, done, p
             backend.close()
 
 
+def config_from_json(d: dict) -> ScanConfig:
+    """The ScanConfig a store recorded (its ``config["scan"]``)."""
+    fields = {f.name for f in dataclasses.fields(ScanConfig)}
+    kw = {k: v for k, v in d.items() if k in fields}
+    for k in ("r_range_W", "amplitudes_deg"):
+        if k in kw:
+            kw[k] = tuple(float(x) for x in kw[k])
+    if kw.get("initial") is not None:
+        kw["initial"] = tuple(tuple(float(x) for x in c) for c in kw["initial"])
+    return ScanConfig(**kw)
+
+
+def params_from_json(d: dict) -> SceneParams:
+    """The SceneParams a store recorded (its ``config["scene"]``), lists back to tuples."""
+    from .scene import RobotParams
+    robot = RobotParams(**d["robot"])
+    rest = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k != "robot"}
+    return SceneParams(robot=robot, **rest)
+
+
+def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 40):
+    """Simulate lane ``lane`` of a scan store again, from its stored start, amplitude, gait and model.
+
+    Returns (times [S], poses [S, N, 5]: the start, then the full-rate track
+    every ``track_stride`` steps; the period records ``SimResult``, params, gait,
+    the stored rows of that lane). Raises ValueError for a lane out of
+    range or one that was never simulated (overlapping start).
+    """
+    from .engine.simulate import simulate
+    from .store import Store
+    st = Store(store_path)
+    run = run or st.runs[0]
+    if run not in st.runs:
+        raise ValueError(f"{store_path} has no run {run!r} (runs: {', '.join(st.runs)})")
+    config = config_from_json(st.config["scan"])
+    params = params_from_json(st.config["scene"])
+    m = int(st.run_attrs[run]["n_configs"])
+    if not 0 <= lane < m:
+        raise ValueError(f"lane {lane} is out of range: run {run} has lanes 0..{m - 1}")
+    rows = st.run(run, fields=("config", "valid", "touched", "poses", "periods_run", "status"))
+    rows = {k: v[lane] for k, v in rows.items()}
+    if not rows["valid"]:
+        raise ValueError(f"lane {lane} of run {run} starts with the robots overlapping; it was never simulated")
+    inputs = RunInputs.of(config, params, float(st.run_attrs[run]["amplitude_deg"]))
+    res = simulate(params, inputs.poses[lane], inputs.gait, int(config.periods), track_stride=track_stride)
+    # the track starts after its first stride: put the start in front
+    t = np.concatenate([[0.0], res.track_t])
+    track = np.concatenate([inputs.poses[lane][None], res.track], 0)
+    return t, track, res, params, inputs.gait, rows
+
+
 def _params_json(params: SceneParams) -> dict:
     # through JSON: tuples become lists, as a resumed store's saved copy has them
     return json.loads(json.dumps(dataclasses.asdict(params)))
