@@ -107,6 +107,8 @@ def _max_arm_and_body_diff(params, lanes):
     return arms, body, moved
 
 
+@pytest.mark.slow  # 50 s of MJX compiling; MJX against MuJoCo C stays in the default run through
+# test_presets (the default model's servo, 60 steps) and tests/test_mjx_collision.py (its contacts)
 def test_mjx_agrees_with_native_step_by_step():
     """Same scene, same controls: MJX (float32) and MuJoCo C (float64) follow
     the same path over the first 100 steps: arm angles within 1 mrad
