@@ -160,14 +160,22 @@ def test_refill_writes_new_lanes_into_device_state_and_leaves_the_rest():
     np.testing.assert_array_equal(np.asarray(_take_state(out, idx)["act"]), np.ones((2, 2)))
 
 
-def test_mjx_backend_runs_at_full_matmul_precision(mjx_backend):
+def test_mjx_backend_runs_at_full_matmul_precision(scene, monkeypatch):
     """On GPUs JAX defaults to TF32 matmuls; the MJX backend must not: after it
     is built, JAX's default precision is 'highest', and a traced matmul of
-    float32 numbers that TF32 would round (1 + 2^-12) keeps its low bits."""
+    float32 numbers that TF32 would round (1 + 2^-12) keeps its low bits.
+    (The backend's contact-slot map, which compiles MJX's forward, is stubbed:
+    the setting is made before it.)"""
     import jax
     import jax.numpy as jnp
-    assert mjx_backend is not None
-    assert jax.config.jax_default_matmul_precision == "highest"
+    from smarticle_mjx.engine import mjx as mjx_mod
+    monkeypatch.setattr(mjx_mod, "_contact_slots", lambda scene, model, mx: np.zeros((1, 1), bool))
+    jax.config.update("jax_default_matmul_precision", None)
+    try:
+        make_backend("mjx", scene)
+        assert jax.config.jax_default_matmul_precision == "highest"
+    finally:
+        jax.config.update("jax_default_matmul_precision", "highest")
     a = jnp.full((1, 4), 1 + 2.0 ** -12, jnp.float32)
     got = float(jax.jit(lambda x: x @ x.T)(a)[0, 0])
     assert abs(got - 4 * (1 + 2.0 ** -12) ** 2) < 1e-5
