@@ -252,6 +252,54 @@ def scan(
     _scan_common(cfg, out, resume, overwrite, quiet, flush_rows, executor=ex)
 
 
+@app.command("relax")
+def relax(
+    robots: int = typer.Option(7, help="robots per trial (the paper: 7)"),
+    trials: int = typer.Option(20, help="trials (perturbed copies of the compressed start)"),
+    first_trial: int = typer.Option(0, help="index of the first trial (a later stage of one study)"),
+    periods: int = typer.Option(300, help="gait periods per trial (the lab: 300)"),
+    amplitude: float = typer.Option(90.0, help="alpha_max in degrees"),
+    chirality: str = typer.Option("ccw", help="ccw or cw"),
+    gait: str = typer.Option("square", help="square or diagonal"),
+    period: Optional[float] = typer.Option(None, help="gait period in s (default: 1.6 s x amplitude / 90)"),
+    seed: int = typer.Option(0, help="seed of the per-trial perturbations"),
+    gap_mm: float = typer.Option(2.0, help="gap between neighbours' bounding boxes in the packing (mm)"),
+    jitter_mm: float = typer.Option(1.0, help="s.d. of each robot's start position per axis (mm)"),
+    jitter_deg: float = typer.Option(2.0, help="s.d. of each robot's start heading (deg)"),
+    phase_jitter: float = typer.Option(0.0, help="s.d. of each robot's gait phase (periods; 0: in phase)"),
+    plate: float = typer.Option(0.6, help="side of the square plate (m); robots past its edge are recorded"),
+    quiet_periods: int = typer.Option(10, help="stop a trial after this many periods without contact (0: never)"),
+    backend: str = typer.Option("native", help="native, mjx or warp"),
+    batch_size: int = typer.Option(4, help="trials simulated together"),
+    out: pathlib.Path = typer.Option(pathlib.Path("relax.h5"), help="output store (.h5)"),
+    resume: bool = typer.Option(False, help="continue an interrupted run into the same store"),
+    overwrite: bool = typer.Option(False, help="replace an existing store"),
+    quiet: bool = typer.Option(False, help="no progress bar"),
+    model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
+):
+    """The relaxation experiment: N robots start compressed and in phase; do gliders emerge? (smx report reads it)"""
+    from .relax import RelaxConfig, run_relax
+    from .store import StoreError
+    if resume and overwrite:
+        _fail("--resume and --overwrite exclude each other")
+    try:
+        name = _preset(model).name
+        cfg = RelaxConfig(n_robots=robots, trials=trials, first_trial=first_trial, periods=periods,
+                          amplitude_deg=amplitude, chirality=chirality, gait=gait, period_s=period, seed=seed,
+                          gap_mm=gap_mm, jitter_mm=jitter_mm, jitter_deg=jitter_deg, phase_jitter=phase_jitter,
+                          plate_m=plate, quiet_periods=quiet_periods, backend=backend, batch_size=batch_size,
+                          model=name)
+        mode = "resume" if resume else "overwrite" if overwrite else "new"
+        bar, progress = _progress(quiet)
+        with bar:
+            summary = run_relax(cfg, out, mode=mode, on_progress=progress)
+    except (UserError, ValueError, StoreError) as e:
+        _fail(str(e))
+    typer.echo(f"{summary['trials']} trials, {summary['stopped_early']} stopped early (no contact for "
+               f"{quiet_periods} periods); wall {summary['wall_s']:.1f} s, {summary['steps']:,} steps "
+               f"({summary['steps_per_s']:,.0f} steps/s); wrote {out}")
+
+
 @app.command("sweep-amplitude")
 def sweep_amplitude(
     amplitudes: Optional[str] = typer.Option(None, help="'10:90:10' (inclusive) or '10,40,90' degrees"),
@@ -357,26 +405,43 @@ def pb(
 
 @app.command("report")
 def report(
-    store: pathlib.Path = typer.Argument(..., help="a scan or sweep store (.h5)"),
+    stores: list[pathlib.Path] = typer.Argument(..., help="a scan or sweep store (.h5); or relaxation stores "
+                                                "(smx relax), several if they are stages of one study"),
     out: pathlib.Path = typer.Option(pathlib.Path("report"), help="output folder"),
     burn_in: Optional[int] = typer.Option(None, help="periods before steady state (default min(30, K/3))"),
-    glider_min_periods: Optional[int] = typer.Option(None, help="shortest bound run counted as a glider"),
+    glider_min_periods: Optional[int] = typer.Option(None, help="shortest bound run counted as a glider "
+                                                     "(relaxation: default 100, the lab's criterion)"),
+    apart: float = typer.Option(2.0, help="relaxation: closest a third robot may come to a glider (W)"),
 ):
     """Every figure and the summary table of a store: report.md, report.json and PNGs in one folder."""
-    from .report import ReportOptions, write_report
+    from .report import ReportOptions, write_relax_report, write_report
     from .store import Store, StoreError
     try:
-        Store(store)
+        kinds = {Store(s).kind for s in stores}
         _out_dir(out)
         if (burn_in is not None and burn_in < 0) or (glider_min_periods is not None and glider_min_periods < 2):
             raise UserError("--burn-in must be >= 0 and --glider-min-periods >= 2")
-        rep = write_report(store, out, ReportOptions(burn_in=burn_in, glider_min_periods=glider_min_periods))
+        if not apart > 0:
+            raise UserError("--apart must be positive")
+        if kinds == {"relax"}:
+            rep = write_relax_report(stores, out, min_periods=glider_min_periods or 100, apart_W=apart)
+        elif len(stores) > 1:
+            raise UserError("several stores are read only as stages of one relaxation study; "
+                            "report scan stores one at a time")
+        else:
+            rep = write_report(stores[0], out, ReportOptions(burn_in=burn_in, glider_min_periods=glider_min_periods))
     except (UserError, StoreError) as e:
         _fail(str(e))
-    for s in rep["runs"]:
-        b = (s.get("beta") or {}).get("value")
-        typer.echo(f"{s['run']}: P_b end {s['pb_end'][0]}, C1 basin {(s.get('C1') or {}).get('basin_fraction')}, "
-                   f"C2 basin {(s.get('C2') or {}).get('basin_fraction')}, gliders {s['gliders']}, beta {b}")
+    if rep.get("kind") == "relax":
+        lo, hi = rep["interval"]
+        typer.echo(f"{rep['emerged']}/{rep['valid']} trials formed a glider ({rep['fraction']:.2f}, 95% CI "
+                   f"{lo:.2f}-{hi:.2f}; lab 77/151); distance {rep['distance']['mean']:.2f} W "
+                   f"(n = {rep['distance']['n']}; lab 2.9 W)")
+    else:
+        for s in rep["runs"]:
+            b = (s.get("beta") or {}).get("value")
+            typer.echo(f"{s['run']}: P_b end {s['pb_end'][0]}, C1 basin {(s.get('C1') or {}).get('basin_fraction')}, "
+                       f"C2 basin {(s.get('C2') or {}).get('basin_fraction')}, gliders {s['gliders']}, beta {b}")
     typer.echo(f"wrote {out / 'report.md'}")
 
 

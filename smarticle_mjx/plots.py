@@ -218,3 +218,79 @@ def collision_sequence(coll: dict, lane: int, periods, out_dir, stem, title="", 
     if title:
         fig.suptitle(title, fontsize=9)
     return _save(fig, out_dir, stem, formats)
+
+
+def relaxation_trial(xy, episodes, plate_half_W, out_dir, stem, title="", formats=("png",)):
+    """One relaxation trial from above: every robot's body-centre track (W,
+    thin grey, start marked), each glider episode's pair-centre track in its
+    type's colour, and the plate's edge.
+
+    Args:
+      xy: [K+1, N, 2] body centres in W, start first (NaN after an early stop).
+      episodes: the trial's episodes (``reduce.relaxation.trial_episodes``).
+      plate_half_W: half the plate's side in W (drawn if finite).
+    """
+    plt = _mpl()
+    fig, ax = plt.subplots(figsize=(4.8, 4.6))
+    xy = np.asarray(xy, float)
+    for i in range(xy.shape[1]):
+        t = xy[:, i][np.isfinite(xy[:, i]).all(-1)]
+        ax.plot(t[:, 0], t[:, 1], color="0.6", lw=0.7)
+        ax.plot(t[:1, 0], t[:1, 1], "o", color="0.3", ms=3)
+        ax.annotate(str(i), t[0], fontsize=6, color="0.2")
+    shown = set()
+    for e in episodes:
+        tr = np.asarray(e["track"])
+        lab = f"{e['kind']} pair {e['pair'][0]}-{e['pair'][1]}, {e['lifetime']} periods"
+        ax.plot(tr[:, 0], tr[:, 1], color=KIND_COLOURS[e["kind"]], lw=1.6, label=lab if lab not in shown else None)
+        shown.add(lab)
+    if np.isfinite(plate_half_W):
+        h = plate_half_W
+        ax.plot([-h, h, h, -h, -h], [-h, -h, h, h, -h], color="k", lw=0.6, ls=":")
+    fin = xy[np.isfinite(xy).all(-1)]
+    if len(fin):
+        lo, hi = fin.min(0) - 0.5, fin.max(0) + 0.5
+        ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]))
+    ax.set(xlabel="x (W)", ylabel="y (W)", aspect="equal")
+    if shown:
+        ax.legend(fontsize=6, loc="best")
+    ax.set_title(title, fontsize=9)
+    return _save(fig, out_dir, stem, formats)
+
+
+def lifetime_contour(episodes, fit, min_periods, out_dir, stem="lifetime_contour", title="", formats=("png",)):
+    """Contour length vs lifetime of every bound-and-apart episode (the
+    paper's SI figure), coloured by type, with the fitted line; and the
+    lifetimes of C1 and C2 episodes (censored ones hatched)."""
+    plt = _mpl()
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(8.6, 3.6))
+    for kind in ("C1", "C2"):
+        ee = [e for e in episodes if e["kind"] == kind]
+        if ee:
+            ax.scatter([e["lifetime"] for e in ee], [e["contour_W"] for e in ee], s=10, alpha=0.7,
+                       color=KIND_COLOURS[kind], label=f"{kind} ({len(ee)})")
+    if np.isfinite(fit.get("slope", np.nan)) and episodes:
+        x = np.array([0, max(e["lifetime"] for e in episodes)])
+        ax.plot(x, fit["intercept"] + fit["slope"] * x, "k-", lw=1,
+                label=f"fit: {fit['slope']:.3g} W/period, r = {fit['r']:.2f}")
+    ax.axvline(min_periods, color="0.5", ls=":", lw=0.8)
+    ax.set(xlabel="lifetime (periods)", ylabel="contour length (W)")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7)
+    ax.set_title(title or "bound pairs apart from the rest", fontsize=9)
+    top = max([e["lifetime"] for e in episodes] + [min_periods, 2])
+    bins = np.linspace(0, top + 1, 21)
+    for kind in ("C1", "C2"):
+        v = [e["lifetime"] for e in episodes if e["kind"] == kind]
+        c = [e["lifetime"] for e in episodes if e["kind"] == kind and e["censored"]]
+        if v:
+            ax2.hist(v, bins=bins, histtype="step", color=KIND_COLOURS[kind], label=f"{kind}")
+        if c:
+            ax2.hist(c, bins=bins, color=KIND_COLOURS[kind], alpha=0.3, hatch="//", label=f"{kind} censored")
+    ax2.set(xlabel="lifetime (periods)", ylabel="episodes")
+    if episodes:
+        ax2.set_yscale("log")
+    if ax2.get_legend_handles_labels()[0]:
+        ax2.legend(fontsize=7)
+    ax2.set_title("lifetimes by type", fontsize=9)
+    return _save(fig, out_dir, stem, formats)

@@ -153,6 +153,8 @@ def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> 
       the report as written to ``report.json``.
     """
     st = Store(store_path)
+    if st.kind == "relax":
+        return write_relax_report(store_path, out_dir, min_periods=opts.glider_min_periods or 100)
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     figs: dict[str, list[str]] = {}
@@ -317,4 +319,105 @@ def markdown(report: dict) -> str:
         for name in names:
             if name.endswith(".png"):
                 lines.append(f"![{name}]({name})")
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------ relaxation
+
+LAB_RELAX = {"emerged": 77, "trials": 151, "distance_W": (2.9, 0.2), "relaxation_periods": 30}
+
+
+def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0) -> dict:
+    """The relaxation study's numbers (reduce.relaxation.analyse) beside the lab's."""
+    from .reduce import relaxation as RX
+    a = RX.analyse(data, min_periods=min_periods, apart_W=apart_W)
+    lo, hi = binding.binomial_interval(LAB_RELAX["emerged"], LAB_RELAX["trials"])
+    a["lab"] = {**LAB_RELAX, "fraction": LAB_RELAX["emerged"] / LAB_RELAX["trials"],
+                "interval": (float(lo), float(hi))}
+    a["settings"] = data["settings"]
+    a["model"] = data["model"]
+    a["period_s"] = data["period_s"]
+    return a
+
+
+def _trial_figure(data: dict, a: dict, out: pathlib.Path) -> list[str]:
+    """Tracks of the trial with the longest glider (else the first trial)."""
+    from .reduce import relaxation as RX
+    W = float(data["body_length"])
+    best = max((r for r in a["per_trial"] if r["glider"] is not None), key=lambda r: r["glider"]["lifetime"],
+               default=a["per_trial"][0] if a["per_trial"] else None)
+    if best is None:
+        return []
+    t = int(np.flatnonzero(data["trial"] == best["trial"])[0])
+    xy = np.concatenate([data["start_poses"][t][None, :, :2], data["poses"][t][:, :, :2]]) / W
+    eps = [e for e in RX.trial_episodes(data["poses"][t], data["touched"][t], data["start_poses"][t],
+                                        data["left_plate"][t], data["periods_run"][t], W, a["apart_W"])
+           if e["lifetime"] >= a["min_periods"]]
+    title = (f"trial {best['trial']}: {len(eps)} glider(s)" if eps else f"trial {best['trial']}: no glider") + \
+        f", {int(data['periods_run'][t])} periods"
+    return [p.name for p in plots.relaxation_trial(xy, eps, data["settings"]["plate_m"] / 2 / W, out,
+                                                   "relax_tracks", title=title)]
+
+
+def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 2.0) -> dict:
+    """Report of one relaxation store or several stages of one study:
+    report.md, report.json, the tracks of one trial and the lifetime vs
+    contour-length figure."""
+    from .store import read_relax
+    data = read_relax(paths)
+    out = pathlib.Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    a = relax_summary(data, min_periods, apart_W)
+    figs = _trial_figure(data, a, out)
+    figs += [p.name for p in plots.lifetime_contour(a["episodes"], a["fit"], min_periods, out)]
+    episodes = [{k: v for k, v in e.items() if k != "track"} for e in a["episodes"]]
+    per_trial = [{**r, "glider": None if r["glider"] is None else
+                  {k: v for k, v in r["glider"].items() if k != "track"}} for r in a["per_trial"]]
+    rep = {"stores": [str(p) for p in data["paths"]], "kind": "relax", **{k: v for k, v in a.items()
+                                                                          if k not in ("episodes", "per_trial")},
+           "episodes": episodes, "per_trial": per_trial, "figures": figs}
+    (out / "report.json").write_text(json.dumps(rep, indent=1, default=json_default))
+    (out / "report.md").write_text(relax_markdown(rep))
+    return rep
+
+
+def relax_markdown(rep: dict) -> str:
+    s, lab = rep["settings"], rep["lab"]
+    f = lambda x, nd=2: "–" if x is None or not np.isfinite(x) else f"{x:.{nd}f}"  # noqa: E731
+    d, gl, fit, ty = rep["distance"], rep["glider_lifetime"], rep["fit"], rep["typed"]
+    rt = rep["relaxation_periods"]
+    lines = [f"# Relaxation report: {', '.join(pathlib.Path(p).name for p in rep['stores'])}", "",
+             f"{rep['trials']} trials of {s['n_robots']} robots ({rep['valid']} usable), {s['periods']} periods "
+             f"at α_max = {s['amplitude_deg']:g}° ({s['gait']}, {s['chirality']}), model `{rep['model']}`; "
+             f"compressed in-phase start, gap {s['gap_mm']:g} mm, jitter {s['jitter_mm']:g} mm / "
+             f"{s['jitter_deg']:g}°, plate {s['plate_m']:g} m. A glider: a pair bound (touching every period) "
+             f"for ≥ {rep['min_periods']} consecutive periods while apart from the rest (no touch with a third "
+             f"robot, every third robot's centre ≥ {rep['apart_W']:g} W away, both on the plate).", "",
+             "| quantity | model | lab |", "|---|---|---|",
+             f"| trials forming a glider | {rep['emerged']}/{rep['valid']} = {f(rep['fraction'])} "
+             f"[{f(rep['interval'][0])}, {f(rep['interval'][1])}] | {lab['emerged']}/{lab['trials']} = "
+             f"{f(lab['fraction'])} [{f(lab['interval'][0])}, {f(lab['interval'][1])}] |",
+             f"| distance travelled by the glider (W) | {f(d['mean'])} ± {f(d['sem'])} (n = {d['n']}) | "
+             f"{lab['distance_W'][0]} ± {lab['distance_W'][1]} |",
+             f"| glider lifetime (periods) | {f(gl['mean'], 0)} ± {f(gl['sem'], 0)}, {rep['glider_censored']} of "
+             f"{gl['n']} still bound at the end | ≥ 100; some C1 still bound at 300 |",
+             f"| glider types | C1 {rep['glider_kinds']['C1']}, C2 {rep['glider_kinds']['C2']} | both seen |",
+             f"| contour length vs lifetime, all {fit['n']} episodes | slope {f(fit['slope'], 4)} W/period, "
+             f"r = {f(fit['r'])}, p = {fit['p']:.2g} | linearly correlated |",
+             f"| episode lifetime C1 vs C2 (mean, median) | C1 {f(ty['C1']['mean'], 1)}, {f(ty['C1']['median'], 0)} "
+             f"(n = {ty['C1']['n']}, {ty['C1']['censored']} censored); C2 {f(ty['C2']['mean'], 1)}, "
+             f"{f(ty['C2']['median'], 0)} (n = {ty['C2']['n']}); one-sided Mann–Whitney p = "
+             f"{ty['p_c1_longer']:.2g} | C1 lives longer |",
+             f"| relaxation time (last period with a robot touching two others) | median {f(rt['median'], 0)} "
+             f"[IQR {f(rt['q25'], 0)}–{f(rt['q75'], 0)}]; {rt['crowded_at_end']} trials still crowded at the end | "
+             "about 30 periods |",
+             f"| robots that left the plate | {rep['left_plate']['robots']} in {rep['left_plate']['trials']} "
+             "trials | – |",
+             f"| trials stopped early (no contact for {s['quiet_periods']} periods) | {rep['stopped_early']} | – |",
+             "", "Intervals: exact (Clopper–Pearson) 95 %; ± is the standard error of the mean."]
+    if s["periods"] < rep["min_periods"]:
+        lines.append(f"These trials ({s['periods']} periods) are shorter than the glider criterion "
+                     f"({rep['min_periods']} periods): no trial can form a glider; pass --glider-min-periods.")
+    lines.append("")
+    lines += [f"![{n}]({n})" for n in rep["figures"]]
     return "\n".join(lines) + "\n"

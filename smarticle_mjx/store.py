@@ -51,6 +51,8 @@ SCHEMA_VERSION = 2  # 2: dimension scales, units and long names (xarray-ready); 
 READABLE_SCHEMAS = (1, 2)
 ROW_FIELDS = ("config", "valid", "status", "periods_run", "touched", "min_dist", "poses", "rel", "com", "lifetime")
 OPTIONAL_FIELDS = ("coll_steps", "coll_impulse", "coll_impulse_r")
+# rows of a relaxation store (smx relax): one row per trial of N robots
+RELAX_FIELDS = ("start_poses", "valid", "status", "periods_run", "touched", "min_dist", "poses", "left_plate")
 
 
 class StoreError(Exception):
@@ -91,10 +93,14 @@ class Writer:
       runs: {run name: group attrs} in the order they are run.
       mode: "new" (refuse an existing store or journal), "resume" or
         "overwrite".
+      fields: the row fields every part must carry (:data:`ROW_FIELDS` for
+        scans, :data:`RELAX_FIELDS` for relaxation trials).
     """
 
-    def __init__(self, path, config: dict, runs: dict[str, dict], mode: str = "new"):
+    def __init__(self, path, config: dict, runs: dict[str, dict], mode: str = "new",
+                 fields: tuple[str, ...] = ROW_FIELDS):
         self.path = pathlib.Path(path)
+        self.fields = tuple(fields)
         self.config = json.loads(json.dumps(config))  # normalised
         self.runs = runs
         self.mode = mode
@@ -209,23 +215,23 @@ class Writer:
         """Journal rows ``start .. start+len-1`` of ``run`` atomically."""
         if run not in self.runs:
             raise StoreError(f"unknown run {run!r}")
-        missing = set(ROW_FIELDS) - set(rows)
+        missing = set(self.fields) - set(rows)
         if missing:
             raise StoreError(f"rows lack fields {sorted(missing)}")
-        n = len(rows["config"])
+        n = len(rows[self.fields[0]])
         if any(len(v) != n for v in rows.values()):
             raise StoreError("all row fields must have the same length")
         for a, b in self.done_ranges(run):
             if start < b and a < start + n:
                 raise StoreError(f"rows {start}..{start + n - 1} of run {run} overlap journaled rows {a}..{b - 1}")
-        unknown = set(rows) - set(ROW_FIELDS) - set(OPTIONAL_FIELDS)
+        unknown = set(rows) - set(self.fields) - set(OPTIONAL_FIELDS)
         if unknown:
             raise StoreError(f"rows have unknown fields {sorted(unknown)}")
         final = self.parts / f"{run}--{start:09d}.h5"
         tmp = final.with_name(final.name + ".tmp")
         with h5py.File(tmp, "w") as f:
             f.attrs["start"], f.attrs["stop"] = start, start + n
-            for k in ROW_FIELDS + OPTIONAL_FIELDS:
+            for k in self.fields + OPTIONAL_FIELDS:
                 if k in rows:
                     f.create_dataset(k, data=rows[k])
         os.replace(tmp, final)
@@ -260,7 +266,7 @@ class Writer:
                 fields = None
                 for part in parts:
                     with h5py.File(part, "r") as f:
-                        have = [k for k in ROW_FIELDS + OPTIONAL_FIELDS if k in f]
+                        have = [k for k in self.fields + OPTIONAL_FIELDS if k in f]
                         if fields is not None and have != fields:
                             raise StoreError(f"journal of run {run} mixes parts with fields {fields} and {have}")
                         fields = have
@@ -305,6 +311,7 @@ DIMS = {
     "touched": ("lane", "period", "pair"), "min_dist": ("lane", "period", "pair"),
     "poses": ("lane", "period", "robot", "pose_var"), "rel": ("lane", "period", "rel_var"),
     "com": ("lane", "period", "com_var"), "lifetime": ("lane",),
+    "start_poses": ("lane", "robot", "pose_var"), "left_plate": ("lane", "robot"),
     "coll_steps": ("lane", "period", "pair", "contact_kind", "phase_bin"),
     "coll_impulse": ("lane", "period", "pair", "contact_kind", "phase_bin", "xy"),
     "coll_impulse_r": ("lane", "period", "pair", "contact_kind", "phase_bin"),
@@ -320,6 +327,8 @@ LABELS = {  # field: (long_name, units; None where per component)
     "rel": ("relative coordinates of the pair at the end of the period", None),
     "com": ("pair centre of mass and mean heading at the end of the period", None),
     "lifetime": ("longest run of consecutive bound periods", "periods"),
+    "start_poses": ("initial pose of each robot (the perturbed packing)", None),
+    "left_plate": ("first period at whose end the robot's centre was off the plate (0: never)", "periods"),
     "coll_steps": ("time steps in contact, per contact kind and gait-phase bin", "steps"),
     "coll_impulse": ("contact impulse on the pair's first robot (world x, y)", "N s"),
     "coll_impulse_r": ("contact impulse on the pair's first robot along r (> 0 attracts)", "N s"),
@@ -353,7 +362,7 @@ def _label_run(g) -> None:
         else:
             ds = g.create_dataset(d, data=np.arange(1, n + 1) if d == "period" else np.arange(n))
         ds.make_scale(d)
-        ds.attrs["long_name"] = {"lane": "configuration index", "period": "gait periods completed",
+        ds.attrs["long_name"] = {"lane": "trial index" if g.attrs.get("rows") == "trials" else "configuration index", "period": "gait periods completed",
                                  "pair": "robot pair index", "robot": "robot index",
                                  "phase_bin": "bin of the gait period"}.get(d, d.replace("_", " "))
         scales[d] = ds
@@ -417,6 +426,8 @@ class Store:
         self.config = json.loads(self.attrs["config"])
         # the model preset that made the store (stores from before presets: "paper")
         self.model = self.config.get("model", "paper")
+        # what the rows are: "scan" (pair configurations) or "relax" (N-robot relaxation trials)
+        self.kind = "relax" if "relax" in self.config else "scan"
 
     def run(self, name: str | None = None, fields=ROW_FIELDS) -> dict[str, np.ndarray]:
         """Named arrays of one run (default: the first)."""
@@ -430,3 +441,47 @@ class Store:
         with h5py.File(self.path, "r") as f:
             g = f["runs"][name]
             return {k: g[k][()] for k in fields}
+
+
+# stage-independent settings of a relaxation store: two stores with the same
+# values of everything else are stages of one study
+_STAGE_KEYS = ("trials", "first_trial", "batch_size", "backend")
+
+
+def read_relax(paths) -> dict:
+    """Rows of one or several relaxation stores (stages of one study; ``smx
+    relax``), trials concatenated in trial order.
+
+    Returns:
+      dict of arrays (:data:`RELAX_FIELDS` plus ``trial`` indices) and
+      ``settings`` (the first store's relax settings), ``periods``,
+      ``period_s``, ``body_length`` (m), ``model``, ``paths``.
+    """
+    paths = [paths] if not isinstance(paths, (list, tuple)) else list(paths)
+    if not paths:
+        raise StoreError("no relaxation store given")
+    parts, stores = [], []
+    for p in paths:
+        st = Store(p)
+        if st.kind != "relax":
+            raise StoreError(f"{p} is a scan store, not a relaxation store (smx relax)")
+        cfg = st.config["relax"]
+        d = st.run("trials", fields=RELAX_FIELDS)
+        d["trial"] = int(cfg.get("first_trial", 0)) + np.arange(len(d["valid"]))
+        parts.append(d)
+        stores.append(st)
+    same = lambda st: ({k: v for k, v in st.config["relax"].items() if k not in _STAGE_KEYS},  # noqa: E731
+                       st.model, st.config["scene"])
+    for st in stores[1:]:
+        if same(st) != same(stores[0]):
+            raise StoreError(f"{st.path} and {stores[0].path} are not stages of one study (settings or model differ)")
+    out = {k: np.concatenate([d[k] for d in parts]) for k in parts[0]}
+    if len(np.unique(out["trial"])) != len(out["trial"]):
+        raise StoreError("the stores hold the same trial twice")
+    order = np.argsort(out["trial"], kind="stable")
+    out = {k: v[order] for k, v in out.items()}
+    st0 = stores[0]
+    out.update(settings=dict(st0.config["relax"]), periods=int(st0.config["relax"]["periods"]),
+               period_s=float(st0.run_attrs["trials"]["period_s"]), model=st0.model,
+               body_length=float(st0.config["scene"]["robot"]["body_length"]), paths=[str(p) for p in paths])
+    return out

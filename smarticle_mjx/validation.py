@@ -48,6 +48,7 @@ STUDIES = {
     "descent": "validation_descent.toml",
     "diagonal_90": "validation_diagonal.toml",
     "diagonal_random": "validation_diagonal_random.toml",
+    "relax": "validation_relax.toml",
 }
 SINGLE_AMPLITUDES = (10, 20, 30, 40, 50, 60, 70, 80, 90)
 SINGLE_PERIODS = 75
@@ -105,7 +106,30 @@ class BoundStudy:
                           chirality=self.chirality, seed=self.seed, model=model)
 
 
-def read_study(path) -> ScanConfig | BoundStudy:
+@dataclasses.dataclass(frozen=True)
+class RelaxStudy:
+    """A relaxation study (``configs = "relax"``): ``stages`` stores of
+    ``trials`` trials each (stage s holds trials s*trials ..), so a long
+    study completes across runs and a partial one is a set of complete
+    stores. ``settings``: any other :class:`smarticle_mjx.relax.RelaxConfig` keys."""
+
+    stages: int
+    trials: int
+    settings: tuple = ()
+    description: str = ""
+    figure: str = ""
+
+    def stage_config(self, stage: int, model: str):
+        from .relax import RelaxConfig
+        return RelaxConfig(**dict(self.settings), trials=self.trials, first_trial=stage * self.trials, model=model)
+
+    def validate(self) -> None:
+        if self.stages < 1 or self.trials < 1:
+            raise ValueError("relax study: stages and trials must be >= 1")
+        self.stage_config(0, presets.DEFAULT).validate(presets.params())
+
+
+def read_study(path) -> ScanConfig | BoundStudy | RelaxStudy:
     """A study file from sweeps/: a scan (``ScanConfig`` keys) or a started-bound study."""
     path = pathlib.Path(path)
     try:
@@ -115,6 +139,21 @@ def read_study(path) -> ScanConfig | BoundStudy:
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
         raise ValueError(f"cannot read study file {path}: {e}") from None
     study = raw.get("study", raw)
+    if study.get("configs") == "relax":
+        from .relax import RelaxConfig
+        known = {f.name for f in dataclasses.fields(RelaxConfig)} - {"trials", "first_trial", "model"}
+        own = {"stages", "trials", "description", "figure", "configs"}
+        unknown = set(study) - known - own
+        if unknown:
+            raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
+        try:
+            rs = RelaxStudy(stages=int(study.get("stages", 1)), trials=int(study.get("trials", 20)),
+                            settings=tuple(sorted((k, v) for k, v in study.items() if k in known)),
+                            description=study.get("description", ""), figure=study.get("figure", ""))
+            rs.validate()
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"study file {path}: {e}") from None
+        return rs
     if study.get("configs") != "bound":
         return load_study(path)
     fields = {f.name for f in dataclasses.fields(BoundStudy)}
@@ -243,6 +282,47 @@ def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.
             d = st.run(st.runs[0], fields=("touched", "rel", "valid"))
             keep = d["valid"] & d["touched"][:, -bs.keep_window:, 0].all(1)
             starts = d["rel"][keep, -1].astype(np.float64)
+    return paths
+
+
+def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_progress=None,
+                 notes: list | None = None, run: bool = True) -> list[pathlib.Path]:
+    """Run (or reuse, or resume) the stages of a relaxation study in order,
+    ``<stem>_sNN.h5``; with ``run=False`` stop at the first stage without a
+    current complete store. A stage made by another configuration, model or
+    package version is moved aside (never deleted) and rerun."""
+    from .relax import run_relax
+    package = f"smarticle-mjx {__version__}"
+    params = presets.params(model)
+    paths = []
+    for stage in range(rs.stages):
+        cfg = rs.stage_config(stage, model)
+        want = json.loads(json.dumps({"model": model, "relax": cfg.to_json(), "scene": _params_json(params)}))
+        path = pathlib.Path(data) / f"{stem}_s{stage:02d}.h5"
+        journal = _journal(path)
+
+        def move_aside(what: pathlib.Path, why: str, created) -> None:
+            aside = what.with_name(f"{path.stem}.replaced-{_stamp(created)}{what.name[len(path.stem):]}")
+            what.rename(aside)
+            if notes is not None:
+                notes.append(f"{path.name}: {why}; kept as {aside.name} and rerun")
+
+        if path.exists():
+            st = Store(path)
+            if st.attrs.get("package") == package and st.config == want:
+                paths.append(path)
+                continue
+            if not run:
+                break
+            move_aside(path, "made by another configuration, model or version", st.attrs.get("created"))
+        elif not run:
+            break
+        elif journal.exists():
+            meta = json.loads((journal / "meta.json").read_text()) if (journal / "meta.json").exists() else {}
+            if meta.get("package") != package or meta.get("config") != want:
+                move_aside(journal, "an interrupted run of another configuration or version", meta.get("created"))
+        run_relax(cfg, path, mode="resume" if journal.exists() else "new", on_progress=on_progress)
+        paths.append(path)
     return paths
 
 
@@ -452,6 +532,8 @@ def evaluate(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | N
                                    figures))
         made += fig(plots.versus_amplitude(amps, amplitude_panels(sums), figures, "vs_amplitude"))
 
+    rows += _relax_rows(stores.get("relax"), figures, extra, made)
+
     curves = {}
     for label, a in (("90° square", a90), ("90° diagonal, started bound", adiag)):
         if a is not None and "msd" in a["arrays"]:
@@ -462,6 +544,68 @@ def evaluate(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | N
     if curves:
         made += fig(plots.msd_curves(curves, figures))
     return {"rows": rows, "extra": extra, "figures": made}
+
+
+RELAX_CLAIMS = (("in about half of the relaxation trials a pair glides away together for ≥ 100 periods",
+                 "77 of 151 trials (Fig. 1)"),
+                ("the glider travels 2.9 ± 0.2 W on average", "2.9 ± 0.2 W (text)"),
+                ("bound pairs' contour length grows linearly with their lifetime", "SI, contour length vs time"))
+
+
+def _relax_rows(paths, figures: pathlib.Path, extra: dict, made: list) -> list[dict]:
+    """Rows of the relaxation study (all its complete stages, pooled)."""
+    if not paths:
+        return [_missing(c, p, "relax") for c, p in RELAX_CLAIMS]
+    from scipy.stats import fisher_exact
+    from .report import _trial_figure, relax_summary
+    from .store import read_relax
+    data = read_relax(paths)
+    a = relax_summary(data)
+    extra["relax"] = {k: v for k, v in a.items() if k not in ("episodes", "per_trial")}
+    made += _trial_figure(data, a, figures)
+    made += [p.name for p in plots.lifetime_contour(a["episodes"], a["fit"], a["min_periods"], figures)]
+    k, n, lab = a["emerged"], a["valid"], a["lab"]
+    p_fisher = float(fisher_exact([[k, n - k], [lab["emerged"], lab["trials"] - lab["emerged"]]])[1]) if n else \
+        float("nan")
+    extra["relax"]["p_fisher"] = p_fisher
+    s = data["settings"]
+    rt = a["relaxation_periods"]
+    setup = (f"{n} trials ({len(paths)} stages) of {s['n_robots']} robots × {s['periods']} periods at "
+             f"{s['amplitude_deg']:g}°, compressed in-phase start (gap {s['gap_mm']:g} mm, jitter "
+             f"{s['jitter_mm']:g} mm / {s['jitter_deg']:g}°). Glider: a pair bound every period for ≥ 100 "
+             f"consecutive periods, no touch with a third robot and every third robot ≥ {a['apart_W']:g} W away. "
+             f"Relaxation (last period with a robot touching two others): median {_f(rt['median'], '.0f')} "
+             f"periods [IQR {_f(rt['q25'], '.0f')}–{_f(rt['q75'], '.0f')}] (paper: about 30); "
+             f"{a['stopped_early']} trials stopped early, all robots apart and quiet for {s['quiet_periods']} periods.")
+    rows = [{"claim": RELAX_CLAIMS[0][0], "paper": RELAX_CLAIMS[0][1],
+             "measured": f"{k}/{n} = {_ci(a['fraction'], *a['interval'])} (lab {_ci(lab['fraction'], *lab['interval'])}"
+                         f"); C1 {a['glider_kinds']['C1']}, C2 {a['glider_kinds']['C2']}",
+             "test": "model and lab fractions do not differ (Fisher's exact test p ≥ 0.05); measurable once the "
+                     "model's 95 % interval is at most 0.3 wide",
+             "verdict": _verdict(p_fisher >= 0.05) if n and a["interval"][1] - a["interval"][0] <= 0.3
+             else "not measurable", "note": setup}]
+    d = a["distance"]
+    ok = d["n"] >= 2 and abs(d["mean"] - 2.9) <= 2 * math.hypot(d["sem"], 0.2)
+    rows.append({"claim": RELAX_CLAIMS[1][0], "paper": RELAX_CLAIMS[1][1],
+                 "measured": f"{_f(d['mean'])} ± {_f(d['sem'])} W (n = {d['n']} gliders; median {_f(d['median'])}); "
+                             f"lifetime {_f(a['glider_lifetime']['mean'], '.0f')} periods, {a['glider_censored']} "
+                             "still bound at the end",
+                 "test": "|model − 2.9| ≤ 2 √(SEM² + 0.2²)", "verdict": _verdict(ok) if d["n"] >= 2 else "not measurable",
+                 "note": "Distance = \\|end − start\\| of the pair centre over the glider's bound-and-apart run "
+                         "(the longest one of the trial); the lab's ± read as a standard error."})
+    f = a["fit"]
+    ty = a["typed"]
+    rows.append({"claim": RELAX_CLAIMS[2][0], "paper": RELAX_CLAIMS[2][1],
+                 "measured": f"slope {_f(f['slope'], '.4f')} W/period, r = {_f(f['r'])} (p = {f['p']:.2g}, "
+                             f"{f['n']} episodes ≥ 2 periods); C1 episodes {_f(ty['C1']['mean'], '.1f')} vs C2 "
+                             f"{_f(ty['C2']['mean'], '.1f')} periods (one-sided Mann–Whitney p = "
+                             f"{ty['p_c1_longer']:.2g})",
+                 "test": "Pearson r > 0.5 and p < 0.05",
+                 "verdict": _verdict(f["n"] >= 3 and _finite(f["r"]) and f["r"] > 0.5 and f["p"] < 0.05)
+                 if f["n"] >= 3 else "not measurable",
+                 "note": "Every episode of a pair bound and apart from the rest, its contour length (sum of the pair "
+                         "centre's per-period steps) against its lifetime; figure lifetime_contour.png."})
+    return rows
 
 
 def _random_rows(a90: dict, claims, extra: dict) -> list[dict]:
@@ -680,6 +824,12 @@ def _pb_row(sums: list[dict], claim, extra: dict) -> dict:
 def _study_line(name: str, paths) -> str:
     paths = paths if isinstance(paths, list) else [paths]
     st = Store(paths[0])
+    if st.kind == "relax":
+        rc = st.config["relax"]
+        n = sum(int(Store(p).config["relax"]["trials"]) for p in paths)
+        return (f"| {name} | `sweeps/{STUDIES[name]}` | {n} trials in {len(paths)} stages of {rc['n_robots']} robots, "
+                f"α {rc['amplitude_deg']:g}°, {rc['periods']} periods, {rc['gait']} {rc['chirality']}; model "
+                f"`{st.model}`; {st.attrs.get('package')}, mujoco {st.attrs.get('mujoco')} |")
     sc = st.config["scan"]
     what = describe_configs(sc) if sc["configs"] != "explicit" else \
         f"{len(sc['initial'])} pairs started as steady gliders"
@@ -777,7 +927,11 @@ def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Pat
     for name, spec in specs.items():
         stem = pathlib.Path(STUDIES[name]).stem
         run = name in wanted
-        if isinstance(spec, BoundStudy):
+        if isinstance(spec, RelaxStudy):
+            got = ensure_relax(spec, stem, data, model, on_progress, notes, run=run)
+            if got:
+                stores[name] = got
+        elif isinstance(spec, BoundStudy):
             src = stores.get(spec.source)
             if src is not None:
                 got = ensure_bound(spec, stem, src, data, model, on_progress, notes, run=run)

@@ -22,6 +22,7 @@ TINY = {
                    'gait = "diagonal"\nsteady_window = 2\nkeep_window = 1\n',
     "diagonal_random": 'configs = "random"\nn = 4\nr_range_W = [0.9, 1.6]\namplitudes_deg = [90]\nperiods = 2\n'
                        'gait = "diagonal"\n',
+    "relax": 'configs = "relax"\nstages = 2\ntrials = 1\nn_robots = 3\nperiods = 3\n',
 }
 
 
@@ -44,16 +45,21 @@ def test_validate_writes_a_row_per_claim_and_reuses_stores(tmp_path):
     assert r.exit_code == 0, r.output
     res = json.loads((tmp_path / "validation" / "validation.json").read_text())
     rows = res["rows"]
-    assert len(rows) == 10 and res["model"] == DEFAULT
+    assert len(rows) == 13 and res["model"] == DEFAULT
     assert all(row["verdict"] in ("holds", "does not hold", "not measurable") for row in rows)
     page = out.read_text()
-    assert page.count("\n| ") >= 10 and f"smx validate --data DIR --out PAGE --model {DEFAULT}" in page
+    assert page.count("\n| ") >= 13 and f"smx validate --data DIR --out PAGE --model {DEFAULT}" in page
     assert str(tmp_path) not in page  # no path of this machine on the page
     assert (tmp_path / "validation" / "pb.png").stat().st_size > 1000
     stores = data / DEFAULT
     # the started-bound studies ran from the random study's gliders: one store per stage
     names = {p.name for p in stores.glob("*.h5")}
-    assert {"validation_random.h5", "validation_descent_a0900.h5", "validation_diagonal_a0900.h5"} <= names
+    assert {"validation_random.h5", "validation_descent_a0900.h5", "validation_diagonal_a0900.h5",
+            "validation_relax_s00.h5", "validation_relax_s01.h5"} <= names
+    # the relaxation study's two stages are pooled into its rows (2 trials: too few to judge the fraction)
+    relax = [row for row in rows if "relaxation trials" in row["claim"]][0]
+    assert relax["measured"].startswith("0/2") and relax["verdict"] == "not measurable"
+    assert Store(stores / "validation_relax_s01.h5").config["relax"]["first_trial"] == 1
     st = Store(stores / "validation_descent_a0900.h5")
     assert st.config["scan"]["configs"] == "explicit" and st.model == DEFAULT
     assert len(st.config["scan"]["initial"]) == 2
@@ -83,7 +89,7 @@ def test_a_store_of_another_package_version_is_rerun_and_kept(tmp_path, monkeypa
     # only the chosen study ran; the others are reported as not run yet
     assert [p.name for p in (data / DEFAULT).glob("*.h5")] == ["validation_polar.h5"]
     rows = json.loads((tmp_path / "v" / "validation.json").read_text())["rows"]
-    assert sum("not run yet" in row["measured"] for row in rows) == 8
+    assert sum("not run yet" in row["measured"] for row in rows) == 11
     old = _hashes(data / DEFAULT)["validation_polar.h5"]
     monkeypatch.setattr(validation, "__version__", "99.0")
     monkeypatch.setattr("smarticle_mjx.store.versions", lambda: {"package": "smarticle-mjx 99.0"})

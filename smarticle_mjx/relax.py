@@ -1,0 +1,252 @@
+"""The relaxation experiment (paper, Fig. 1): N robots started compressed and
+in phase on an open plate; do gliders emerge?
+
+``run_relax`` simulates ``trials`` perturbed copies of the compressed start
+for ``periods`` gait periods and writes one row per trial into an HDF5
+store (the scan store's writer: journaled, resumable, atomic; schema in
+docs/store.md). The analysis (glider detection, emergence fraction,
+distances, lifetimes) is in :mod:`smarticle_mjx.reduce.relaxation`.
+
+The compressed start. The paper's Fig. 1C shows seven robots "in a densely
+packed configuration" that "began their shape-changing motions at the same
+time and in phase"; its text gives no coordinates. Here every robot starts
+at the gait's first corner (a U at 90 deg), all with the same heading, on a
+staggered lattice whose spacing is the robot's bounding box at that shape
+plus ``gap_mm``; the N lattice sites nearest the centre are used (for N = 7:
+three side by side, two above and two below, offset by half a robot, the
+``seven`` scene of ``models/``). Each trial perturbs every robot's position
+(Gaussian, ``jitter_mm`` per axis) and heading (``jitter_deg``) from the
+trial's own random stream (seed, trial index), so trials 0..T-1 are the same
+whichever stage or batch runs them; a draw that makes robots overlap is
+drawn again.
+
+The plate is open: MuJoCo's plane is unbounded, and the lab's 60 x 60 cm
+plate (centred on the packing) is a record, not a wall: ``left_plate`` holds
+the first period at whose end a robot's centre lay outside it (0: never).
+The analysis ends a robot's track there, as the lab's camera would.
+
+Early exit: a trial in which no two robots touched for ``quiet_periods``
+whole periods is stopped (status bit 8, ``periods_run`` < ``periods``). A
+lone robot of the default model does not drift (docs/validation.md: ~1e-6 W
+per period) and friction stops any coasting within a period, so from then on
+every period repeats the last: no contact, no pair, no glider can form.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from typing import Callable
+
+import numpy as np
+
+from . import configs as C, presets
+from .engine import Lanes, Scene, make_backend, steps_per_period
+from .engine.batch import RetireRule, run_lanes
+from .gait import GaitSpec
+from .scene import RobotParams, SceneParams
+from .store import RELAX_FIELDS, Store, Writer
+
+RUN = "trials"  # the one run group of a relaxation store
+
+
+@dataclasses.dataclass(frozen=True)
+class RelaxConfig:
+    """Everything that defines a relaxation study's data; stored in full."""
+
+    n_robots: int = 7
+    trials: int = 20
+    first_trial: int = 0  # trial indices first_trial .. first_trial+trials-1 (stages of one study)
+    periods: int = 300  # the lab's trials ran 300 gait periods
+    amplitude_deg: float = 90.0
+    chirality: str = "ccw"
+    gait: str = "square"
+    period_s: float | None = None
+    seed: int = 0
+    gap_mm: float = 2.0  # gap between neighbouring robots' bounding boxes in the packing
+    jitter_mm: float = 1.0  # per-axis standard deviation of each robot's start position
+    jitter_deg: float = 2.0  # standard deviation of each robot's start heading
+    phase_jitter: float = 0.0  # standard deviation of per-robot gait phase (periods); 0: in phase (paper)
+    plate_m: float = 0.6  # side of the square plate, centred on the packing
+    backend: str = "native"
+    batch_size: int = 4
+    chunk_periods: int = 5
+    quiet_periods: int = 10  # stop a trial after this many periods without any contact (0: never)
+    model: str = presets.DEFAULT
+
+    def gait_spec(self) -> GaitSpec:
+        return GaitSpec(amplitude_deg=self.amplitude_deg, chirality=self.chirality, kind=self.gait,
+                        period_s=self.period_s)
+
+    def scene_params(self) -> SceneParams:
+        return presets.params(self.model)
+
+    def validate(self, params: SceneParams) -> None:
+        if self.n_robots < 2:
+            raise ValueError(f"a relaxation needs at least 2 robots, got {self.n_robots}")
+        if self.n_robots > 30:
+            raise ValueError(f"at most 30 robots per trial, got {self.n_robots}")
+        if self.trials < 1:
+            raise ValueError(f"trials must be >= 1, got {self.trials}")
+        if self.first_trial < 0:
+            raise ValueError(f"first trial must be >= 0, got {self.first_trial}")
+        if self.periods < 1:
+            raise ValueError(f"periods must be >= 1, got {self.periods}")
+        for name in ("gap_mm", "jitter_mm", "jitter_deg", "phase_jitter"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name.replace('_', '-')} must be a finite number >= 0, got {v}")
+        if not self.plate_m > 0:
+            raise ValueError(f"plate side must be positive, got {self.plate_m}")
+        if self.batch_size < 1 or self.chunk_periods < 1 or self.quiet_periods < 0:
+            raise ValueError("batch size and chunk periods must be >= 1, quiet periods >= 0")
+        from .engine import BACKENDS
+        if self.backend not in BACKENDS:
+            raise ValueError(f"unknown backend {self.backend!r}; choose one of {', '.join(BACKENDS)}")
+        self.gait_spec().validate(params.robot.servo_speed, params.robot.arm_limit_deg)
+
+    def to_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def packing(n: int, robot: RobotParams, alpha: tuple[float, float], gap: float) -> np.ndarray:
+    """Poses [n, 5] of the compressed start: the n sites of a staggered lattice
+    nearest its centre, spaced by the robot's bounding box at arm angles
+    ``alpha`` plus ``gap`` (m), all headings 0, centred on the origin."""
+    body, arms = C.robot_outline(np.array([0.0, 0.0, 0.0, alpha[0], alpha[1]]), robot)
+    pts = np.concatenate([body.reshape(-1, 2), arms.reshape(-1, 2)])
+    pad = C.arm_piece_radius(robot) if robot.arm_shape != "plate" else 0.0
+    lo, hi = pts.min(0) - pad, pts.max(0) + pad
+    w, d = hi - lo + gap
+    rows = int(math.ceil(math.sqrt(n))) + 2
+    sites = [((c + 0.5 * (r % 2)) * w, r * d) for r in range(-rows, rows + 1) for c in range(-rows, rows + 1)]
+    sites = np.array(sites)
+    # nearest first, in units of the cell (ties: by row, then column, so the
+    # choice does not depend on floating-point noise)
+    key = np.round(np.hypot(sites[:, 0] / w, sites[:, 1] / d), 9)
+    order = np.lexsort((sites[:, 0], sites[:, 1], key))
+    xy = sites[order[:n]]
+    # the bounding box centre sits at the body centre's offset (lo + hi) / 2
+    xy = xy - xy.mean(0) - (lo + hi) / 2
+    poses = np.zeros((n, 5))
+    poses[:, :2] = xy
+    poses[:, 3], poses[:, 4] = alpha
+    return poses
+
+
+def trial_rng(seed: int, trial: int) -> np.random.Generator:
+    return np.random.default_rng([int(seed), int(trial), 0x52454C58])  # "RELX": apart from other streams
+
+
+def start_poses(config: RelaxConfig, params: SceneParams) -> tuple[np.ndarray, np.ndarray]:
+    """Perturbed starts [T, N, 5] and per-robot phases [T, N] of the config's trials."""
+    g = config.gait_spec()
+    a0 = g.setpoints(0.0, params.robot.servo_speed)
+    base = packing(config.n_robots, params.robot, (float(a0[0]), float(a0[1])), config.gap_mm * 1e-3)
+    if not C.poses_valid(base, params.robot):
+        raise ValueError("the compressed packing overlaps; raise --gap-mm")
+    out = np.empty((config.trials,) + base.shape)
+    phase = np.zeros((config.trials, config.n_robots))
+    for t in range(config.trials):
+        rng = trial_rng(config.seed, config.first_trial + t)
+        for _ in range(1000):
+            p = base.copy()
+            p[:, :2] += rng.normal(0.0, config.jitter_mm * 1e-3, (config.n_robots, 2))
+            p[:, 2] += rng.normal(0.0, math.radians(config.jitter_deg), config.n_robots)
+            if C.poses_valid(p, params.robot):
+                break
+        else:
+            raise ValueError(f"no overlap-free start for trial {config.first_trial + t} in 1000 draws; "
+                             "lower --jitter-mm or raise --gap-mm")
+        out[t] = p
+        if config.phase_jitter > 0:
+            phase[t] = rng.normal(0.0, config.phase_jitter, config.n_robots)
+    return out, phase
+
+
+def left_plate(poses: np.ndarray, centre: np.ndarray, half: float) -> np.ndarray:
+    """[T, N] first period (1-based) ending with the robot's centre off the
+    square plate of half-side ``half`` around ``centre``; 0: never."""
+    off = (np.abs(poses[..., 0] - centre[0]) > half) | (np.abs(poses[..., 1] - centre[1]) > half)  # [T, K, N]
+    first = np.argmax(off, axis=1) + 1
+    return np.where(off.any(axis=1), first, 0).astype(np.int32)
+
+
+def _rows(start, res, config: RelaxConfig) -> dict:
+    half = config.plate_m / 2
+    return {"start_poses": start.astype(np.float64), "valid": np.ones(len(res.index), bool),
+            "status": res.status.astype(np.int32), "periods_run": res.periods_run.astype(np.int32),
+            "touched": res.touched, "min_dist": res.min_dist.astype(np.float32),
+            "poses": res.poses.astype(np.float32),
+            "left_plate": left_plate(res.poses, np.zeros(2), half)}
+
+
+def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams | None = None,
+              on_progress: Callable[[dict], None] | None = None, nthread: int | None = None) -> dict:
+    """Run the relaxation trials into the store ``out`` (resumable: a resumed
+    store simulates only the trials its journal lacks).
+
+    Returns:
+      summary: trials, trials stopped early, steps, wall time.
+    """
+    from .scan import _params_json
+    model = config.model if params is None else "custom"
+    params = config.scene_params() if params is None else params
+    params.validate()
+    config.validate(params)
+    starts, phase = start_poses(config, params)
+    g = config.gait_spec()
+    nsteps = steps_per_period(g.period(), params.timestep)
+    runs = {RUN: {"amplitude_deg": float(config.amplitude_deg), "period_s": nsteps * params.timestep,
+                  "chirality": g.chirality, "gait": g.kind, "periods": config.periods,
+                  "n_configs": config.trials, "n_robots": config.n_robots, "rows": "trials"}}
+    full = {"model": model, "relax": config.to_json(), "scene": _params_json(params)}
+    t0 = time.perf_counter()
+    summary = {"trials": config.trials, "steps": 0, "stopped_early": 0}
+    with Writer(out, full, runs, mode=mode, fields=RELAX_FIELDS) as w:
+        todo = [i for a, b in w.missing(RUN, config.trials) for i in range(a, b)]
+        done = config.trials - len(todo)
+
+        def progress():
+            if on_progress:
+                on_progress({"run": RUN, "done": done, "total": config.trials,
+                             "elapsed": time.perf_counter() - t0, "steps": summary["steps"]})
+
+        progress()
+        if todo:
+            idx = np.array(todo)
+            scene = Scene.build(params, config.n_robots)
+            backend = make_backend(config.backend, scene, **({"nthread": nthread} if config.backend == "native"
+                                                               else {}))
+            lanes = Lanes(starts[idx], np.full(len(idx), g.amplitude), np.full(len(idx), g.chirality_sign, np.int32),
+                          np.full(len(idx), g.kind_code, np.int32), phase[idx], g.period())
+
+            def on_lanes(res):
+                nonlocal done
+                rows = _rows(starts[idx[res.index]], res, config)
+                for j, i in enumerate(idx[res.index]):  # one journal part per trial: trials finish in any order
+                    w.append(RUN, int(i), {k: v[j:j + 1] for k, v in rows.items()})
+                done += len(res.index)
+                summary["steps"] += int(res.periods_run.sum()) * nsteps
+                summary["stopped_early"] += int((res.periods_run < config.periods).sum())
+                progress()
+
+            try:
+                run_lanes(backend, lanes, config.periods, batch_size=config.batch_size,
+                          chunk_periods=config.chunk_periods, rule=RetireRule(quiet_periods=config.quiet_periods),
+                          on_lanes=on_lanes)
+            finally:
+                if hasattr(backend, "close"):
+                    backend.close()
+        w.finalize()
+    summary["wall_s"] = time.perf_counter() - t0
+    summary["steps_per_s"] = summary["steps"] / max(summary["wall_s"], 1e-9)
+    st = Store(out)
+    summary["stopped_early"] = int((st.run(RUN, fields=("periods_run",))["periods_run"] < config.periods).sum())
+    return summary
+
+
+def config_from_json(d: dict) -> RelaxConfig:
+    fields = {f.name for f in dataclasses.fields(RelaxConfig)}
+    return RelaxConfig(**{k: v for k, v in d.items() if k in fields})

@@ -1,0 +1,237 @@
+"""The relaxation experiment: start packing, glider detector, store, report, CLI."""
+
+import hashlib
+import json
+import math
+
+import h5py
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from smarticle_mjx import configs as C, presets
+from smarticle_mjx.cli import app
+from smarticle_mjx.reduce import relaxation as RX
+
+W = 0.05
+
+
+# ------------------------------------------------------------ synthetic tracks
+
+def _synthetic(k=150, n=4):
+    """Robots 0 and 1 glide together along +x at 0.02 W/period, anti-aligned
+    (C1), touching every period; robots 2 and 3 sit 10 W away and touch each
+    other for 50 periods only (too short to be a glider)."""
+    poses = np.zeros((k, n, 5))
+    start = np.zeros((n, 5))
+    step = 0.02 * W
+    for r, (y, h) in enumerate([(0.0, 0.0), (1.3 * W, math.pi)]):
+        start[r, :3] = (0.0, y, h)
+        poses[:, r, 0] = step * np.arange(1, k + 1)
+        poses[:, r, 1] = y
+        poses[:, r, 2] = h
+    for r, x in ((2, 10 * W), (3, 11.2 * W)):
+        start[r, :3] = (x, 10 * W, 0.0)
+        poses[:, r, :3] = (x, 10 * W, 0.0)
+    pairs = RX.pairs_of(n)
+    touched = np.zeros((k, len(pairs)), bool)
+    touched[:, 0] = True  # pair (0, 1)
+    p23 = [i for i, (a, b) in enumerate(pairs) if (a, b) == (2, 3)][0]
+    touched[20:70, p23] = True
+    return poses, touched, start, pairs
+
+
+def test_detector_finds_the_known_glider_and_rejects_the_short_pair():
+    poses, touched, start, _ = _synthetic()
+    eps = RX.trial_episodes(poses, touched, start, body_length=W)
+    by_pair = {e["pair"]: e for e in eps}
+    g = by_pair[(0, 1)]
+    # brute force: the pair centre moves 0.02 W per period for 150 periods in a straight line
+    assert g["start"] == 0 and g["lifetime"] == 150 and g["censored"]
+    assert g["distance_W"] == pytest.approx(0.02 * 150, rel=1e-9)
+    assert g["contour_W"] == pytest.approx(0.02 * 150, rel=1e-9)
+    assert g["kind"] == "C1" and g["mean_cos_phi"] == pytest.approx(-1.0)
+    short = by_pair[(2, 3)]
+    assert short["lifetime"] == 50 and not short["censored"]
+    long_enough = [e for e in eps if e["lifetime"] >= 100]
+    assert [e["pair"] for e in long_enough] == [(0, 1)]
+
+
+def test_a_third_robot_nearby_or_touching_breaks_the_glider():
+    poses, touched, start, pairs = _synthetic()
+    # robot 2 parks next to the glider for 10 periods mid-way (within 2 W), without touching
+    near = poses.copy()
+    near[70:80, 2, :2] = near[70:80, 0, :2] + np.array([0.0, -1.5 * W])
+    eps = RX.trial_episodes(near, touched, start, body_length=W, apart_W=2.0)
+    runs = sorted((e["start"], e["lifetime"]) for e in eps if e["pair"] == (0, 1))
+    assert runs == [(0, 70), (80, 70)]
+    # touching a third robot for one period splits it the same way, whatever the distance
+    t2 = touched.copy()
+    p02 = [i for i, (a, b) in enumerate(pairs) if (a, b) == (0, 2)][0]
+    t2[100, p02] = True
+    eps = RX.trial_episodes(poses, t2, start, body_length=W)
+    assert sorted((e["start"], e["lifetime"]) for e in eps if e["pair"] == (0, 1)) == [(0, 100), (101, 49)]
+    # a robot off the plate ends its pair's episode there
+    eps = RX.trial_episodes(poses, touched, start, left_plate=np.array([0, 120, 0, 0]), body_length=W)
+    g = [e for e in eps if e["pair"] == (0, 1)][0]
+    assert g["lifetime"] == 119 and not g["censored"]
+
+
+def test_aligned_pair_is_C2_and_early_stop_is_not_censored():
+    poses, touched, start, _ = _synthetic()
+    poses[:, 1, 2] = 0.0
+    start[1, 2] = 0.0
+    eps = RX.trial_episodes(poses, touched, start, body_length=W, periods_run=140)
+    g = [e for e in eps if e["pair"] == (0, 1)][0]
+    assert g["kind"] == "C2" and g["lifetime"] == 140 and not g["censored"]
+
+
+def test_relaxation_time_and_fit_by_brute_force():
+    n = 4
+    pairs = RX.pairs_of(n)
+    touched = np.zeros((50, len(pairs)), bool)
+    touched[:30, 0] = touched[:30, 1] = True  # robot 0 touches 1 and 2 until period 30
+    touched[:, 5] = True  # robots 2, 3 bound throughout: never a robot with two partners after 30
+    assert RX.relaxation_time(touched) == (30, False)
+    touched[49, 0] = touched[49, 1] = True  # robot 0 touches 1 and 2 again in the last period: still crowded
+    assert RX.relaxation_time(touched) == (50, True)
+    eps = [{"lifetime": L, "contour_W": 0.01 * L + 0.2, "kind": "C1", "censored": False} for L in (5, 10, 40, 90)]
+    fit = RX.lifetime_contour_fit(eps)
+    assert fit["slope"] == pytest.approx(0.01) and fit["intercept"] == pytest.approx(0.2)
+    assert fit["r"] == pytest.approx(1.0)
+
+
+def test_analyse_counts_gliders_with_exact_interval():
+    poses, touched, start, _ = _synthetic()
+    t = 10
+    data = {"poses": np.repeat(poses[None], t, 0), "touched": np.repeat(touched[None], t, 0),
+            "start_poses": np.repeat(start[None], t, 0), "left_plate": np.zeros((t, 4), np.int32),
+            "periods_run": np.full(t, 150), "valid": np.ones(t, bool), "status": np.zeros(t, np.int32),
+            "trial": np.arange(t), "body_length": W, "periods": 150}
+    data["touched"][7:, :, 0] = False  # three trials without the glider
+    a = RX.analyse(data)
+    assert (a["emerged"], a["valid"]) == (7, 10)
+    from scipy.stats import binomtest
+    ci = binomtest(7, 10).proportion_ci(0.95, method="exact")
+    assert a["interval"] == pytest.approx((ci.low, ci.high))
+    assert a["distance"]["mean"] == pytest.approx(3.0) and a["distance"]["n"] == 7
+    assert a["glider_kinds"] == {"C1": 7, "C2": 0}
+
+
+# ------------------------------------------------------------ the start
+
+@pytest.mark.parametrize("n", [2, 7, 12])
+def test_packing_is_compressed_and_overlap_free(n):
+    """Every robot starts at the gait's first corner, no two overlap, and the
+    packing is tight: some neighbours are exactly ``gap`` apart (the lattice
+    spacing is the bounding box plus the gap)."""
+    from smarticle_mjx.relax import packing
+    robot = presets.params().robot
+    gap = 0.002
+    p = packing(n, robot, (math.pi / 2, math.pi / 2), gap)
+    assert p.shape == (n, 5) and np.allclose(p[:, 2:], [0, math.pi / 2, math.pi / 2])
+    sep = np.array([C.pair_separation(p[i], p[j], robot) for i in range(n) for j in range(i + 1, n)])
+    assert sep.min() == pytest.approx(gap, abs=2e-4)
+    # compressed: the centres fit in a disc a little larger than n robots side by side would need
+    r = np.linalg.norm(p[:, :2] - p[:, :2].mean(0), axis=1).max()
+    assert r < 0.5 * math.sqrt(n) * 2 * robot.arm_length + robot.body_length
+
+
+def test_trials_do_not_depend_on_the_stage():
+    from smarticle_mjx.relax import RelaxConfig, start_poses
+    params = presets.params()
+    a, _ = start_poses(RelaxConfig(trials=3), params)
+    b, _ = start_poses(RelaxConfig(trials=1, first_trial=2), params)
+    assert np.array_equal(a[2:], b)
+    assert not np.array_equal(a[0], a[1])
+    assert C.poses_valid(a, params.robot).all()
+
+
+# ------------------------------------------------------------ end to end
+
+def _digest(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_relax_cli_store_report_and_bad_input(tmp_path):
+    run = CliRunner()
+    out = tmp_path / "relax.h5"
+    r = run.invoke(app, ["relax", "--robots", "3", "--trials", "2", "--periods", "4", "--out", str(out), "--quiet"])
+    assert r.exit_code == 0, r.output
+    with h5py.File(out, "r") as f:
+        g = f["runs/trials"]
+        assert g["poses"].shape == (2, 4, 3, 5) and g["touched"].shape == (2, 4, 3)
+        assert g["start_poses"].shape == (2, 3, 5) and g["left_plate"].shape == (2, 3)
+        assert g["lane"].attrs["long_name"] == "trial index"
+        assert json.loads(f.attrs["config"])["relax"]["n_robots"] == 3
+    rep = tmp_path / "rep"
+    r = run.invoke(app, ["report", str(out), "--out", str(rep), "--glider-min-periods", "2"])
+    assert r.exit_code == 0, r.output
+    j = json.loads((rep / "report.json").read_text())
+    assert j["kind"] == "relax" and j["trials"] == 2 and (rep / "relax_tracks.png").exists()
+    assert "77/151" in (rep / "report.md").read_text()
+    before = _digest(out)
+    for args in (["--robots", "1"], ["--jitter-mm", "-1"], ["--trials", "0"], ["--amplitude", "120"], []):
+        r = run.invoke(app, ["relax", "--trials", "2", "--periods", "4", "--out", str(out), "--quiet", *args])
+        assert r.exit_code == 2, (args, r.output)
+        assert r.output.strip().count("\n") == 0 and r.output.startswith("error:"), r.output
+    assert _digest(out) == before  # nothing stored was touched
+    scan = tmp_path / "scan.h5"
+    assert run.invoke(app, ["scan", "--n", "2", "--periods", "1", "--out", str(scan), "--quiet"]).exit_code == 0
+    r = run.invoke(app, ["report", str(out), str(scan), "--out", str(rep)])
+    assert r.exit_code == 2 and "stages of one relaxation study" in r.output
+
+
+def test_relax_resumes_after_a_kill_and_stages_pool(tmp_path):
+    """A run stopped after its first trial was journaled resumes to the same
+    store as an uninterrupted run; two stages read together equal one store."""
+    from smarticle_mjx.relax import RelaxConfig, run_relax
+    from smarticle_mjx.store import read_relax
+    cfg = RelaxConfig(n_robots=3, trials=3, periods=3, batch_size=1)
+    whole = tmp_path / "whole.h5"
+    run_relax(cfg, whole)
+
+    class Killed(Exception):
+        pass
+
+    def die(p):
+        if p["done"] >= 1:
+            raise Killed
+
+    cut = tmp_path / "cut.h5"
+    with pytest.raises(Killed):
+        run_relax(cfg, cut, on_progress=die)
+    assert not cut.exists() and (tmp_path / "cut.h5.parts").exists()
+    run_relax(cfg, cut, mode="resume")
+    a, b = read_relax(whole), read_relax(cut)
+    for k in ("poses", "touched", "start_poses", "left_plate", "periods_run"):
+        assert np.array_equal(a[k], b[k]), k
+    s0, s1 = tmp_path / "s0.h5", tmp_path / "s1.h5"
+    run_relax(RelaxConfig(n_robots=3, trials=1, periods=3, batch_size=1), s0)
+    run_relax(RelaxConfig(n_robots=3, trials=2, first_trial=1, periods=3, batch_size=1), s1)
+    c = read_relax([s1, s0])
+    assert np.array_equal(c["trial"], [0, 1, 2])
+    for k in ("poses", "touched", "start_poses"):
+        assert np.array_equal(a[k], c[k]), k
+    other = tmp_path / "other.h5"
+    run_relax(RelaxConfig(n_robots=3, trials=1, periods=3, seed=5), other)
+    from smarticle_mjx.store import StoreError
+    with pytest.raises(StoreError, match="not stages of one study"):
+        read_relax([s0, other])
+
+
+def test_robots_leaving_a_small_plate_are_recorded(tmp_path):
+    """Seven robots pushed out of their packing spread beyond a 12 cm plate
+    (the packing alone is ~17 cm wide): the store records which robots left
+    and when; those still inside stay 0."""
+    from smarticle_mjx.relax import RelaxConfig, run_relax
+    from smarticle_mjx.store import read_relax
+    out = tmp_path / "small.h5"
+    run_relax(RelaxConfig(trials=1, periods=3, plate_m=0.12), out)
+    d = read_relax(out)
+    lp, xy = d["left_plate"][0], d["poses"][0][:, :, :2]
+    off = (np.abs(xy) > 0.06).any(-1)  # [K, N]
+    for r in range(7):
+        want = int(np.argmax(off[:, r]) + 1) if off[:, r].any() else 0
+        assert lp[r] == want
+    assert (lp > 0).any() and (lp == 0).any()
