@@ -15,6 +15,15 @@
 5. If the held-out error stays above ``UNEXPLAINED`` the report says
    "unexplained residual" and shows where it sits.
 
+Before the rounds, a tilted plate is tested without the model
+(:mod:`calibrate.drift`): the lone robots' per-cycle steps are split into a
+body-frame step and a drift fixed to the plate. A drift significant at
+``drift.P_DRIFT`` is converted into a tilt by the model's response to a
+small tilt, and the tilt is added (held fixed in the rounds) if its 95 %
+region excludes a level plate and it removes at least half of the drift's
+chi^2. A small tilt moves each trial's features by less than the body-frame
+mismatch a different robot leaves, so the rounds alone never saw it.
+
 The error is the mean squared normalised residual, (measured - model)^2 /
 SE^2 averaged over every feature: about 1 when the model agrees with the
 data within measurement error.
@@ -34,9 +43,13 @@ from .data import Trial
 from .effects import BY_NAME, LIBRARY, Effect, EffectSet
 from .nominal import apply as apply_nominal, fit_nominal
 from .residuals import CONTACT_W, Features, features, masked, residual_blocks
+from .drift import drift_test, fit_tilt
 from .sim import simulate_trials
 
 MIN_HELDOUT_GAIN = 0.2
+# a tilt fitted to a significant plate-frame drift (drift.P_DRIFT) is kept if its 95 % region excludes
+# a level plate (|tilt|^2 / var > chi2(2 dof) at 0.95) and it removes at least half the drift's chi^2
+TILT_Z2 = 5.99
 UNEXPLAINED = 4.0
 MAX_EFFECTS = 2
 FIT_CANDIDATES = 2
@@ -150,7 +163,7 @@ def _parabola(x, y):
 
 
 def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dict | None = None,
-                grid: int = 9, scan: int = 9) -> Fit:
+                grid: int = 9, scan: int = 9, fixed: dict | None = None) -> Fit:
     """Fit the last effect's parameters, the earlier effects held at ``start``.
 
     Contact makes chi^2 rough in the parameters: a 1 % change of friction
@@ -163,15 +176,17 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
     parabola rises by max(3.84 x reduced chi^2, 2 x the points' scatter
     about it): the statistical interval, widened to the objective's
     roughness; of several passes over a parameter the widest counts.
-    Two-parameter effects get two passes.
+    Two-parameter effects get two passes. ``fixed``: effects switched on
+    at these values and not refitted (a tilt fitted to the plate-frame drift).
     """
+    fixed = dict(fixed or {})
     params = [(e, p) for e in effects for p in e.params]
     new = len(params) - len(effects[-1].params)
     u0 = np.array([min(max(_to_u(p, (start or {}).get(e.name, {}).get(p.name, p.null)), 0.0), 1.0)
                    for e, p in params])
 
     def fun(u):
-        return train.vector(EffectSet.of(_values(effects, np.clip(u, 0.0, 1.0))))
+        return train.vector(EffectSet.of({**fixed, **_values(effects, np.clip(u, 0.0, 1.0))}))
 
     def chi2(u):
         r = fun(u)
@@ -219,7 +234,7 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
     for j, (e, p) in enumerate(params):
         hw = half.get(j, 0.0)
         interval.setdefault(e.name, {})[p.name] = (_from_u(p, u[j] - hw), _from_u(p, u[j] + hw))
-    vals = _values(effects, u)
+    vals = {**fixed, **_values(effects, u)}
     return Fit([e.name for e in effects], vals, interval, c0, n, c0 / max(n, 1),
                test.error(EffectSet.of(vals)))
 
@@ -424,9 +439,43 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         library = tuple(e for e in library if e.name not in NOMINAL_EFFECTS and e.name not in SERVO_HYPOTHESES)
     if max(tr.robots for tr in trials) == 1:
         library = tuple(e for e in library if e.name != "phase_offset")  # no second robot to offset
+    # a tilted plate: tested without the model (plate-frame drift with the body-frame step taken
+    # out, calibrate.drift) on every trial, fitted by the model's linear response to a small tilt
+    drift = drift_test(trials)
+    tilt = None
+    extra_runs = 0
+    fixed: dict = {}  # effects held at values fitted outside the rounds
+    if "plate_tilt" in {e.name for e in library}:
+        say(f"plate-frame drift: chi2 {drift['chi2']:.1f} on {drift['dof']} dof, p = {drift['p']:.2g}")
+        if drift["significant"]:
+            nom_now, base_now = dict(train.nominal), dict(base)
+
+            def run_model(tx, ty):
+                eff = EffectSet.of({**base_now, "plate_tilt": {"tilt_x_deg": tx, "tilt_y_deg": ty}})
+                return simulate_trials(trials, scene_for=lambda tr: eff.scene(apply_nominal(tr.params, nom_now)),
+                                       phase_for=lambda tr: eff.phases(tr.robots, tr.gait.period()))
+
+            tilt = fit_tilt(trials, run_model)
+            extra_runs = 3
+            if tilt.get("ok"):
+                t_vec = np.array(tilt["tilt_deg"])
+                cov = np.diag(np.square(tilt["se_deg"]))
+                z2 = float(t_vec @ np.linalg.solve(cov, t_vec))
+                tilt["z2"] = z2
+                tilt["accepted"] = bool(z2 > TILT_Z2 and tilt["chi2_after"] <= 0.5 * tilt["chi2_before"])
+                say(f"  plate_tilt from the drift: {t_vec.round(2).tolist()} deg, accepted: {tilt['accepted']}")
+                if tilt["accepted"]:
+                    e = BY_NAME["plate_tilt"]
+                    vals = {"tilt_x_deg": float(t_vec[0]), "tilt_y_deg": float(t_vec[1])}
+                    chosen.append(e)
+                    base = {**base, "plate_tilt": vals}
+                    found["plate_tilt"] = (vals, tilt["interval"])
+                    fixed["plate_tilt"] = vals
+                    library = tuple(x for x in library if x.name != "plate_tilt")
+                    say("added plate_tilt (plate-frame drift)")
     # the nominal parameters alone (before any effect), or the preset when they are not fitted
     after_nominal = nominal_only if nominal else before
-    current = {"err_heldout": after_nominal["err_heldout"],
+    current = {"err_heldout": after_nominal["err_heldout"] if not fixed else test.error(EffectSet.of(base)),
                "chi2_train": float(train.vector(EffectSet.of(base)) @ train.vector(EffectSet.of(base)))}
     rounds = []
     accepted_fit = None
@@ -440,7 +489,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
             if row["grid_gain"] < max(0.05, MIN_SHARE * lead):
                 continue
             start = {**base, e.name: row["estimate"]}
-            f = fit_effects(train, test, chosen + [e], start)
+            f = fit_effects(train, test, [c for c in chosen if c.name not in fixed] + [e], start, fixed=fixed)
             n = f.n_train
             k = sum(len(BY_NAME[x].params) for x in f.effects)
             bic_gain = current["chi2_train"] - f.chi2_train - len(e.params) * math.log(max(n, 2))
@@ -477,7 +526,8 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
             "nominal_hypotheses": hypotheses,
             "added": [{"effect": e.name, "title": e.title, "values": found[e.name][0], "interval": found[e.name][1],
                        "units": {p.name: p.unit for p in e.params}} for e in chosen],
-            "verdict": verdict, "model_runs": train.runs + test.runs,
+            "verdict": verdict, "model_runs": train.runs + test.runs + extra_runs,
+            "drift": {**drift, "tilt_fit": tilt},
             "criteria": {"min_heldout_gain": MIN_HELDOUT_GAIN, "unexplained_error": UNEXPLAINED,
                          "bic": "chi2 drop > k ln n on training trials"},
             "_effects": final, "_nominal": dict(train.nominal)}

@@ -130,6 +130,25 @@ def markdown(r: dict) -> str:
             lines.append(f"| {mark}{k}{mark} | {_num(pre, '.4g')} | {mark}{_num(v, '.4g')}{mark} | "
                          f"[{_num(lo, '.4g')}, {_num(hi, '.4g')}] | {'; '.join(flags)} |")
         lines.append("")
+    dr = r.get("drift")
+    if dr and dr.get("dof"):
+        tf = dr.get("tilt_fit") or {}
+        lines += ["## Plate-frame drift (model-free tilt test)", "",
+                  "Per gait, every lone robot's per-cycle step fitted as R(heading) s + v over all trials: s is the "
+                  "body-frame step (whatever the model gets wrong about the robot), v a drift fixed to the plate "
+                  f"(a tilt). χ² of v = 0: {dr['chi2']:.1f} on {dr['dof']} dof, p = {dr['p']:.2g} "
+                  f"(a finding below p = {dr['threshold_p']:g}).", "",
+                  "| α_max | v (mm/cycle) | standard error | cycles | heading spread |", "|---|---|---|---|---|"]
+        for g in dr["groups"]:
+            lines.append(f"| {g['amplitude_deg']:g}° | ({g['v_mm'][0]:+.4f}, {g['v_mm'][1]:+.4f}) | "
+                         f"({g['se_mm'][0]:.4f}, {g['se_mm'][1]:.4f}) | {g['cycles']} | {g['spread_deg']:.0f}° |")
+        if tf.get("ok"):
+            lines += ["", f"Tilt whose model drift matches: ({tf['tilt_deg'][0]:+.3f}, {tf['tilt_deg'][1]:+.3f})° "
+                      f"± ({tf['se_deg'][0]:.3f}, {tf['se_deg'][1]:.3f})°, drift χ² {tf['chi2_before']:.1f} → "
+                      f"{tf['chi2_after']:.1f}; {'added' if tf.get('accepted') else 'not added'} (kept when "
+                      "the drift test finds drift, the tilt's 95 % region excludes a level plate and the drift χ² at "
+                      "least halves)."]
+        lines.append("")
     if r["added"]:
         lines += ["## Added effects", "", "| effect | parameter | fitted | 95 % interval |", "|---|---|---|---|"]
         for e in r["added"]:

@@ -1,0 +1,219 @@
+"""Plate-frame drift, measured without the model: a test for a tilted plate.
+
+A robot on a level plate steps the same way in its own body frame whatever
+its heading: per gait cycle c its centre moves by R(h_c) s, where h_c is the
+heading at the cycle's start and s the body-frame step (which our model,
+with another robot's geometry and servo, never gets exactly right). A plate
+that tilts, or anything else fixed to the plate, adds the same vector v in
+the plate frame to every cycle:
+
+    step_c = R(h_c) s + v.
+
+Over cycles of trials started at different headings, s and v separate by
+linear least squares, one (s, v) per gait (amplitude, chirality, period):
+``v`` is the robots' drift in the plate frame with the body-frame step taken
+out, and needs no model. On a level plate it is zero within its standard
+error whatever the model mismatch; the body-frame mismatch that hides a
+small tilt in the per-trial step residuals (docs/calibration.md) cannot fake
+it. Only robots that never come within the contact distance of another are
+used. A group needs cycles at headings at least ``MIN_SPREAD_DEG`` apart,
+else s and v are not separable and it is left out.
+
+``drift_test`` pools the groups into one chi-square test of v = 0;
+``fit_tilt`` turns the measured v into a plate tilt by the model's linear
+response to a small tilt (two model runs per direction).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .residuals import CONTACT_W, MM, cycle_poses
+
+MIN_SPREAD_DEG = 60.0  # headings of a group must span at least this
+P_DRIFT = 1e-3  # significance that makes drift a finding
+
+
+def _group_key(tr) -> tuple:
+    g = tr.gait
+    return (round(float(g.amplitude_deg), 6), g.chirality, g.kind, round(float(g.period()), 6))
+
+
+def _robot_alone(pose: np.ndarray, i: int, body_length: float) -> bool:
+    n = pose.shape[1]
+    for j in range(n):
+        if j != i:
+            r = np.hypot(pose[:, i, 0] - pose[:, j, 0], pose[:, i, 1] - pose[:, j, 1])
+            if np.nanmin(r) < CONTACT_W * body_length:
+                return False
+    return True
+
+
+def cycles(t, pose, period, body_length) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per robot that stays alone: (headings [C], steps [C, 2] in mm) of its whole cycles."""
+    out = []
+    for i in range(pose.shape[1]):
+        if not _robot_alone(pose, i, body_length):
+            continue
+        _, pc = cycle_poses(t, pose[:, i], period)
+        if len(pc) >= 2:
+            out.append((pc[:-1, 2], np.diff(pc[:, :2], axis=0) * MM))
+    return out
+
+
+def _design(h: np.ndarray) -> np.ndarray:
+    c, s_ = np.cos(h), np.sin(h)
+    a = np.zeros((2 * len(h), 4))
+    a[0::2] = np.column_stack([c, -s_, np.ones_like(c), np.zeros_like(c)])
+    a[1::2] = np.column_stack([s_, c, np.zeros_like(c), np.ones_like(c)])
+    return a
+
+
+def _track_cov(k: int, var_step: float, var_pos: float) -> np.ndarray:
+    """Covariance [2k, 2k] of one track's k steps (x, y interleaved): each
+    step carries its own variation (``var_step``) and the difference of two
+    noisy cycle positions (``var_pos`` each), so neighbours anticorrelate."""
+    c1 = np.diag(np.full(k, var_step + 2 * var_pos)) - var_pos * (np.eye(k, k=1) + np.eye(k, k=-1))
+    return np.kron(c1, np.eye(2))
+
+
+def regress(tracks: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
+    """Generalised least squares step = R(h) s + v over the cycles of one
+    gait's tracks [(headings [C], steps [C, 2] mm), ...]; None if the
+    headings do not span ``MIN_SPREAD_DEG`` (s and v not separable).
+
+    Steps are differences of cycle positions, so the tracking error of a
+    position enters two neighbouring steps with opposite signs; ordinary
+    least squares would count it twice and overstate v's error. The step
+    variation and the position error are estimated from the residuals'
+    variance and lag-1 covariance within tracks, and the fit repeated with
+    that covariance.
+
+    Returns:
+      dict: s [2] (body frame, mm/cycle), v [2] (plate frame, mm/cycle),
+      cov_v [2, 2], cycles, spread_deg, var_step, var_pos (mm^2).
+    """
+    parts = []
+    for h, d in tracks:
+        h, d = np.asarray(h, float), np.asarray(d, float)
+        ok = np.isfinite(h) & np.isfinite(d).all(-1)
+        if ok.sum() >= 1:
+            parts.append((h[ok], d[ok]))
+    if not parts or sum(len(h) for h, _ in parts) < 4:
+        return None
+    h_all = np.concatenate([h for h, _ in parts])
+    u = np.exp(1j * h_all)
+    spread = float(np.degrees(np.max(np.abs(np.angle(u[:, None] / u[None, :])))))
+    if spread < MIN_SPREAD_DEG:
+        return None
+    a_parts = [_design(h) for h, _ in parts]
+    y_parts = [d.reshape(-1) for _, d in parts]
+    a, y = np.concatenate(a_parts), np.concatenate(y_parts)
+    x, *_ = np.linalg.lstsq(a, y, rcond=None)
+    # residual variance and lag-1 covariance within tracks (per coordinate)
+    g0, g1, n0, n1 = 0.0, 0.0, 0, 0
+    for ap, yp in zip(a_parts, y_parts):
+        r = (yp - ap @ x).reshape(-1, 2)
+        g0 += float((r * r).sum())
+        n0 += r.size
+        if len(r) > 1:
+            g1 += float((r[1:] * r[:-1]).sum())
+            n1 += r[1:].size
+    dof_scale = n0 / max(1, n0 - 4)
+    g0 = g0 / max(1, n0) * dof_scale
+    g1 = g1 / n1 if n1 else 0.0
+    var_pos = max(0.0, -g1)
+    var_step = max(g0 - 2 * var_pos, 0.05 * g0, 1e-12)
+    ata = np.zeros((4, 4))
+    atb = np.zeros(4)
+    for ap, yp in zip(a_parts, y_parts):
+        w = np.linalg.inv(_track_cov(len(yp) // 2, var_step, var_pos))
+        ata += ap.T @ w @ ap
+        atb += ap.T @ w @ yp
+    cov = np.linalg.inv(ata)
+    x = cov @ atb
+    return {"s": x[:2], "v": x[2:], "cov_v": cov[2:, 2:], "cycles": int(len(h_all)), "spread_deg": spread,
+            "var_step": var_step, "var_pos": var_pos}
+
+
+def group_drift(trials, tracks=None) -> dict:
+    """v per gait group, from the measured tracks (``tracks`` None) or from
+    model tracks [F, N, 5] aligned with ``trials`` (masked like the data)."""
+    groups: dict = {}
+    for k, tr in enumerate(trials):
+        pose = tr.pose
+        if tracks is not None:
+            pose = np.asarray(tracks[k])[..., :3].copy()
+            pose[~np.isfinite(tr.pose).all(-1)] = np.nan
+        for h, d in cycles(tr.t, pose, tr.gait.period(), tr.params.robot.body_length):
+            g = groups.setdefault(_group_key(tr), ([], []))
+            g[0].append(h)
+            g[1].append(d)
+    out = {}
+    for key, (hs, ds) in groups.items():
+        res = regress(list(zip(hs, ds)))
+        if res is not None:
+            out[key] = res
+    return out
+
+
+def drift_test(trials) -> dict:
+    """Is there plate-frame drift? Chi-square of v = 0 pooled over groups.
+
+    Returns:
+      dict: groups (per group: amplitude, v, se, chi2), chi2, dof, p,
+      significant (p < P_DRIFT), speed_mm_per_s (pooled |v| / period).
+    """
+    from scipy.stats import chi2 as chi2_dist
+    res = group_drift(trials)
+    rows, total, dof = [], 0.0, 0
+    for key, r in sorted(res.items()):
+        c = float(r["v"] @ np.linalg.solve(r["cov_v"], r["v"]))
+        total += c
+        dof += 2
+        rows.append({"amplitude_deg": key[0], "chirality": key[1], "period_s": key[3], "v_mm": r["v"].tolist(),
+                     "se_mm": np.sqrt(np.diag(r["cov_v"])).tolist(), "chi2": c, "cycles": r["cycles"],
+                     "spread_deg": r["spread_deg"]})
+    p = float(chi2_dist.sf(total, dof)) if dof else float("nan")
+    return {"groups": rows, "chi2": total, "dof": dof, "p": p, "significant": bool(dof and p < P_DRIFT),
+            "threshold_p": P_DRIFT}
+
+
+def fit_tilt(trials, run_model, step_deg: float = 1.0) -> dict:
+    """The plate tilt (x, y in degrees, the library's ``plate_tilt``) whose
+    model drift matches the measured one, by weighted least squares over the
+    groups, with its covariance.
+
+    ``run_model(tilt_x, tilt_y)`` returns model tracks aligned with
+    ``trials``. The model's drift is linear in small tilts: it is measured at
+    zero and at ``step_deg`` along each axis (three model runs).
+    """
+    meas = group_drift(trials)
+    v0 = group_drift(trials, run_model(0.0, 0.0))
+    vx = group_drift(trials, run_model(step_deg, 0.0))
+    vy = group_drift(trials, run_model(0.0, step_deg))
+    rows, ys, ws = [], [], []
+    for key, m in meas.items():
+        if key not in v0 or key not in vx or key not in vy:
+            continue
+        jac = np.column_stack([(vx[key]["v"] - v0[key]["v"]) / step_deg, (vy[key]["v"] - v0[key]["v"]) / step_deg])
+        w = np.linalg.inv(m["cov_v"] + v0[key]["cov_v"])  # measured and model drift both carry error
+        rows.append(jac)
+        ys.append(m["v"] - v0[key]["v"])
+        ws.append(w)
+    if not rows:
+        return {"ok": False}
+    ata = sum(j.T @ w @ j for j, w in zip(rows, ws))
+    atb = sum(j.T @ w @ y for j, w, y in zip(rows, ws, ys))
+    cov = np.linalg.inv(ata)
+    tilt = cov @ atb
+    chi2_before = float(sum(y @ w @ y for y, w in zip(ys, ws)))
+    chi2_after = float(sum((y - j @ tilt) @ w @ (y - j @ tilt) for j, w, y in zip(rows, ws, ys)))
+    se = np.sqrt(np.diag(cov))
+    return {"ok": True, "tilt_deg": tilt.tolist(), "se_deg": se.tolist(),
+            "interval": {"tilt_x_deg": (float(tilt[0] - 1.96 * se[0]), float(tilt[0] + 1.96 * se[0])),
+                         "tilt_y_deg": (float(tilt[1] - 1.96 * se[1]), float(tilt[1] + 1.96 * se[1]))},
+            "chi2_before": chi2_before, "chi2_after": chi2_after, "groups": len(rows),
+            "magnitude_deg": float(math.hypot(*tilt))}
