@@ -155,6 +155,8 @@ def load_study(path) -> ScanConfig:
     study = raw.get("study", raw)
     if study.get("configs") == "bound":
         raise ValueError(f"study file {path} starts pairs from another study's gliders; smx validate runs it")
+    if study.get("configs") == "relax":
+        raise ValueError(f"study file {path} is a relaxation study (smx relax); smx validate runs it")
     fields = {f.name for f in dataclasses.fields(ScanConfig)}
     unknown = set(study) - fields - {"description", "figure"}
     if unknown:

@@ -6,7 +6,8 @@ file written under a temporary name and renamed, so a killed process leaves
 only complete chunks. When every run is complete the journal is merged into
 ``NAME.h5`` (again written aside and renamed) and removed. ``--resume``
 continues from the journal; a lock file held with ``flock`` refuses a second
-writer, and is released by the kernel even on SIGKILL.
+writer, and is released by the kernel even on SIGKILL (the file itself is
+removed when its writer finishes or fails; one killed leaves it, harmless).
 
 Schema (version 1; see docs/store.md)::
 
@@ -119,15 +120,29 @@ class Writer:
         if not os.access(self.path.parent, os.W_OK):
             raise StoreError(f"output directory {self.path.parent} is not writable")
         lock_path = self.path.with_name(self.path.name + ".lock")
-        try:
-            fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as e:
-            raise StoreError(f"cannot create lock file {lock_path}: {e.strerror}") from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
+        # The lock file exists only while a writer holds it: the holder removes
+        # it before unlocking. A writer that opened the old file just before it
+        # was removed would then lock a file nobody else sees, so after locking
+        # it checks that its file is still the one at the path, else retries.
+        for _ in range(100):
+            try:
+                fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as e:
+                raise StoreError(f"cannot create lock file {lock_path}: {e.strerror}") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                os.close(fd)
+                raise StoreError(f"{self.path} is being written by another process") from None
+            try:
+                same = os.stat(lock_path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
             os.close(fd)
-            raise StoreError(f"{self.path} is being written by another process") from None
+        else:
+            raise StoreError(f"cannot lock {lock_path}: it keeps being replaced")
         self._lock = (fd, lock_path)
         try:
             self._prepare()
@@ -167,7 +182,11 @@ class Writer:
 
     def _release(self):
         if self._lock:
-            fd, _ = self._lock
+            fd, lock_path = self._lock
+            try:
+                os.unlink(lock_path)  # still held: no other writer can be using it
+            except OSError:
+                pass
             fcntl.flock(fd, fcntl.LOCK_UN)
             os.close(fd)
             self._lock = None

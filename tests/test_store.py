@@ -71,7 +71,7 @@ def test_sweep_has_one_group_per_amplitude(tmp_path):
 def test_study_files_in_sweeps_load():
     from smarticle_mjx.scan import ScanConfig, load_study
     from smarticle_mjx.scene import SceneParams
-    from smarticle_mjx.validation import BoundStudy, read_study
+    from smarticle_mjx.validation import BoundStudy, RelaxStudy, read_study
     studies = sorted((pathlib.Path(__file__).resolve().parents[1] / "sweeps").glob("*.toml"))
     assert studies
     kinds = set()
@@ -80,11 +80,11 @@ def test_study_files_in_sweeps_load():
         kinds.add(type(spec))
         if isinstance(spec, ScanConfig):
             spec.validate(SceneParams())
-        else:  # a started-bound study is not a scan: smx scan --study refuses it in one line
+        else:  # a started-bound or relaxation study is not a scan: smx scan --study refuses it in one line
             spec.validate()
             with pytest.raises(ValueError, match="smx validate runs it"):
                 load_study(path)
-    assert kinds == {ScanConfig, BoundStudy}
+    assert kinds == {ScanConfig, BoundStudy, RelaxStudy}
 
 
 def test_kill_and_resume_gives_the_uninterrupted_store(tmp_path):
@@ -201,7 +201,7 @@ def test_existing_store_is_never_touched_without_resume_or_overwrite(tmp_path):
     r = _smx("scan", "--n", "0", "--out", out, "--overwrite")
     assert r.exit_code == 2
     assert _digest(out) == digest
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.h5", "keep.h5.lock"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.h5"]  # no lock file left behind
     r = _smx("scan", *SMALL, "--out", out, "--overwrite", "--periods", "2")
     assert r.exit_code == 0 and Store(out).run()["touched"].shape[1] == 2
 
@@ -255,3 +255,18 @@ def test_a_schema_1_store_still_opens(tmp_path):
                 del g[k]
     st = Store(out)
     assert st.run()["touched"].shape == (3, 1, 1) and set(st.run_fields[st.runs[0]]) >= {"rel", "com"}
+
+
+def test_a_stale_lock_file_of_a_killed_writer_is_reused_and_removed(tmp_path):
+    """A SIGKILLed writer leaves its lock file (the kernel drops only the lock):
+    the next writer takes it over, and removes it when done."""
+    out = tmp_path / "s.h5"
+    stale = tmp_path / "s.h5.lock"
+    stale.write_text("")
+    with Writer(out, {"x": 1}, {"r": {}}):
+        assert stale.exists()
+        with pytest.raises(StoreError, match="another process"):
+            with Writer(out, {"x": 1}, {"r": {}}, mode="resume"):
+                pass
+        assert stale.exists()  # the refused writer did not remove the holder's file
+    assert not stale.exists()
