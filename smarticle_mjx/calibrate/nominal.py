@@ -117,7 +117,7 @@ class NominalFit:
 
 
 def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: int = 40, effect=None,
-                start: dict | None = None) -> NominalFit:
+                start: dict | None = None, effect_start: dict | None = None) -> NominalFit:
     """Fit ``params`` on ``problem`` (a ``fit.Problem`` of training trials).
 
     Args:
@@ -126,6 +126,7 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
         ``values[effect.name]`` (a servo lag must be fitted with the servo's
         speed and gain, or those absorb it).
       start: nominal values to start from (default: the preset's).
+      effect_start: the effect's values to start from (default: its probe).
 
     The reference scene is the first trial's (all trials of a data set share
     a model preset). Returns the fit; ``problem`` is left at the preset.
@@ -137,7 +138,7 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     start = start or {}
     eparams = tuple(effect.params) if effect is not None else ()
     u0 = np.array([min(max(p.to_u(ref, start.get(p.name, p.preset(ref))), 0.0), 1.0) for p in params]
-                  + [_to_u(q, q.probe) for q in eparams])
+                  + [min(max(_to_u(q, (effect_start or {}).get(q.name, q.probe)), 0.0), 1.0) for q in eparams])
     calls = {"n": 0}
     kn = len(params)
 
