@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Every benchmark in one command (about 4.5 hours on 2 cores; the paper-sized
+# Every benchmark in one command (about 6 hours on 2 cores; the paper-sized
 # scan alone is over an hour, the fidelity study about an hour). Results land in benchmarks/results/*.json.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,5 +22,7 @@ $PY benchmarks/fidelity_screen.py --models lab-lag,lab-dart --dt-divisor 4 --pai
 $PY benchmarks/fidelity_screen.py --models dart --dt-divisor 2 --pairs 24 --periods 40 --pb 0
 $PY benchmarks/fidelity_mechanism.py --models paper,lab,lab-lag,lab-dart,dart --periods 60
 $PY benchmarks/fidelity_mechanism.py --return-maps --models paper,paper-stiff,paper-dart,lab,lab-stiff,lab-dart,lab-lag,dart
-# the validation page (docs/validation.md): about 25 minutes; stores reused when current
+# the validation page (docs/validation.md): about 25 minutes plus the relaxation study (100 trials x 300
+# periods of 7 robots, about 1.5 hours in five resumable stages); stores reused when current
 $PY -m smarticle_mjx.cli validate --data validation-data --out docs/validation.md --quiet
+$PY benchmarks/relax_cost.py --study validation-data/lab-lag

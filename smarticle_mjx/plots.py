@@ -222,8 +222,8 @@ def collision_sequence(coll: dict, lane: int, periods, out_dir, stem, title="", 
 
 def relaxation_trial(xy, episodes, plate_half_W, out_dir, stem, title="", formats=("png",)):
     """One relaxation trial from above: every robot's body-centre track (W,
-    thin grey, start marked), each glider episode's pair-centre track in its
-    type's colour, and the plate's edge.
+    thin grey, start marked), each glider's two robots while bound and its
+    pair-centre track (end marked) in its type's colour, and the plate's edge.
 
     Args:
       xy: [K+1, N, 2] body centres in W, start first (NaN after an early stop).
@@ -242,7 +242,12 @@ def relaxation_trial(xy, episodes, plate_half_W, out_dir, stem, title="", format
     for e in episodes:
         tr = np.asarray(e["track"])
         lab = f"{e['kind']} pair {e['pair'][0]}-{e['pair'][1]}, {e['lifetime']} periods"
-        ax.plot(tr[:, 0], tr[:, 1], color=KIND_COLOURS[e["kind"]], lw=1.6, label=lab if lab not in shown else None)
+        colour = KIND_COLOURS[e["kind"]]
+        for r in e["pair"]:  # the two robots' own tracks while bound, then the pair centre
+            seg = xy[e["start"]:e["start"] + e["lifetime"] + 1, r]
+            ax.plot(seg[:, 0], seg[:, 1], color=colour, lw=0.8, alpha=0.6)
+        ax.plot(tr[:, 0], tr[:, 1], color=colour, lw=1.8, label=lab if lab not in shown else None)
+        ax.plot(tr[-1:, 0], tr[-1:, 1], "s", color=colour, ms=4)
         shown.add(lab)
     if np.isfinite(plate_half_W):
         h = plate_half_W

@@ -164,6 +164,9 @@ def test_relax_cli_store_report_and_bad_input(tmp_path):
         assert g["start_poses"].shape == (2, 3, 5) and g["left_plate"].shape == (2, 3)
         assert g["lane"].attrs["long_name"] == "trial index"
         assert json.loads(f.attrs["config"])["relax"]["n_robots"] == 3
+    import xarray as xr
+    with xr.open_dataset(out, group="runs/trials", engine="h5netcdf") as ds:  # named dimensions, as for scans
+        assert ds.poses.dims == ("lane", "period", "robot", "pose_var") and ds.left_plate.dims == ("lane", "robot")
     rep = tmp_path / "rep"
     r = run.invoke(app, ["report", str(out), "--out", str(rep), "--glider-min-periods", "2"])
     assert r.exit_code == 0, r.output
