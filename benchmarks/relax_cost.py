@@ -68,13 +68,15 @@ def main():
     ap.add_argument("--periods", type=int, default=20)
     ap.add_argument("--model", default=presets.DEFAULT)
     ap.add_argument("--study", type=pathlib.Path, default=None, help="folder with the study's stage stores")
+    ap.add_argument("--no-timed", action="store_true", help="only read the study's stores (no timed run)")
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "relax_cost.json"))
     args = ap.parse_args()
-    out = {"model": args.model, "timed": timed(args.trials, args.periods, args.model)}
-    t = out["timed"]
-    print(f"{t['trials']} trials x {t['periods']} periods on {t['cores']} cores: {t['wall_s']:.1f} s, "
-          f"{t['s_per_trial_period']:.3f} s per trial-period ({t['steps_per_s']:,.0f} steps/s); "
-          f"a 300-period trial {t['trial_300_periods_s']:.0f} s, 100 such trials {t['study_100x300_min']:.0f} min")
+    out = {"model": args.model}
+    if not args.no_timed:
+        out["timed"] = t = timed(args.trials, args.periods, args.model)
+        print(f"{t['trials']} trials x {t['periods']} periods on {t['cores']} cores: {t['wall_s']:.1f} s, "
+              f"{t['s_per_trial_period']:.3f} s per trial-period ({t['steps_per_s']:,.0f} steps/s); "
+              f"a 300-period trial {t['trial_300_periods_s']:.0f} s, 100 such trials {t['study_100x300_min']:.0f} min")
     if args.study:
         out["study"] = study(args.study)
         s = out["study"]
