@@ -203,7 +203,7 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
                   "n_configs": config.trials, "n_robots": config.n_robots, "rows": "trials"}}
     full = {"model": model, "relax": config.to_json(), "scene": _params_json(params)}
     t0 = time.perf_counter()
-    summary = {"trials": config.trials, "steps": 0, "stopped_early": 0}
+    summary = {"trials": config.trials, "steps": 0}
     with Writer(out, full, runs, mode=mode, fields=RELAX_FIELDS) as w:
         todo = [i for a, b in w.missing(RUN, config.trials) for i in range(a, b)]
         done = config.trials - len(todo)
@@ -229,7 +229,6 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
                     w.append(RUN, int(i), {k: v[j:j + 1] for k, v in rows.items()})
                 done += len(res.index)
                 summary["steps"] += int(res.periods_run.sum()) * nsteps
-                summary["stopped_early"] += int((res.periods_run < config.periods).sum())
                 progress()
 
             try:
@@ -242,11 +241,7 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
         w.finalize()
     summary["wall_s"] = time.perf_counter() - t0
     summary["steps_per_s"] = summary["steps"] / max(summary["wall_s"], 1e-9)
-    st = Store(out)
+    st = Store(out)  # every trial, including those a resumed run found in the journal
     summary["stopped_early"] = int((st.run(RUN, fields=("periods_run",))["periods_run"] < config.periods).sum())
     return summary
 
-
-def config_from_json(d: dict) -> RelaxConfig:
-    fields = {f.name for f in dataclasses.fields(RelaxConfig)}
-    return RelaxConfig(**{k: v for k, v in d.items() if k in fields})

@@ -210,6 +210,15 @@ def stale_reason(cfg: ScanConfig, path: pathlib.Path) -> str | None:
     return None
 
 
+def _move_aside(path: pathlib.Path, what: pathlib.Path, why: str, created, notes: list | None) -> None:
+    """Rename ``what`` (the store at ``path`` or its journal) to
+    ``<stem>.replaced-<created>...``, never delete it, and note why."""
+    aside = what.with_name(f"{path.stem}.replaced-{_stamp(created)}{what.name[len(path.stem):]}")
+    what.rename(aside)
+    if notes is not None:
+        notes.append(f"{path.name}: {why}; kept as {aside.name} and rerun")
+
+
 def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict], None] | None = None,
                 notes: list | None = None, run: bool = True) -> pathlib.Path | None:
     """The complete store of scan ``cfg`` at ``path``: reused if it was made
@@ -221,26 +230,21 @@ def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict
     package = f"smarticle-mjx {__version__}"
     journal = _journal(path)
 
-    def move_aside(what: pathlib.Path, why: str, created) -> None:
-        aside = what.with_name(f"{path.stem}.replaced-{_stamp(created)}{what.name[len(path.stem):]}")
-        what.rename(aside)
-        if notes is not None:
-            notes.append(f"{path.name}: {why}; kept as {aside.name} and rerun")
-
     if path.exists():
         why = stale_reason(cfg, path)
         if why is None:
             return path
         if not run:
             return None
-        move_aside(path, why, Store(path).attrs.get("created"))
+        _move_aside(path, path, why, Store(path).attrs.get("created"), notes)
     elif not run:
         return None
     elif journal.exists():
         meta = json.loads((journal / "meta.json").read_text()) if (journal / "meta.json").exists() else {}
         have = _normalised(meta.get("config", {}), want, params)
         if meta.get("package") != package or have != want:
-            move_aside(journal, "an interrupted run of another configuration or version", meta.get("created"))
+            _move_aside(path, journal, "an interrupted run of another configuration or version", meta.get("created"),
+                        notes)
     run_scan(cfg, path, mode="resume" if journal.exists() else "new", on_progress=on_progress)
     return path
 
@@ -300,13 +304,6 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
         want = json.loads(json.dumps({"model": model, "relax": cfg.to_json(), "scene": _params_json(params)}))
         path = pathlib.Path(data) / f"{stem}_s{stage:02d}.h5"
         journal = _journal(path)
-
-        def move_aside(what: pathlib.Path, why: str, created) -> None:
-            aside = what.with_name(f"{path.stem}.replaced-{_stamp(created)}{what.name[len(path.stem):]}")
-            what.rename(aside)
-            if notes is not None:
-                notes.append(f"{path.name}: {why}; kept as {aside.name} and rerun")
-
         if path.exists():
             st = Store(path)
             if st.attrs.get("package") == package and st.config == want:
@@ -314,13 +311,14 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
                 continue
             if not run:
                 break
-            move_aside(path, "made by another configuration, model or version", st.attrs.get("created"))
+            _move_aside(path, path, "made by another configuration, model or version", st.attrs.get("created"), notes)
         elif not run:
             break
         elif journal.exists():
             meta = json.loads((journal / "meta.json").read_text()) if (journal / "meta.json").exists() else {}
             if meta.get("package") != package or meta.get("config") != want:
-                move_aside(journal, "an interrupted run of another configuration or version", meta.get("created"))
+                _move_aside(path, journal, "an interrupted run of another configuration or version",
+                            meta.get("created"), notes)
         run_relax(cfg, path, mode="resume" if journal.exists() else "new", on_progress=on_progress)
         paths.append(path)
     return paths

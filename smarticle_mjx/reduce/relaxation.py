@@ -46,13 +46,18 @@ def pairs_of(n: int) -> np.ndarray:
     return np.array([(i, j) for i in range(n) for j in range(i + 1, n)], dtype=int).reshape(-1, 2)
 
 
-def _third_touch(touched: np.ndarray, pairs: np.ndarray) -> np.ndarray:
-    """[K, P]: a robot of pair p touched a robot outside the pair in period k."""
-    n = int(pairs.max()) + 1
-    per_robot = np.zeros((touched.shape[0], n), int)  # partners touched per robot and period
+def _partners(touched: np.ndarray, pairs: np.ndarray, n: int) -> np.ndarray:
+    """[K, N]: how many other robots each robot touched in period k."""
+    per_robot = np.zeros((touched.shape[0], n), int)
     for p, (i, j) in enumerate(pairs):
         per_robot[:, i] += touched[:, p]
         per_robot[:, j] += touched[:, p]
+    return per_robot
+
+
+def _third_touch(touched: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """[K, P]: a robot of pair p touched a robot outside the pair in period k."""
+    per_robot = _partners(touched, pairs, int(pairs.max()) + 1)
     own = touched.astype(int)
     return (per_robot[:, pairs[:, 0]] - own > 0) | (per_robot[:, pairs[:, 1]] - own > 0)
 
@@ -127,12 +132,7 @@ def relaxation_time(touched, periods_run=None) -> tuple[int, bool]:
     k = touched.shape[0] if periods_run is None else int(periods_run)
     touched = touched[:k]
     n = int(round((1 + np.sqrt(1 + 8 * touched.shape[1])) / 2))
-    pairs = pairs_of(n)
-    per_robot = np.zeros((k, n), int)
-    for p, (i, j) in enumerate(pairs):
-        per_robot[:, i] += touched[:, p]
-        per_robot[:, j] += touched[:, p]
-    crowded = (per_robot >= 2).any(1)
+    crowded = (_partners(touched, pairs_of(n), n) >= 2).any(1)
     if not crowded.any():
         return 0, False
     last = int(np.nonzero(crowded)[0][-1] + 1)
