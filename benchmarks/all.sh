@@ -9,8 +9,14 @@ $PY benchmarks/mjx_costs.py
 $PY benchmarks/mjx_collision.py
 $PY benchmarks/solver_convergence.py
 $PY benchmarks/backend_agreement.py --configs 200 --periods 20
-$PY benchmarks/timestep_convergence.py --configs 100 --periods 20
-$PY benchmarks/label_sensitivity.py
+# numerics (docs/timestep.md): the 0.0625 ms reference (~35 min), the screen, the confirmation, costs; resumable
+$PY benchmarks/timestep_candidates.py --candidates ref --configs 400
+$PY benchmarks/timestep_candidates.py --candidates all --configs 100
+$PY benchmarks/timestep_candidates.py --candidates implicitfast-0.25ms,implicitfast-0.5ms,implicitfast-1ms,discrete-1ms --configs 400
+$PY benchmarks/fidelity_screen.py --models lab-lag --pairs 128 --periods 100 --pb 0 --numerics implicitfast-0.5ms
+$PY benchmarks/timestep_candidates.py --fidelity --candidates implicitfast-0.5ms
+$PY benchmarks/timestep_candidates.py --timing --candidates all
+$PY benchmarks/label_sensitivity.py --configs 400
 $PY benchmarks/early_exit.py --configs 850 --periods 75
 $PY benchmarks/full_scan.py --n 5000 --periods 75
 $PY benchmarks/calibration.py --max-minutes 90  # both suites; about an hour

@@ -118,7 +118,9 @@ def gliding(params, n: int, periods: int, seed: int, burn_in: int, save: pathlib
     rel = np.stack([r, th, ph], -1)
     if save is not None:
         save.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(save, com=com.astype(np.float32), rel=rel.astype(np.float32), touched=touched,
+        # float64: a glider's centre moves ~1e-3 W in some periods, which float32 positions of ~1 W blur
+        # into zero or random steps (direction persistence 0.25 instead of 0.38 for lab-lag)
+        np.savez_compressed(save, com=com, rel=rel, touched=touched,
                             poses=poses)
     out = {"starts": n, "periods": periods, "burn_in": burn_in, "wall_s": wall, "steps": int(steps),
            "sim_s_per_wall_s": float(steps * params.timestep / wall)}
@@ -182,6 +184,9 @@ def main():
     ap.add_argument("--dt-divisor", type=int, default=1,
                     help="run the glide and P_b parts at the preset's time step / this (convergence check); "
                          "results are stored under the preset name + '@dt/N'")
+    ap.add_argument("--numerics", default=None,
+                    help="run the glide and P_b parts with a candidate of benchmarks/timestep_candidates.py "
+                         "(its time step, integrator, solver settings); stored under the preset name + '~NAME'")
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "fidelity_screen.json")
     ap.add_argument("--tables", action="store_true", help="only print the tables of docs/fidelity.md from the JSON")
     args = ap.parse_args()
@@ -194,8 +199,15 @@ def main():
         if args.dt_divisor > 1:
             params = dataclasses.replace(params, timestep=params.timestep / args.dt_divisor)
             name = f"{name}@dt/{args.dt_divisor}"
+        if args.numerics:
+            from timestep_candidates import CANDIDATES
+            if args.numerics not in CANDIDATES:
+                raise SystemExit(f"unknown numerics {args.numerics!r}; known: {', '.join(CANDIDATES)}")
+            params = dataclasses.replace(params, **CANDIDATES[args.numerics])
+            params.validate()
+            name = f"{name}~{args.numerics}"
         entry = data.setdefault(name, {})
-        parts = {} if args.dt_divisor > 1 else {
+        parts = {} if args.dt_divisor > 1 or args.numerics else {
             f"drift90_{args.drift_periods}": lambda: lone_drift(params, 90.0, args.drift_periods),
             f"drift10_{args.drift_periods}": lambda: lone_drift(params, 10.0, args.drift_periods),
         }
@@ -218,6 +230,8 @@ def main():
     names = args.models.split(",")
     if args.dt_divisor > 1:
         names = [f"{n}@dt/{args.dt_divisor}" for n in names]
+    if args.numerics:
+        names = [f"{n}~{args.numerics}" for n in names]
     print(table(data, names))
 
 

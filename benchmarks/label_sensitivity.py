@@ -2,7 +2,10 @@
 distance far below any physical tolerance and count changed labels at the
 same dt. This is the floor any dt-convergence agreement can reach.
 
-    python benchmarks/label_sensitivity.py --dt 5e-4 --shift 1e-9
+    python benchmarks/label_sensitivity.py --configs 400 --shift 1e-9
+
+The configurations are those of benchmarks/timestep_candidates.py (default
+model, |r| 0.8-2.0 W, 90 deg, seed 0), at the model's own step unless --dt.
 """
 
 from __future__ import annotations
@@ -11,27 +14,31 @@ import argparse
 import json
 import pathlib
 
-import numpy as np
+import sys
 
-from smarticle_mjx import configs as C
-from smarticle_mjx import scene as S
-from smarticle_mjx.engine import Lanes, Scene, make_backend
-from smarticle_mjx.gait import GaitSpec
+ROOT = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(ROOT.parent))
+
+from smarticle_mjx import presets  # noqa: E402
+from smarticle_mjx.engine import Lanes, Scene, make_backend  # noqa: E402
+from smarticle_mjx.gait import GaitSpec  # noqa: E402
+from timestep_candidates import sample  # noqa: E402
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--configs", type=int, default=100)
     ap.add_argument("--periods", type=int, default=20)
-    ap.add_argument("--dt", type=float, default=S.SceneParams().timestep)
+    ap.add_argument("--model", default=None, help="preset (default: the default model)")
+    ap.add_argument("--dt", type=float, default=None, help="s (default: the model's)")
     ap.add_argument("--shift", type=float, default=1e-9, help="m, added to robot 2's x")
-    ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=None, help="default: results/label_sensitivity_dt<dt>.json")
     args = ap.parse_args()
-    params, gait = S.SceneParams(timestep=args.dt), GaitSpec(90.0)
-    a0 = gait.setpoints(0.0, params.robot.servo_speed)
-    rng = np.random.default_rng(args.seed)  # same sample as timestep_convergence.py
-    poses = C.sample_valid_pairs(args.configs, rng, (0.8, 2.0), a0[0], a0[1])
+    params, gait = presets.params(args.model), GaitSpec(90.0)
+    if args.dt is not None:
+        params = params.replace(timestep=args.dt)
+    args.dt = params.timestep
+    poses = sample(args.configs, args.model)
     moved = poses.copy()
     moved[:, 1, 0] += args.shift
     be = make_backend("native", Scene.build(params, 2))
@@ -41,7 +48,7 @@ def main():
         _, rec, _ = be.advance(be.initial_state(lanes), lanes, args.periods)
         labels.append(rec.touched[:, :, 0])
     a, b = labels
-    out = dict(dt=args.dt, shift_m=args.shift, configs=len(poses), periods=args.periods,
+    out = dict(model=presets.get(args.model).name, dt=args.dt, shift_m=args.shift, configs=len(poses), periods=args.periods,
                agree_bound_end=float((a[:, -1] == b[:, -1]).mean()),
                agree_attracted=float((a[:, -5:].any(1) == b[:, -5:].any(1)).mean()),
                agree_per_period=[float(x) for x in (a == b).mean(0)])

@@ -129,6 +129,12 @@ def test_unknown_backend_is_refused(scene):
         make_backend("cuda", scene)
 
 
+def test_mjx_refuses_an_integrator_it_does_not_implement():
+    """MJX's step implements Euler, RK4 and implicitfast; 'discrete' would fail inside the first trace."""
+    with pytest.raises(ValueError, match="the mjx backend integrates with"):
+        make_backend("mjx", Scene.build(P.replace(integrator="discrete"), 2))
+
+
 @pytest.mark.slow  # 50 s, mostly MJX compiling; the device-array refill itself is checked below in a second
 def test_mjx_backend_runs_the_batch_runner_with_refill(scene, mjx_backend):
     """Refilling slots works on device arrays too, and the first period's

@@ -67,6 +67,20 @@ def test_bad_parameters_are_refused_with_a_clear_message():
         S.build_mjcf(S.SceneParams(), [(0, 0, 0, 0)])
     with pytest.raises(ValueError, match="hinge limit"):
         S.build_mjcf(S.SceneParams(), [(0, 0, 0, 3.0, 0)])
+    with pytest.raises(ValueError, match="integrator must be one of"):
+        S.SceneParams(integrator="verlet").validate()
+
+
+def test_every_integrator_reaches_the_compiled_model():
+    """The integrator is a numerics choice (docs/timestep.md): each MJCF name must compile to MuJoCo's enum."""
+    want = {"implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST, "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+            "Euler": mujoco.mjtIntegrator.mjINT_EULER, "RK4": mujoco.mjtIntegrator.mjINT_RK4,
+            "discrete": mujoco.mjtIntegrator.mjINT_DISCRETE}
+    assert set(want) == set(S.INTEGRATORS)
+    for name, enum in want.items():
+        p = S.SceneParams(integrator=name)
+        m = mujoco.MjModel.from_xml_string(S.build_mjcf(p, [(0, 0, 0, 1.0, 1.0)]))
+        assert m.opt.integrator == enum, name
 
 
 def test_boundary_wall_is_optional_and_collides_with_robots():

@@ -62,6 +62,9 @@ LS_ITERATIONS = 10
 MATMUL_PRECISION = "highest"
 
 
+# integrators MJX (JAX) implements in mjx.step
+MJX_INTEGRATORS = ("Euler", "RK4", "implicitfast")
+
 class MjxBackend:
     """Batched MJX rollouts; runs on whatever device JAX chose (CPU or GPU)."""
 
@@ -71,6 +74,9 @@ class MjxBackend:
         self.scene = scene
         jax.config.update("jax_default_matmul_precision", MATMUL_PRECISION)
         mjx_collision.install()  # before any trace: MJX's capsule-box misses contacts at this scale
+        if scene.params.integrator not in MJX_INTEGRATORS:
+            raise ValueError(f"the mjx backend integrates with {', '.join(MJX_INTEGRATORS)}, not "
+                             f"{scene.params.integrator!r}; use the native or warp backend")
         self.model = mujoco.MjModel.from_xml_string(_strip_sensors(scene.xml))
         if ls_iterations < 1:
             raise ValueError(f"ls_iterations must be >= 1, got {ls_iterations}")
