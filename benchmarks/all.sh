@@ -16,7 +16,7 @@ $PY benchmarks/timestep_candidates.py --candidates implicitfast-0.25ms,implicitf
 $PY benchmarks/fidelity_screen.py --models lab-lag --pairs 128 --periods 100 --pb 0 --numerics implicitfast-0.5ms
 $PY benchmarks/timestep_candidates.py --fidelity --candidates implicitfast-0.5ms
 $PY benchmarks/timestep_candidates.py --timing --candidates all
-$PY benchmarks/label_sensitivity.py --configs 400
+$PY benchmarks/label_sensitivity.py --configs 200
 $PY benchmarks/early_exit.py --configs 850 --periods 75
 $PY benchmarks/full_scan.py --n 5000 --periods 75
 $PY benchmarks/calibration.py --max-minutes 90  # both suites; about an hour

@@ -522,8 +522,8 @@ def movie(
             from .scan import resimulate_lane
             if lane is None:
                 raise UserError("a scan store needs --lane (the configuration index to show)")
-            stride = max(1, int(round(min(0.05, speed / fps) / 2.5e-4)))
-            t, poses, res, params, gait, rows = resimulate_lane(source, run, lane, track_stride=stride)
+            t, poses, res, params, gait, rows = resimulate_lane(source, run, lane,
+                                                                frame_interval=min(0.05, speed / fps))
             k = int(rows["periods_run"])
             same = np.array_equal(res.poses[1:k + 1].astype(np.float32), rows["poses"][:k])
             title = f"{source.name} lane {lane}, {gait.amplitude_deg:g} deg" + ("" if same else " (differs from store!)")

@@ -366,8 +366,12 @@ def params_from_json(d: dict) -> SceneParams:
     return SceneParams(robot=robot, **rest)
 
 
-def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 40):
+def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 40,
+                    frame_interval: float | None = None):
     """Simulate lane ``lane`` of a scan store again, from its stored start, amplitude, gait and model.
+
+    ``frame_interval`` (s), when given, sets the track stride from the stored
+    model's own time step instead of ``track_stride``.
 
     Returns (times [S], poses [S, N, 5]: the start, then the full-rate track
     every ``track_stride`` steps; the period records ``SimResult``, params, gait,
@@ -390,6 +394,8 @@ def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 
     if not rows["valid"]:
         raise ValueError(f"lane {lane} of run {run} starts with the robots overlapping; it was never simulated")
     inputs = RunInputs.of(config, params, float(st.run_attrs[run]["amplitude_deg"]))
+    if frame_interval is not None:
+        track_stride = max(1, int(round(frame_interval / params.timestep)))
     res = simulate(params, inputs.poses[lane], inputs.gait, int(config.periods), track_stride=track_stride)
     # the track starts after its first stride: put the start in front
     t = np.concatenate([[0.0], res.track_t])

@@ -9,6 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from smarticle_mjx import gait as G
+from smarticle_mjx import presets
 from smarticle_mjx.cli import app
 
 runner = CliRunner()
@@ -28,7 +29,7 @@ def test_simulate_writes_the_interchange_format(tmp_path):
     assert len(rows) == 2 * len(t) and t[-1] == pytest.approx(3.2)
     meta = json.loads((tmp_path / "pair.json").read_text())
     assert meta["robots"] == 2 and meta["gait"]["amplitude_deg"] == 90.0
-    assert meta["frame_rate_hz"] == pytest.approx(1 / (100 * 2.5e-4))
+    assert meta["frame_rate_hz"] == pytest.approx(1 / (100 * presets.params().timestep))
     # the arms follow the gait in the written track
     a1 = np.array([float(row["alpha1"]) for row in rows if row["robot"] == "0"])
     assert a1.min() < -1.4 and a1.max() > 1.4

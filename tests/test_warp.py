@@ -74,14 +74,14 @@ def test_buffers_cover_every_pair_mujoco_warp_collides(scene):
 @needs_warp
 def test_warp_follows_mujoco_c_step_by_step_through_the_first_impacts(scene, warp, native):
     """Same scene, same controls: MuJoCo Warp (float32) follows MuJoCo C
-    (float64) over the first 220 steps, which span the first arm-arm and
+    (float64) over the first 55 ms (220 steps of 0.25 ms), which span the first arm-arm and
     arm-body impacts of the IMPACT start: arm angles within 2 mrad, body
     positions within 0.1 mm. (The impacts are where float32 contact
     resolution could part the paths; the bound is set by the arm-angle
     resolution the touch labels need, well under a degree.)"""
     poses = np.stack([C.pair_poses(*IMPACT, A0[0], A0[1])] + list(_lanes(2, 7).poses))
     lanes = Lanes.from_gait(poses, GAIT)
-    nsteps = 220
+    nsteps = int(round(0.055 / scene.model.opt.timestep))
     qw = warp.step_qpos(lanes, nsteps)
     qn = native.step_qpos(lanes, nsteps)
     # the window does hold the impacts: MuJoCo C's robot-robot contacts, stepped by hand
