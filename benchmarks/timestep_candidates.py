@@ -41,16 +41,16 @@ import sys
 import time
 
 import numpy as np
-from scipy import stats
 
 ROOT = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(ROOT.parent))
 
-from smarticle_mjx import configs as C  # noqa: E402
 from smarticle_mjx import presets  # noqa: E402
 from smarticle_mjx.engine import Lanes, Scene, make_backend  # noqa: E402
 from smarticle_mjx.engine.simulate import simulate  # noqa: E402
 from smarticle_mjx.gait import GaitSpec  # noqa: E402
+from smarticle_mjx.reduce.binding import binomial_interval  # noqa: E402
+from fidelity_screen import _save, pair_starts  # noqa: E402
 
 REFERENCE = "ref"
 # name -> SceneParams changes (numerics only)
@@ -82,9 +82,7 @@ POOL = 400  # the sampler draws in batches of 4n: the first n of a fixed pool ar
 
 
 def sample(n: int, model: str | None, seed: int = 0) -> np.ndarray:
-    p = presets.params(model)
-    a0 = GaitSpec(90.0).setpoints(0.0, p.robot.servo_speed)
-    return C.sample_valid_pairs(max(n, POOL), np.random.default_rng(seed), (0.8, 2.0), a0[0], a0[1], p.robot)[:n]
+    return pair_starts(presets.params(model), max(n, POOL), seed, 90.0)[:n]
 
 
 def run_block(params, poses, periods: int) -> dict:
@@ -106,12 +104,6 @@ def lone_drift(params, amplitude: float, cycles: int = 20) -> float:
     r = simulate(params, [(0, 0, 0, a[0], a[1])], gait, periods=cycles + 2)
     xy = r.poses[2:, 0, :2]
     return float(np.linalg.norm(xy[-1] - xy[0]) / (len(xy) - 1) / params.robot.body_length)
-
-
-def _save_json(path: pathlib.Path, data: dict):
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1, default=float))
-    os.replace(tmp, path)
 
 
 def ensure_runs(names, args):
@@ -146,13 +138,6 @@ def load_runs(name, args):
                 start={b: x["start_poses"] for b, x in zip(blocks, d)})
 
 
-def clopper_pearson(k: int, n: int, conf: float = 0.95):
-    a = 1 - conf
-    lo = 0.0 if k == 0 else float(stats.beta.ppf(a / 2, k, n - k + 1))
-    hi = 1.0 if k == n else float(stats.beta.ppf(1 - a / 2, k + 1, n - k))
-    return lo, hi
-
-
 def compare(name, ref, args) -> dict | None:
     run = load_runs(name, args)
     if run is None:
@@ -167,7 +152,7 @@ def compare(name, ref, args) -> dict | None:
     end_ref = np.concatenate([ref["touched"][b][:, -1] for b in common])
     bad = int(sum((run["status"][b] != 0).sum() for b in common))
     k, n = int((end == end_ref).sum()), len(end)
-    lo, hi = clopper_pearson(k, n)
+    lo, hi = (float(x) for x in binomial_interval(k, n))
     return dict(n=n, agree=k / n, agree_lo=lo, agree_hi=hi, bound=float(end.mean()), bound_ref=float(end_ref.mean()),
                 bound_diff=float(end.mean() - end_ref.mean()), status_bad=bad)
 
@@ -180,7 +165,7 @@ def drifts(names, args, res):
         p = params_of(name, args.model)
         res[key] = {f"{a:g}": lone_drift(p, a) for a in (90.0, 10.0)}
         print(f"{name} lone drift (W/cycle): {res[key]}", flush=True)
-        _save_json(pathlib.Path(args.out), res)
+        _save(pathlib.Path(args.out), res)
 
 
 def timing(names, args, res, repeats: int = 3, lanes: int = 32, periods: int = 2):
@@ -203,7 +188,7 @@ def timing(names, args, res, repeats: int = 3, lanes: int = 32, periods: int = 2
             row["cost_vs_baseline"] = float(np.median(w / base))
         res[f"timing:{name}"] = row
         print(f"{name}: {row}", flush=True)
-    _save_json(pathlib.Path(args.out), res)
+    _save(pathlib.Path(args.out), res)
 
 
 def _glider_tracks(path: pathlib.Path, burn_in: int = 10):
@@ -252,7 +237,7 @@ def fidelity(names, args, res, n_boot: int = 400):
         print(f"{name}: " + "; ".join(f"{k} {v['candidate']:.4g} vs {v['default']:.4g} "
                                       f"[{v['diff_lo']:+.3g}, {v['diff_hi']:+.3g}]" for k, v in row.items()
                                       if isinstance(v, dict)), flush=True)
-    _save_json(pathlib.Path(args.out), res)
+    _save(pathlib.Path(args.out), res)
 
 
 def passes(row: dict, d: dict, d_ref: dict) -> dict:
@@ -348,7 +333,7 @@ def main():
         row = compare(name, ref, args)
         if row is not None:
             res[f"labels:{name}"] = row
-    _save_json(out, res)
+    _save(out, res)
     print(table(res, names))
 
 
