@@ -47,6 +47,9 @@ MISMATCH = {
     "tilt_2deg": (dict(tilt_deg=(2.0, 0.0)), "plate_tilt"),
     "lag_10ms": (dict(lag_s=0.01), "servo_lag"),
     "tilt_0.25deg": (dict(tilt_deg=(0.25, 0.0)), "plate_tilt"),
+    # two robots far apart on different gaits (15 deg ccw beside 60 deg cw, and the reverse), the sidecar
+    # listing one gait per robot
+    "mixed_gaits_lag_30ms": (dict(lag_s=0.03, robots=2, mixed=True), "servo_lag"),
 }
 
 
@@ -80,7 +83,10 @@ def make_mismatch(name: str, out, seed: int) -> None:
     kw, _ = MISMATCH[name]
     kw = dict(kw)
     amps = kw.pop("amplitudes", (15, 60))
-    for a in amps:
+    mixed = kw.pop("mixed", False)
+    for k, a in enumerate(amps):
+        if mixed:  # robot 0 at this amplitude ccw, robot 1 at the other amplitude cw
+            kw["gaits"] = [(float(a), "ccw"), (float(amps[1 - k]), "cw")]
         IND.write_case(out, amplitude_deg=float(a), name=f"a{a}", trials=3, periods=5, seed=seed * 100 + a, **kw)
 
 

@@ -101,20 +101,26 @@ def simulate(n, poses, amplitude_deg, period, duration, frame_times, *, chiralit
 
     Args:
       poses: [n, 3] initial (x, y, heading); arms start at the first corner.
+      amplitude_deg, period, chirality: one for all robots, or a list with
+        one per robot.
       lag_s, dead_s: the servo reference passes through a first-order lag of
         this time constant and a pure delay (dead time).
       phase_offset: robot i runs i * phase_offset periods ahead.
     """
     m = mujoco.MjModel.from_xml_string(_mjcf(n, tilt_deg, friction))
     d = mujoco.MjData(m)
-    a = math.radians(amplitude_deg)
+    def each(v):
+        return list(v) if isinstance(v, (list, tuple, np.ndarray)) else [v] * n
+    amps, periods, chis = [math.radians(x) for x in each(amplitude_deg)], each(period), each(chirality)
+    if not len(amps) == len(periods) == len(chis) == n:
+        raise ValueError(f"amplitude, period and chirality need one value or {n}")
     for i in range(n):
         adr = m.jnt_qposadr[m.joint(f"r{i}_a1").id] - 7
         x, y, h = poses[i]
         d.qpos[adr:adr + 7] = [x, y, BODY["height"] / 2, math.cos(h / 2), 0, 0, math.sin(h / 2)]
-        d.qpos[adr + 7:adr + 9] = a  # first corner (+a, +a)
+        d.qpos[adr + 7:adr + 9] = amps[i]  # first corner (+a, +a)
     mujoco.mj_forward(m, d)
-    ref = np.full((n, 2), a)      # slewing reference
+    ref = np.array([[a, a] for a in amps])  # slewing reference
     lagged = ref.copy()           # after the first-order lag
     delay_steps = int(round(dead_s / TIMESTEP))
     history = [ref.copy()] * (delay_steps + 1)
@@ -136,7 +142,7 @@ def simulate(n, poses, amplitude_deg, period, duration, frame_times, *, chiralit
         if k >= len(frames):
             break
         for i in range(n):
-            target = corner(t, a, period, chirality, phase=i * phase_offset)
+            target = corner(t, amps[i], periods[i], chis[i], phase=i * phase_offset)
             ref[i] += np.clip(target - ref[i], -SERVO["slew"] * TIMESTEP, SERVO["slew"] * TIMESTEP)
         history.append(ref.copy())
         delayed = history.pop(0)
@@ -151,7 +157,7 @@ def simulate(n, poses, amplitude_deg, period, duration, frame_times, *, chiralit
 
 def write_case(out_dir, *, robots=1, amplitude_deg=30.0, trials=6, periods=8, seed=0, frame_rate=30.0,
                noise_xy_mm=0.02, noise_theta_deg=0.02, noise_arm_deg=0.3, drop=0.03, jitter_s=0.002,
-               arm2_bias_deg=0.0, name="independent", **effects) -> dict:
+               arm2_bias_deg=0.0, name="independent", gaits=None, **effects) -> dict:
     """Write ``name.csv`` + ``name.json`` (interchange format) into ``out_dir``.
 
     The sidecar states what a user would know: robots, the commanded gait,
@@ -159,18 +165,25 @@ def write_case(out_dir, *, robots=1, amplitude_deg=30.0, trials=6, periods=8, se
     Returns the truth (effects and noise) for the test to check against.
     """
     rng = np.random.default_rng(seed)
-    period = 1.6 * amplitude_deg / 90.0
+    if gaits is None:
+        gaits = [(amplitude_deg, effects.get("chirality", "ccw"))] * robots
+    elif len(gaits) != robots:
+        raise ValueError(f"{len(gaits)} gaits for {robots} robots")
+    amps = [float(g[0]) for g in gaits]
+    chis = [g[1] for g in gaits]
+    gait_periods = [1.6 * a / 90.0 for a in amps]
+    effects = {k: v for k, v in effects.items() if k != "chirality"}
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     lines = ["trial,t,robot,x,y,theta,alpha1,alpha2"]
     for trial in range(trials):
-        duration = periods * period
+        duration = periods * gait_periods[0]  # whole periods of robot 0
         t = np.arange(0.0, duration, 1.0 / frame_rate)
         t[1:] += rng.uniform(-jitter_s, jitter_s, len(t) - 1)
         t = np.sort(t)
         poses = np.array([[0.3 * i + rng.uniform(-0.01, 0.01), rng.uniform(-0.01, 0.01), rng.uniform(-math.pi, math.pi)]
                           for i in range(robots)])
-        tr = simulate(robots, poses, amplitude_deg, period, duration, t, **effects)
+        tr = simulate(robots, poses, amps, gait_periods, duration, t, chirality=chis, **effects)
         for f, tf in enumerate(t):
             for i in range(robots):
                 if f > 0 and rng.uniform() < drop:
@@ -183,9 +196,10 @@ def write_case(out_dir, *, robots=1, amplitude_deg=30.0, trials=6, periods=8, se
                 a2 += rng.normal(0, math.radians(noise_arm_deg)) + math.radians(arm2_bias_deg)
                 lines.append(f"{trial},{tf:.6f},{i},{x:.7f},{y:.7f},{h:.7f},{a1:.6f},{a2:.6f}")
     (out / f"{name}.csv").write_text("\n".join(lines) + "\n")
-    side = {"robots": robots, "gait": {"kind": "square", "amplitude_deg": amplitude_deg, "period_s": period,
-                                       "chirality": effects.get("chirality", "ccw")},
+    sides = [{"kind": "square", "amplitude_deg": a, "period_s": T, "chirality": c}
+             for a, c, T in zip(amps, chis, gait_periods)]
+    side = {"robots": robots, "gait": sides[0] if len(set(map(json.dumps, sides))) == 1 else sides,
             "plate": {"friction": 0.37}, "frame_rate_hz": frame_rate}
     (out / f"{name}.json").write_text(json.dumps(side, indent=1))
-    return {"effects": {k: v for k, v in effects.items() if k != "chirality"}, "arm2_bias_deg": arm2_bias_deg,
+    return {"effects": effects, "arm2_bias_deg": arm2_bias_deg,
             "noise_xy_mm": noise_xy_mm, "noise_theta_deg": noise_theta_deg}

@@ -45,11 +45,27 @@ def test_loader_reads_uneven_frames_missing_rows_and_untracked_arms(tmp_path):
     (["0,0,0,0,0,0,,", "0,1,0,0,0,0,,"], SIDECAR, None, "fewer than 3 frames"),
     (["0,0,0,0,0,0,,"] * 3, {**SIDECAR, "gait": {**SIDECAR["gait"], "kind": "zigzag"}}, None, "gait kind"),
     (["0,0,0,0,0,0,,"] * 3, {**SIDECAR, "robot": {"wheels": 3}}, None, "unknown robot overrides"),
+    (["0,0,0,0,0,0,,"] * 3, {**SIDECAR, "robots": 2, "gait": [SIDECAR["gait"]] * 3}, None,
+     "gait list has 3 entries for 2 robots"),
+    (["0,0,0,0,0,0,,"] * 3, {**SIDECAR, "robots": 2, "gait": [SIDECAR["gait"], {**SIDECAR["gait"], "period_s": 0.1}]},
+     None, "robot 1: period 0.1 s is shorter"),
+    (["0,0,0,0,0,0,,"] * 3, {**SIDECAR, "robots": "two"}, None, "robots must be a whole number"),
 ])
 def test_loader_refuses_bad_data_with_one_line(tmp_path, rows, side, header, msg):
     kw = {} if header is None else {"header": header}
     with pytest.raises(DataError, match=msg):
         load(_write(tmp_path, rows, side, **kw))
+
+
+def test_a_gait_per_robot_is_read_from_a_list_in_the_sidecar(tmp_path):
+    side = {**SIDECAR, "robots": 2, "gait": [SIDECAR["gait"], {"kind": "symmetric", "amplitude_deg": 45,
+                                                              "chirality": "cw"}]}
+    rows = [f"0,{t},{i},{0.3 * i},0,0,," for t in (0.0, 0.04, 0.08) for i in (0, 1)]
+    tr = load(_write(tmp_path, rows, side))[0]
+    assert tr.gait == tr.gaits[0] and tr.gaits[0].amplitude_deg == 90
+    assert (tr.gaits[1].kind, tr.gaits[1].chirality, tr.gaits[1].amplitude_deg) == ("diagonal", "cw", 45)
+    np.testing.assert_allclose(tr.periods, [1.6, 0.8])  # robot 1: the paper's policy, 1.6 s x 45/90
+    assert not tr.one_gait
 
 
 def test_features_of_a_track_against_itself_have_zero_residual_and_noise_adds_2_sigma2():

@@ -3,7 +3,8 @@
 CSV: one row per robot per frame, ``trial, t, robot, x, y, theta, alpha1,
 alpha2`` in s, m, rad; ``alpha1``/``alpha2`` may be empty; frames need not
 be evenly spaced; rows may be missing. Sidecar ``NAME.json``: robots, gait
-(kind square|symmetric, amplitude_deg, period_s, chirality cw|ccw),
+(kind square|symmetric, amplitude_deg, period_s, chirality cw|ccw; or a list
+of such, one per robot),
 optional robot overrides, plate friction, frame rate, and an optional circular
 boundary ``{"radius": m, "centre": [x, y]}`` (positions are shifted so that it
 is centred on the origin, where the model's wall is).
@@ -35,9 +36,10 @@ class Trial:
       pose: [F, N, 3] x, y (m), heading (rad, unwrapped); NaN where occluded.
       arms: [F, N, 2] arm angles (rad), NaN where not tracked; None if the
         file tracks no arm angles at all.
-      gait: the commanded gait.
+      gait: the commanded gait of robot 0 (the trial's clock).
       params: scene parameters with the sidecar's overrides.
       frame_rate_hz: nominal frame rate from the sidecar.
+      gaits: every robot's commanded gait; None: all run ``gait``.
     """
 
     name: str
@@ -47,10 +49,35 @@ class Trial:
     gait: GaitSpec
     params: SceneParams
     frame_rate_hz: float
+    gaits: tuple[GaitSpec, ...] | None = None
+
+    def __post_init__(self):
+        n = self.pose.shape[1]
+        if self.gaits is None:
+            self.gaits = (self.gait,) * n
+        else:
+            self.gaits = tuple(self.gaits)
+            if len(self.gaits) != n or self.gaits[0] != self.gait:
+                raise ValueError(f"{self.name}: gaits must list {n} gaits, the first being the trial's gait")
 
     @property
     def robots(self) -> int:
         return self.pose.shape[1]
+
+    @property
+    def periods(self) -> np.ndarray:
+        """[N] each robot's gait period (s)."""
+        return np.array([g.period() for g in self.gaits])
+
+    @property
+    def one_gait(self) -> bool:
+        """Whether every robot runs the same gait."""
+        return len(set(self.gaits)) == 1
+
+    def with_gaits(self, fn) -> "Trial":
+        """This trial with every robot's gait replaced by ``fn(gait)``."""
+        gaits = tuple(fn(g) for g in self.gaits)
+        return dataclasses.replace(self, gait=gaits[0], gaits=gaits)
 
     @property
     def duration(self) -> float:
@@ -75,8 +102,9 @@ def _sidecar(csv_path: pathlib.Path) -> dict:
     return meta
 
 
-def _gait(meta: dict, where: str) -> GaitSpec:
-    g = meta["gait"]
+def _one_gait(g, where: str) -> GaitSpec:
+    if not isinstance(g, dict):
+        raise DataError(f"{where}: a gait must be an object with amplitude_deg etc., got {g!r}")
     kind = {"square": "square", "symmetric": "diagonal", "diagonal": "diagonal"}.get(g.get("kind", "square"))
     if kind is None:
         raise DataError(f"{where}: gait kind must be square or symmetric, got {g.get('kind')!r}")
@@ -88,7 +116,18 @@ def _gait(meta: dict, where: str) -> GaitSpec:
     return spec
 
 
-def _params(meta: dict, gait: GaitSpec, where: str, model: str | None = None) -> SceneParams:
+def _gaits(meta: dict, n: int, where: str) -> tuple[GaitSpec, ...]:
+    """One gait for every robot (``"gait": {...}``) or one per robot (``"gait": [{...}, ...]``)."""
+    g = meta["gait"]
+    if isinstance(g, list):
+        if len(g) != n:
+            raise DataError(f"{where}: the gait list has {len(g)} entries for {n} robots (one per robot, or one "
+                            "object for all)")
+        return tuple(_one_gait(x, where) for x in g)
+    return (_one_gait(g, where),) * n
+
+
+def _params(meta: dict, gaits, where: str, model: str | None = None) -> SceneParams:
     """The model to compare the data with: preset ``model`` if given, else the
     sidecar's ``model``, else the default preset; then the sidecar's robot and
     plate overrides."""
@@ -116,9 +155,13 @@ def _params(meta: dict, gait: GaitSpec, where: str, model: str | None = None) ->
         params = params.replace(boundary_radius=radius)
     try:
         params.validate()
-        gait.validate(robot.servo_speed, robot.arm_limit_deg)
     except ValueError as e:
         raise DataError(f"{where}: {e}") from None
+    for i, gait in enumerate(gaits):
+        try:
+            gait.validate(robot.servo_speed, robot.arm_limit_deg)
+        except ValueError as e:
+            raise DataError(f"{where}: {'' if len(set(gaits)) == 1 else f'robot {i}: '}{e}") from None
     return params
 
 
@@ -142,11 +185,14 @@ def load_csv(path, model: str | None = None) -> list[Trial]:
     path = pathlib.Path(path)
     where = path.name
     meta = _sidecar(path)
-    gait = _gait(meta, where)
-    params = _params(meta, gait, where, model)
-    n = int(meta["robots"])
+    try:
+        n = int(meta["robots"])
+    except (TypeError, ValueError):
+        raise DataError(f"{where}: robots must be a whole number, got {meta['robots']!r}") from None
     if n < 1:
         raise DataError(f"{where}: robots must be >= 1")
+    gaits = _gaits(meta, n, where)
+    params = _params(meta, gaits, where, model)
     centre = np.zeros(2)
     if meta.get("boundary") is not None:
         try:
@@ -191,7 +237,8 @@ def load_csv(path, model: str | None = None) -> list[Trial]:
             data[ok, i, 2] = np.unwrap(data[ok, i, 2])
         tracked = np.isfinite(data[..., 3:]).any()
         trials.append(Trial(f"{path.stem}:{trial}", times, data[..., :3], data[..., 3:] if tracked else None,
-                            gait, params, float(meta.get("frame_rate_hz", 1.0 / np.median(np.diff(times))))))
+                            gaits[0], params, float(meta.get("frame_rate_hz", 1.0 / np.median(np.diff(times)))),
+                            gaits))
     return trials
 
 

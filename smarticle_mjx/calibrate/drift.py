@@ -36,8 +36,7 @@ MIN_SPREAD_DEG = 60.0  # headings of a group must span at least this
 P_DRIFT = 1e-3  # significance that makes drift a finding
 
 
-def _group_key(tr) -> tuple:
-    g = tr.gait
+def _group_key(g) -> tuple:
     return (round(float(g.amplitude_deg), 6), g.chirality, g.kind, round(float(g.period()), 6))
 
 
@@ -51,15 +50,17 @@ def _robot_alone(pose: np.ndarray, i: int, body_length: float) -> bool:
     return True
 
 
-def cycles(t, pose, period, body_length) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Per robot that stays alone: (headings [C], steps [C, 2] in mm) of its whole cycles."""
+def cycles(t, pose, period, body_length) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """Per robot that stays alone: (robot, headings [C], steps [C, 2] in mm) of
+    its whole cycles; ``period`` is one for all robots or [N], each robot's."""
     out = []
+    periods = np.broadcast_to(np.asarray(period, float), (pose.shape[1],))
     for i in range(pose.shape[1]):
         if not _robot_alone(pose, i, body_length):
             continue
-        _, pc = cycle_poses(t, pose[:, i], period)
+        _, pc = cycle_poses(t, pose[:, i], periods[i])
         if len(pc) >= 2:
-            out.append((pc[:-1, 2], np.diff(pc[:, :2], axis=0) * MM))
+            out.append((i, pc[:-1, 2], np.diff(pc[:, :2], axis=0) * MM))
     return out
 
 
@@ -147,8 +148,8 @@ def group_drift(trials, tracks=None) -> dict:
         if tracks is not None:
             pose = np.asarray(tracks[k])[..., :3].copy()
             pose[~np.isfinite(tr.pose).all(-1)] = np.nan
-        for h, d in cycles(tr.t, pose, tr.gait.period(), tr.params.robot.body_length):
-            g = groups.setdefault(_group_key(tr), ([], []))
+        for i, h, d in cycles(tr.t, pose, tr.periods, tr.params.robot.body_length):
+            g = groups.setdefault(_group_key(tr.gaits[i]), ([], []))
             g[0].append(h)
             g[1].append(d)
     out = {}

@@ -77,7 +77,7 @@ class Problem:
 
     def __init__(self, trials: list[Trial]):
         self.trials = trials
-        self.meas: list[Features] = [features(tr.t, tr.pose, tr.arms, tr.gait.period()) for tr in trials]
+        self.meas: list[Features] = [features(tr.t, tr.pose, tr.arms, tr.periods) for tr in trials]
         self._cache: dict = {}
         self.runs = 0
         self.nominal: dict = {}
@@ -88,11 +88,11 @@ class Problem:
         ck = (key, tuple(sorted(nom.items())))
         if ck not in self._cache:
             tracks = simulate_trials(self.trials, scene_for=lambda tr: key.scene(apply_nominal(tr.params, nom)),
-                                     phase_for=lambda tr: key.phases(tr.robots, tr.gait.period()))
+                                     phase_for=lambda tr: key.phases(tr.robots, tr.periods))
             feats = []
             for tr, mt in zip(self.trials, tracks):
                 pose, arms = masked(mt, tr)
-                feats.append(features(tr.t, pose, arms, tr.gait.period()))
+                feats.append(features(tr.t, pose, arms, tr.periods))
             self._cache[ck] = (tracks, feats)
             self.runs += 1
         return self._cache[ck]
@@ -323,16 +323,18 @@ def conventions(problem: Problem) -> dict:
     alt = {}
     for name, fn in (("arms swapped", lambda a: a[..., ::-1]), ("angle signs flipped", lambda a: -a),
                      ("arms swapped and signs flipped", lambda a: -a[..., ::-1])):
-        meas = [features(tr.t, tr.pose, fn(tr.arms) if tr.arms is not None else None, tr.gait.period())
+        meas = [features(tr.t, tr.pose, fn(tr.arms) if tr.arms is not None else None, tr.periods)
                 for tr in problem.trials]
         alt[name] = arms_error(meas, feats)
-    other = [dataclasses.replace(tr, gait=dataclasses.replace(tr.gait, chirality="cw" if tr.gait.chirality == "ccw"
-                                                              else "ccw")) for tr in problem.trials]
+    other = [tr.with_gaits(lambda g: dataclasses.replace(g, chirality="cw" if g.chirality == "ccw" else "ccw"))
+             for tr in problem.trials]
     variants = {"opposite chirality": other}
     # the clock: t = 0 should be phase 0 (the first corner); a quarter period off starts at another corner
-    for sign, word in ((1, "later"), (-1, "earlier")):
-        variants[f"the gait a quarter period {word}"] = [
-            dataclasses.replace(tr, t=tr.t + sign * tr.gait.period() / 4) for tr in problem.trials]
+    # (a shift of the trial's clock is a quarter of every robot's period only where they share one)
+    if all(len(set(tr.periods)) == 1 for tr in problem.trials):
+        for sign, word in ((1, "later"), (-1, "earlier")):
+            variants[f"the gait a quarter period {word}"] = [
+                dataclasses.replace(tr, t=tr.t + sign * tr.gait.period() / 4) for tr in problem.trials]
     for name, trs in variants.items():
         po = Problem(trs)
         alt[name] = arms_error(po.meas, po.model(EffectSet(), {})[1])
@@ -466,7 +468,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
             def run_model(tx, ty):
                 eff = EffectSet.of({**base_now, "plate_tilt": {"tilt_x_deg": tx, "tilt_y_deg": ty}})
                 return simulate_trials(trials, scene_for=lambda tr: eff.scene(apply_nominal(tr.params, nom_now)),
-                                       phase_for=lambda tr: eff.phases(tr.robots, tr.gait.period()))
+                                       phase_for=lambda tr: eff.phases(tr.robots, tr.periods))
 
             tilt = fit_tilt(trials, run_model)
             extra_runs = 3

@@ -39,8 +39,8 @@ def estimate_offset(trials, step: float = 0.0025, max_offset: float = 0.25) -> d
     shifts = np.arange(-max_offset, max_offset + step / 2, step)
     est = []
     for tr in trials:
-        if tr.robots < 2 or tr.arms is None:
-            continue
+        if tr.robots < 2 or tr.arms is None or not tr.one_gait:
+            continue  # robots' arm curves are compared only where they run the same gait
         period = tr.gait.period()
         for i in range(1, tr.robots):
             cost = np.array([_misfit(tr.t, tr.arms[:, 0], tr.arms[:, i], i * s * period) for s in shifts])

@@ -52,8 +52,7 @@ def _figures(result, heldout: list[Trial], tracks_before, tracks_after, out: pat
         names.append("diagnosis.png")
     # arm angles and body wobble of the first held-out trial
     tr = heldout[0]
-    T = tr.gait.period()
-    ph = np.mod(tr.t / T, 1.0)
+    ph = np.mod(tr.t / tr.periods[0], 1.0)  # robot 0's gait phase: the plot shows robot 0
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.4))
     if tr.arms is not None:
         for k, ax in zip((0, 1), axes[:2]):
@@ -85,7 +84,7 @@ def write(result: dict, trials: list[Trial], out_dir) -> dict:
     nominal = result.pop("_nominal", {})
     before_tracks = simulate_trials(held, scene_for=lambda tr: tr.params)
     after_tracks = simulate_trials(held, scene_for=lambda tr: final.scene(apply_nominal(tr.params, nominal)),
-                                   phase_for=lambda tr: final.phases(tr.robots, tr.gait.period()))
+                                   phase_for=lambda tr: final.phases(tr.robots, tr.periods))
     # the metrics compare what the camera saw with what it would see of the model:
     # a fitted tracking noise is added to the model's track (seeded)
     sxy, sth = final.noise()

@@ -83,10 +83,11 @@ def features(t, pose, arms, period) -> Features:
       t: [F] frame times (s); gait phase 0 at t = 0.
       pose: [F, N, 3] x, y (m), heading (rad, unwrapped); NaN = missing.
       arms: [F, N, 2] arm angles (rad) or None.
-      period: gait period (s).
+      period: gait period (s), one for all robots or [N], each robot's.
     """
     f, n = pose.shape[:2]
-    phase_bin = np.minimum((np.mod(t / period, 1.0) * BINS).astype(int), BINS - 1)
+    periods = np.broadcast_to(np.asarray(period, float), (n,))
+    bins_of = np.minimum((np.mod(t[:, None] / periods, 1.0) * BINS).astype(int), BINS - 1)  # [F, N]
     arm_m = arm_s = None
     if arms is not None:
         m = np.full((n, 2, BINS), np.nan)
@@ -94,7 +95,7 @@ def features(t, pose, arms, period) -> Features:
         for i in range(n):
             for k in range(2):
                 v = arms[:, i, k] * DEG
-                mean, spread, count = _binned(v, phase_bin, np.isfinite(v))
+                mean, spread, count = _binned(v, bins_of[:, i], np.isfinite(v))
                 m[i, k], s[i, k] = mean, _se(spread, count, FLOOR["arm"])
         arm_m, arm_s = m, s
     wob_m = np.full((n, 3, BINS), np.nan)
@@ -106,7 +107,8 @@ def features(t, pose, arms, period) -> Features:
     for i in range(n):
         p = pose[:, i]
         ok = np.isfinite(p).all(-1)
-        tc, pc = cycle_poses(t, p, period)
+        tc, pc = cycle_poses(t, p, periods[i])
+        phase_bin = bins_of[:, i]
         if len(tc) >= 2:
             rel = np.full((f, 3), np.nan)
             for c in range(len(tc) - 1):
@@ -192,7 +194,7 @@ def metrics(trials, model_tracks) -> dict:
     cyc_m, cyc_s = [], []
     for tr, mt in zip(trials, model_tracks):
         pose_s, arms_s = masked(mt, tr)
-        T = tr.gait.period()
+        periods = tr.periods
         if tr.arms is not None:
             e = (tr.arms - arms_s) * DEG
             arm_err.append(e[np.isfinite(e)])
@@ -202,7 +204,7 @@ def metrics(trials, model_tracks) -> dict:
             traj.append(np.hypot(*(tr.pose[last, i, :2] - pose_s[last, i, :2])) * MM)
             for p, st, ro, dr, hd, cy in ((tr.pose[:, i], steps_m, rot_m, drift_m, head_m, cyc_m),
                                           (pose_s[:, i], steps_s, rot_s, drift_s, head_s, cyc_s)):
-                tc, pc = cycle_poses(tr.t, p, T)
+                tc, pc = cycle_poses(tr.t, p, periods[i])
                 if len(pc) >= 2:
                     d = np.diff(pc, axis=0)
                     st.extend(np.hypot(d[:, 0], d[:, 1]) * MM)
@@ -211,9 +213,9 @@ def metrics(trials, model_tracks) -> dict:
                     hd.append((pc[-1, 2] - pc[0, 2]) * DEG / (len(pc) - 1))
                     cy.append(pc[:, :2] * MM)
         if tr.robots == 2:
-            for p, dest in ((tr.pose, rel_m), (pose_s, rel_s)):
-                _, c0 = cycle_poses(tr.t, p[:, 0], T)
-                _, c1 = cycle_poses(tr.t, p[:, 1], T)
+            for p, dest in ((tr.pose, rel_m), (pose_s, rel_s)):  # both sampled at robot 0's cycles
+                _, c0 = cycle_poses(tr.t, p[:, 0], periods[0])
+                _, c1 = cycle_poses(tr.t, p[:, 1], periods[0])
                 k = min(len(c0), len(c1))
                 if k:
                     dest.append(np.stack(relative_coordinates(c0[:k], c1[:k], tr.params.robot.body_length), -1))

@@ -1,8 +1,9 @@
 """Replay measured trials in the model: same start, same gait, same frame times.
 
-Trials that share a robot count, gait and scene are run together as lanes of
-one native batch (``mujoco.rollout`` on all cores). Gait time is measured
-time: a trial whose first frame is at t0 starts at gait phase t0 / T.
+Trials that share a robot count, gaits (one per robot) and scene are run
+together as lanes of one native batch (``mujoco.rollout`` on all cores). Gait time is measured
+time: a trial whose first frame is at t0 starts robot i at gait phase
+t0 / T_i.
 """
 
 from __future__ import annotations
@@ -43,9 +44,9 @@ def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int
     """
     groups: dict = {}
     for k, tr in enumerate(trials):
-        groups.setdefault((tr.robots, tr.gait, scene_for(tr)), []).append(k)
+        groups.setdefault((tr.robots, tr.gaits, scene_for(tr)), []).append(k)
     out: list[np.ndarray | None] = [None] * len(trials)
-    for (n, gait, params), idx in groups.items():
+    for (n, gaits, params), idx in groups.items():
         scene = Scene.build(params, n)
         be = make_backend("native", scene, nthread=nthread)
         try:
@@ -53,19 +54,20 @@ def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int
             for k in idx:
                 tr = trials[k]
                 t0 = float(tr.t[0])
-                ph = np.full(n, t0 / gait.period())
+                ph = t0 / np.array([g.period() for g in gaits])
                 if phase_for is not None:
                     ph = ph + np.asarray(phase_for(tr), float)
                 p = np.zeros((n, 5))
                 p[:, :3] = tr.pose[0]
                 for i in range(n):
-                    cmd = gait.setpoints(0.0, params.robot.servo_speed, phase=ph[i])
+                    cmd = gaits[i].setpoints(0.0, params.robot.servo_speed, phase=ph[i])
                     meas = tr.arms[0, i] if tr.arms is not None else np.full(2, np.nan)
                     p[i, 3:] = np.where(np.isfinite(meas), meas, cmd)
                 poses.append(p)
                 phases.append(np.mod(ph, 1.0))
                 t0s.append(t0)
-            lanes = on_step_grid(Lanes.from_gait(np.stack(poses), gait, phase=np.stack(phases)), params.timestep)
+            lanes = on_step_grid(Lanes.from_robot_gaits(np.stack(poses), gaits, phase=np.stack(phases)),
+                                 params.timestep)
             dur = max(trials[k].duration for k in idx)
             periods = max(1, math.ceil(dur / lanes.period + 1e-9))
             stride = max(1, int(round(SIM_SAMPLE_S / params.timestep)))

@@ -111,7 +111,7 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
             arms[0] = start[:, 3:]
             templates.append(Trial(f"synth:{k}", t, pose, arms, gait, params, frame_rate_hz))
         tracks = simulate_trials(templates, scene_for=lambda tr: eff.scene(tr.params),
-                                 phase_for=lambda tr: eff.phases(tr.robots, tr.gait.period()))
+                                 phase_for=lambda tr: eff.phases(tr.robots, tr.periods))
         path = out_dir / f"a{amp:05.1f}.csv"
         tmp = path.with_name(path.name + ".part")
         with open(tmp, "w", newline="") as f:

@@ -172,12 +172,15 @@ class Lanes:
     Attributes:
       poses: [B, N, 5] initial poses (m, rad); arm angles are usually the
         gait's setpoint at t = 0.
-      amplitude: [B] alpha_max in rad.
-      chirality: [B] +1 (ccw) or -1 (cw).
-      kind: [B] 0 square, 1 diagonal.
-      phase: [B, N] per-robot phase offsets, fractions of a period.
+      amplitude: [B] alpha_max in rad, or [B, N]: one per robot.
+      chirality: [B] or [B, N]: +1 (ccw) or -1 (cw).
+      kind: [B] or [B, N]: 0 square, 1 diagonal.
+      phase: [B, N] per-robot phase offsets, fractions of that robot's period.
       period: gait period in s, shared by the batch (it fixes the number of
-        steps per period, a static shape).
+        steps per period, a static shape, and where period records fall).
+      robot_period: [B, N] each robot's own gait period in s, or None (every
+        robot at ``period``). Robots with other periods are not at gait
+        phase 0 at the period records.
     """
 
     poses: np.ndarray
@@ -186,18 +189,40 @@ class Lanes:
     kind: np.ndarray
     phase: np.ndarray
     period: float
+    robot_period: np.ndarray | None = None
 
     def __post_init__(self):
-        b = self.poses.shape[0]
+        b, n = self.poses.shape[:2]
         for name in ("amplitude", "chirality", "kind"):
-            if getattr(self, name).shape != (b,):
-                raise ValueError(f"lanes.{name} must have shape ({b},)")
+            if getattr(self, name).shape not in ((b,), (b, n)):
+                raise ValueError(f"lanes.{name} must have shape ({b},) or ({b}, {n})")
         if self.phase.shape != self.poses.shape[:2]:
             raise ValueError("lanes.phase must have shape [B, N]")
+        if self.robot_period is not None:
+            if self.robot_period.shape != (b, n):
+                raise ValueError(f"lanes.robot_period must have shape ({b}, {n})")
+            if not (np.isfinite(self.robot_period).all() and (self.robot_period > 0).all()):
+                raise ValueError("lanes.robot_period must be positive")
 
     @property
     def size(self) -> int:
         return self.poses.shape[0]
+
+    @property
+    def per_robot(self) -> bool:
+        """Whether robots of one lane may run different gaits."""
+        return self.robot_period is not None or any(getattr(self, k).ndim == 2
+                                                    for k in ("amplitude", "chirality", "kind"))
+
+    def robot_gait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(amplitude, chirality, kind, period), each [B, N]."""
+        shape = self.poses.shape[:2]
+
+        def full(x):
+            x = np.asarray(x)
+            return np.broadcast_to(x[:, None] if x.ndim == 1 else x, shape)
+        period = self.robot_period if self.robot_period is not None else np.full(shape, float(self.period))
+        return full(self.amplitude), full(self.chirality), full(self.kind), period
 
     @staticmethod
     def from_gait(poses, spec: gait_mod.GaitSpec, phase=None) -> "Lanes":
@@ -214,9 +239,46 @@ class Lanes:
             period=spec.period(),
         )
 
+    @staticmethod
+    def from_robot_gaits(poses, specs, phase=None) -> "Lanes":
+        """Lanes whose robots run their own gaits: ``specs`` [N] GaitSpecs, the
+        same in every lane. The batch's period (records, steps per period) is
+        the first robot's."""
+        poses = np.asarray(poses, dtype=float)
+        if poses.ndim == 2:
+            poses = poses[None]
+        b, n = poses.shape[:2]
+        if len(specs) != n:
+            raise ValueError(f"{len(specs)} gaits for {n} robots")
+
+        def row(values, dtype=float):
+            return np.broadcast_to(np.asarray(values, dtype), (b, n)).copy()
+        periods = [s.period() for s in specs]
+        return Lanes(
+            poses=poses,
+            amplitude=row([s.amplitude for s in specs]),
+            chirality=row([s.chirality_sign for s in specs], np.int32),
+            kind=row([s.kind_code for s in specs], np.int32),
+            phase=np.zeros((b, n)) if phase is None else np.broadcast_to(np.asarray(phase, float), (b, n)).copy(),
+            period=periods[0],
+            robot_period=None if len(set(periods)) == 1 else row(periods),
+        )
+
+    def at_time(self, t: float) -> "Lanes":
+        """The lanes ``t`` seconds into a run that started at ``t = 0``.
+
+        Robots at the batch's period are back at their starting phase at
+        every period boundary; a robot with its own period (``robot_period``)
+        is ``t / T_i`` periods further on, so its phase offset moves by that
+        (mod 1). Without ``robot_period`` the lanes are returned unchanged.
+        """
+        if self.robot_period is None:
+            return self
+        return dataclasses.replace(self, phase=np.mod(self.phase + t / self.robot_period, 1.0))
+
     def take(self, idx) -> "Lanes":
         return Lanes(self.poses[idx], self.amplitude[idx], self.chirality[idx], self.kind[idx],
-                     self.phase[idx], self.period)
+                     self.phase[idx], self.period, None if self.robot_period is None else self.robot_period[idx])
 
 
 def steps_per_period(period: float, timestep: float) -> int:
@@ -232,9 +294,13 @@ def on_step_grid(lanes: "Lanes", timestep: float) -> "Lanes":
 
     The change is at most dt/2 and comes out of the dwell at the corners, so
     period boundaries stay at gait phase 0 exactly, however many periods run.
+    Robots' own periods (``robot_period``) are rounded the same way.
     """
     period = steps_per_period(lanes.period, timestep) * timestep
-    return dataclasses.replace(lanes, period=period)
+    rp = lanes.robot_period
+    if rp is not None:
+        rp = np.maximum(np.round(rp / timestep), 1) * timestep
+    return dataclasses.replace(lanes, period=period, robot_period=rp)
 
 
 _controls = jax.jit(gait_mod.setpoints_and_rates)
@@ -246,9 +312,13 @@ def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
     Per robot: setpoints (alpha1, alpha2) then their rates, as the scene's
     actuators expect.
     """
-    sp = _controls(
-        t[None, :, None], lanes.amplitude[:, None, None], lanes.period, scene.params.robot.servo_speed,
-        lanes.chirality[:, None, None], lanes.kind[:, None, None], lanes.phase[:, None, :])
+    if lanes.per_robot:
+        amp, chi, kind, period = (x[:, None, :] for x in lanes.robot_gait())
+    else:
+        amp, chi, kind = (x[:, None, None] for x in (lanes.amplitude, lanes.chirality, lanes.kind))
+        period = lanes.period
+    sp = _controls(t[None, :, None], amp, period, scene.params.robot.servo_speed, chi, kind,
+                   lanes.phase[:, None, :])
     sp = np.asarray(sp)  # [B, T, N, 4]
     return sp.reshape(sp.shape[0], sp.shape[1], -1)
 

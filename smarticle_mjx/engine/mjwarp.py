@@ -236,8 +236,11 @@ class WarpBackend:
 
     def _set_table(self, b: _Batch, lanes: Lanes, nstep: int):
         """Controls of one period, one row per distinct gait among the lanes."""
+        if lanes.robot_period is not None:
+            raise ValueError("robots with different gait periods in one lane run on the native or MJX backend, "
+                             "not on Warp (its control table holds one period)")
         wp = self._wp
-        key = np.column_stack([lanes.amplitude, lanes.chirality, lanes.kind, lanes.phase])
+        key = np.column_stack([*lanes.robot_gait(), lanes.phase])  # [B, 5N]: lanes with one gait share a row
         uniq, row = np.unique(key, axis=0, return_inverse=True)
         first = np.array([np.flatnonzero(row == u)[0] for u in range(len(uniq))])
         dt = float(self.model.opt.timestep)

@@ -109,9 +109,21 @@ class MjxBackend:
         return self._shard(d, b)
 
     def _lane_args(self, lanes: Lanes):
-        """Traced per-lane gait inputs (amplitude, chirality, kind, phase)."""
-        return self._shard((jnp.asarray(lanes.amplitude, jnp.float32), jnp.asarray(lanes.chirality, jnp.int32),
-                            jnp.asarray(lanes.kind, jnp.int32), jnp.asarray(lanes.phase, jnp.float32)), lanes.size)
+        """Traced per-lane gait inputs (amplitude, chirality, kind, phase, period).
+
+        The period is one scalar for the batch, or [B, N] when robots run
+        their own gaits (then amplitude, chirality and kind are [B, N] too).
+        """
+        if lanes.per_robot:
+            amp, chi, kind, period = lanes.robot_gait()
+            period = jnp.asarray(period, jnp.float32)
+        else:
+            amp, chi, kind, period = lanes.amplitude, lanes.chirality, lanes.kind, None
+        args = (jnp.asarray(amp, jnp.float32), jnp.asarray(chi, jnp.int32), jnp.asarray(kind, jnp.int32),
+                jnp.asarray(lanes.phase, jnp.float32))
+        if period is not None:
+            return self._shard(args + (period,), lanes.size), True
+        return self._shard(args, lanes.size) + (jnp.float32(lanes.period),), False
 
     def _gait_step(self, d, t, amplitude, chirality, kind, phase, period):
         """One mjx.step of one lane with the gait's controls at time ``t``."""
@@ -119,10 +131,11 @@ class MjxBackend:
                                             chirality, kind, phase).reshape(-1)
         return mjx.step(self.mx, d.replace(ctrl=ctrl.astype(d.ctrl.dtype)))
 
-    def _period_fn(self, nstep: int):
-        """jit(vmap(one lane, one period)) for ``nstep`` steps per period."""
-        if nstep in self._compiled:
-            return self._compiled[nstep]
+    def _period_fn(self, nstep: int, per_robot: bool = False):
+        """jit(vmap(one lane, one period)) for ``nstep`` steps per period
+        (``per_robot``: the period is per lane and robot, not one scalar)."""
+        if (nstep, per_robot) in self._compiled:
+            return self._compiled[(nstep, per_robot)]
         slots = self.slots
         dt = float(self.model.opt.timestep)
         n_pairs = self.scene.n_pairs
@@ -144,8 +157,8 @@ class MjxBackend:
             (d, touched, mind, finite), _ = jax.lax.scan(body, init, jnp.arange(nstep))
             return d, touched, mind, finite
 
-        fn = jax.jit(jax.vmap(one_lane, in_axes=(0, 0, 0, 0, 0, None)))
-        self._compiled[nstep] = fn
+        fn = jax.jit(jax.vmap(one_lane, in_axes=(0, 0, 0, 0, 0, 0 if per_robot else None)))
+        self._compiled[(nstep, per_robot)] = fn
         return fn
 
     def advance(self, state, lanes: Lanes, n_periods: int, *, t0: float = 0.0, record: Record | None = None):
@@ -154,15 +167,17 @@ class MjxBackend:
             raise ValueError("full-rate tracks and the collision record are recorded by the native backend only")
         lanes = on_step_grid(lanes, float(self.model.opt.timestep))
         nstep = steps_per_period(lanes.period, float(self.model.opt.timestep))
-        fn = self._period_fn(nstep)
         b = lanes.size
-        args = self._lane_args(lanes)
+        args, per_robot = self._lane_args(lanes.at_time(t0))
+        fn = self._period_fn(nstep, per_robot)
         poses = np.empty((b, n_periods, self.scene.n_robots, 5))
         touched = np.zeros((b, n_periods, self.scene.n_pairs), dtype=bool)
         min_dist = np.full((b, n_periods, self.scene.n_pairs), np.inf)
         status = np.zeros(b, dtype=np.int32)
         for k in range(n_periods):
-            state, tch, mind, finite = fn(state, *args, jnp.float32(lanes.period))
+            if k and lanes.robot_period is not None:  # robots with their own period: their phase moves on
+                args, _ = self._lane_args(lanes.at_time(t0 + k * lanes.period))
+            state, tch, mind, finite = fn(state, *args)
             touched[:, k] = np.asarray(tch)
             min_dist[:, k] = np.asarray(mind)
             poses[:, k] = self.scene.poses_from_qpos(np.asarray(state.qpos, dtype=np.float64))
@@ -175,7 +190,8 @@ class MjxBackend:
         step-by-step comparison with the native backend, and benchmarks).
         The period is traced here, so only ``nsteps`` and B recompile."""
         lanes = on_step_grid(lanes, float(self.model.opt.timestep))
-        key = ("steps", nsteps)
+        args, per_robot = self._lane_args(lanes)
+        key = ("steps", nsteps, per_robot)
         if key not in self._compiled:
             dt = float(self.model.opt.timestep)
 
@@ -185,7 +201,6 @@ class MjxBackend:
                     return d, d.qpos
                 return jax.lax.scan(body, d, jnp.arange(nsteps))[1]
 
-            self._compiled[key] = jax.jit(jax.vmap(one_lane, in_axes=(0, 0, 0, 0, 0, None)))
-        args = self._lane_args(lanes)
-        out = self._compiled[key](self.initial_state(lanes), *args, jnp.float32(lanes.period))
+            self._compiled[key] = jax.jit(jax.vmap(one_lane, in_axes=(0, 0, 0, 0, 0, 0 if per_robot else None)))
+        out = self._compiled[key](self.initial_state(lanes), *args)
         return np.asarray(jax.block_until_ready(out), dtype=np.float64)

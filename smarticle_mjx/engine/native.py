@@ -69,7 +69,9 @@ class NativeBackend:
         """Advance ``state`` [B, nstate] by ``n_periods`` whole gait periods.
 
         Every lane must be at gait phase 0 (a whole number of periods into its
-        run); lanes need not share a clock. ``t0`` only labels track times.
+        run); lanes need not share a clock. ``t0`` labels track times and, for
+        robots with their own gait period (``lanes.robot_period``), is the
+        time since the run's start that sets their phase (:meth:`Lanes.at_time`).
         ``record`` says what to keep beyond the per-period records.
 
         Returns:
@@ -97,14 +99,19 @@ class NativeBackend:
         track_t, track_q = [], []
         # every call starts at gait phase 0 and the gait is periodic, so the
         # controls of one period serve every period and every lane's clock
+        # (robots with their own period: recomputed each period at their phase then)
         t_rel = dt * np.arange(nstep)
-        ctrl_all = lane_controls(self.scene, lanes, t_rel) if b <= slice_size else None
+        own = lanes.robot_period is not None
+        ctrl_all = lane_controls(self.scene, lanes, t_rel) if b <= slice_size and not own else None
         for k in range(n_periods):
             t_start = t0 + k * lanes.period
+            lanes_k = lanes.at_time(t_start)
+            if own and b <= slice_size:
+                ctrl_all = lane_controls(self.scene, lanes_k, t_rel)
             out_q = []
             for lo in range(0, b, slice_size):
                 sl = slice(lo, min(b, lo + slice_size))
-                ctrl = ctrl_all[sl] if ctrl_all is not None else lane_controls(self.scene, lanes.take(sl), t_rel)
+                ctrl = ctrl_all[sl] if ctrl_all is not None else lane_controls(self.scene, lanes_k.take(sl), t_rel)
                 init = state[sl].copy()
                 states, sens = self.pool.rollout(
                     m, self.datas, init, ctrl, nstep=nstep)
