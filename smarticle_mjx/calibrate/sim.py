@@ -54,7 +54,7 @@ def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int
             for k in idx:
                 tr = trials[k]
                 t0 = float(tr.t[0])
-                ph = t0 / np.array([g.period() for g in gaits])
+                ph = t0 / tr.periods
                 if phase_for is not None:
                     ph = ph + np.asarray(phase_for(tr), float)
                 p = np.zeros((n, 5))

@@ -225,17 +225,24 @@ class Lanes:
         return full(self.amplitude), full(self.chirality), full(self.kind), period
 
     @staticmethod
-    def from_gait(poses, spec: gait_mod.GaitSpec, phase=None) -> "Lanes":
+    def _batch(poses, phase):
+        """Poses [B, N, 5] (a single [N, 5] becomes one lane) and phase offsets [B, N]."""
         poses = np.asarray(poses, dtype=float)
         if poses.ndim == 2:
             poses = poses[None]
-        b, n = poses.shape[:2]
+        shape = poses.shape[:2]
+        return poses, np.zeros(shape) if phase is None else np.broadcast_to(np.asarray(phase, float), shape).copy()
+
+    @staticmethod
+    def from_gait(poses, spec: gait_mod.GaitSpec, phase=None) -> "Lanes":
+        poses, phase = Lanes._batch(poses, phase)
+        b = poses.shape[0]
         return Lanes(
             poses=poses,
             amplitude=np.full(b, spec.amplitude),
             chirality=np.full(b, spec.chirality_sign, dtype=np.int32),
             kind=np.full(b, spec.kind_code, dtype=np.int32),
-            phase=np.zeros((b, n)) if phase is None else np.broadcast_to(np.asarray(phase, float), (b, n)).copy(),
+            phase=phase,
             period=spec.period(),
         )
 
@@ -244,9 +251,7 @@ class Lanes:
         """Lanes whose robots run their own gaits: ``specs`` [N] GaitSpecs, the
         same in every lane. The batch's period (records, steps per period) is
         the first robot's."""
-        poses = np.asarray(poses, dtype=float)
-        if poses.ndim == 2:
-            poses = poses[None]
+        poses, phase = Lanes._batch(poses, phase)
         b, n = poses.shape[:2]
         if len(specs) != n:
             raise ValueError(f"{len(specs)} gaits for {n} robots")
@@ -259,7 +264,7 @@ class Lanes:
             amplitude=row([s.amplitude for s in specs]),
             chirality=row([s.chirality_sign for s in specs], np.int32),
             kind=row([s.kind_code for s in specs], np.int32),
-            phase=np.zeros((b, n)) if phase is None else np.broadcast_to(np.asarray(phase, float), (b, n)).copy(),
+            phase=phase,
             period=periods[0],
             robot_period=None if len(set(periods)) == 1 else row(periods),
         )

@@ -101,12 +101,11 @@ class NativeBackend:
         # controls of one period serve every period and every lane's clock
         # (robots with their own period: recomputed each period at their phase then)
         t_rel = dt * np.arange(nstep)
-        own = lanes.robot_period is not None
-        ctrl_all = lane_controls(self.scene, lanes, t_rel) if b <= slice_size and not own else None
+        ctrl_all = None
         for k in range(n_periods):
             t_start = t0 + k * lanes.period
             lanes_k = lanes.at_time(t_start)
-            if own and b <= slice_size:
+            if b <= slice_size and (k == 0 or lanes.robot_period is not None):
                 ctrl_all = lane_controls(self.scene, lanes_k, t_rel)
             out_q = []
             for lo in range(0, b, slice_size):
