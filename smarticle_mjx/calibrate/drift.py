@@ -94,7 +94,7 @@ def regress(tracks: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
 
     Returns:
       dict: s [2] (body frame, mm/cycle), v [2] (plate frame, mm/cycle),
-      cov_v [2, 2], cycles, spread_deg, var_step, var_pos (mm^2).
+      cov_v, cov_s [2, 2], cycles, spread_deg, var_step, var_pos (mm^2).
     """
     parts = []
     for h, d in tracks:
@@ -135,7 +135,8 @@ def regress(tracks: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
         atb += ap.T @ w @ yp
     cov = np.linalg.inv(ata)
     x = cov @ atb
-    return {"s": x[:2], "v": x[2:], "cov_v": cov[2:, 2:], "cycles": int(len(h_all)), "spread_deg": spread,
+    return {"s": x[:2], "v": x[2:], "cov_v": cov[2:, 2:], "cov_s": cov[:2, :2], "cycles": int(len(h_all)),
+            "spread_deg": spread,
             "var_step": var_step, "var_pos": var_pos}
 
 

@@ -44,6 +44,7 @@ from .effects import BY_NAME, LIBRARY, Effect, EffectSet
 from .nominal import apply as apply_nominal, fit_nominal
 from .residuals import CONTACT_W, Features, features, masked, residual_blocks
 from .drift import drift_test, fit_tilt
+from .observables import observables
 from .phase import estimate_offset
 from .sim import simulate_trials
 
@@ -373,6 +374,56 @@ def where_residual(problem: Problem, eff: EffectSet) -> dict[str, float]:
     return {k: float(np.mean(np.concatenate(v) ** 2)) for k, v in acc.items()}
 
 
+def observable_stages(train: Problem, test: Problem, trials: list[Trial], stages: dict) -> dict:
+    """Observables (calibrate.observables) of the data and of the model at each stage.
+
+    ``stages``: {label: (nominal values, EffectSet)}. Model tracks come from
+    the problems' caches (the fit already ran most of them). Rows of the
+    model are matched to the data's by gait (and robot).
+    """
+    order = {t.name: k for k, t in enumerate(trials)}
+
+    def tracks(nom, eff):
+        out = [None] * len(trials)
+        for prob in (train, test):
+            trk, _ = prob.model(eff, nom)
+            for tr, x in zip(prob.trials, trk):
+                out[order[tr.name]] = x
+        return out
+
+    data = observables(trials)
+    model = {label: observables(trials, tracks(nom, eff)) for label, (nom, eff) in stages.items()}
+
+    def key(kind, row):
+        return (row["gait"], row.get("robot"))
+
+    rows = {}
+    for kind in data:
+        out = []
+        for r in data[kind]:
+            k = key(kind, r)
+            row = {"gait": r["gait"], "measured": r}
+            if "robot" in r:
+                row["robot"] = r["robot"]
+            for label, o in model.items():
+                row[label] = next((m for m in o[kind] if key(kind, m) == k), None)
+            out.append(row)
+        rows[kind] = out
+    return rows
+
+
+def reproduced(measured: dict, model: dict | None, z: float = 1.96) -> bool | None:
+    """Whether a model observable agrees with the measured one within z combined standard errors."""
+    if model is None:
+        return None
+    if "v" in measured:
+        d = np.subtract(measured["v"], model["v"])
+        s = np.hypot(measured["se"], model["se"])
+        return bool(np.all(np.abs(d) <= z * s))
+    s = math.hypot(measured["se"], model["se"]) if np.isfinite(model["se"]) else measured["se"]
+    return bool(abs(measured["mean"] - model["mean"]) <= z * s)
+
+
 def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_step=None, nominal: bool = True) -> dict:
     """The whole loop: conventions -> nominal parameters -> residual -> ranked
     diagnosis -> fit -> selection.
@@ -541,6 +592,17 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         say(f"added {best['effect']}")
     final = EffectSet.of(base)
     after = {"err_train": train.error(final), "err_heldout": test.error(final), "where_heldout": where_residual(test, final)}
+    # what the fitted values mean on the tracks: arm delay, phase lead, plate drift of the data and of the
+    # model at each stage, and of the final model without each added effect (that effect's share)
+    stages = {"preset": ({}, null)}
+    if nominal:
+        stages["nominal"] = (nom0, null)
+    stages["final"] = (dict(train.nominal), final)
+    for e in chosen:
+        stages[f"without {e.name}"] = (dict(train.nominal), EffectSet.of({k: v for k, v in base.items() if k != e.name}))
+    runs_before = train.runs + test.runs
+    obs = observable_stages(train, test, trials, stages)
+    say(f"observables of the data and of {len(stages)} model stages ({train.runs + test.runs - runs_before} more runs)")
     verdict = "agrees within measurement error"
     if after["err_heldout"] > UNEXPLAINED:
         verdict = "unexplained residual" if not chosen else "explained in part; unexplained residual remains"
@@ -554,7 +616,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
             "added": [{"effect": e.name, "title": e.title, "values": found[e.name][0], "interval": found[e.name][1],
                        "units": {p.name: p.unit for p in e.params}} for e in chosen],
             "verdict": verdict, "model_runs": train.runs + test.runs + extra_runs,
-            "drift": {**drift, "tilt_fit": tilt},
+            "drift": {**drift, "tilt_fit": tilt}, "observables": obs,
             "criteria": {"min_heldout_gain": MIN_HELDOUT_GAIN, "unexplained_error": UNEXPLAINED,
                          "bic": "chi2 drop > k ln n on training trials"},
             "_effects": final, "_nominal": dict(train.nominal)}

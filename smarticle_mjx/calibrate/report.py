@@ -148,6 +148,7 @@ def markdown(r: dict) -> str:
                       "the drift test finds drift, the tilt's 95 % region excludes a level plate and the drift χ² at "
                       "least halves)."]
         lines.append("")
+    lines += observables_markdown(r.get("observables"))
     if r["added"]:
         lines += ["## Added effects", "", "| effect | parameter | fitted | 95 % interval |", "|---|---|---|---|"]
         for e in r["added"]:
@@ -202,3 +203,38 @@ def markdown(r: dict) -> str:
         "frame; step = per-cycle step in the plate frame; increments = frame-to-frame jitter.", ""]
     lines += [f"![{n}]({n})" for n in r["figures"]]
     return "\n".join(lines) + "\n"
+
+
+def observables_markdown(obs: dict | None) -> list[str]:
+    """The table of observables: measured, and the model at each stage (calibrate.observables)."""
+    if not obs or not any(obs.values()):
+        return []
+    from .fit import reproduced
+    stages = [k for k in next(r for rows in obs.values() for r in rows) if k not in ("gait", "measured", "robot")]
+    lines = ["## What the fitted values mean on the tracks", "",
+             "Quantities read off the tracks the same way for the data and for the model (all trials): the **arm "
+             "delay** from the command's switch to the arm crossing its midpoint (ms, mean over swings after the "
+             "first half period), the **phase lead** of a robot's swings over robot 0's (periods), the **plate "
+             "drift** with the body-frame step taken out (mm/s, x and y), the length of that **body-frame step** "
+             "(mm/cycle) and the lone robots' **rotation** (deg/cycle). A structural effect's share is the "
+             "final model minus the final model without it. ± is one standard error; ✓: the model agrees with "
+             "the measured value within 95 %.", "",
+             "| observable | gait | measured | " + " | ".join(stages) + " |", "|---|---|---|" + "---|" * len(stages)]
+
+    def one(m, ref=None):
+        if m is None:
+            return "–"
+        ok = "" if ref is None else (" ✓" if reproduced(ref, m) else "")
+        if "v" in m:
+            return (f"({m['v'][0]:+.4f}, {m['v'][1]:+.4f}) ± ({m['se'][0]:.4f}, {m['se'][1]:.4f}){ok}")
+        return f"{m['mean']:.4g} ± {_num(m['se'], '.2g')}{ok}"
+
+    names = {"arm_delay_ms": "arm delay (ms)", "phase_lead": "phase lead (periods)",
+             "drift_mm_per_s": "plate drift (mm/s)", "body_step_mm": "body-frame step (mm/cycle)",
+             "rotation_deg": "rotation (deg/cycle)"}
+    for kind, rows in obs.items():
+        for r in rows:
+            label = names[kind] + (f", robot {r['robot']}" if "robot" in r else "")
+            lines.append(f"| {label} | {r['gait']} | {one(r['measured'])} | "
+                         + " | ".join(one(r.get(k), r["measured"]) for k in stages) + " |")
+    return lines + [""]

@@ -1,0 +1,167 @@
+"""Observables: what a fitted value means in quantities read off the tracks.
+
+A fitted effect is a parameter of *our* model. When the robot that made the
+data differs from the model in ways the model cannot express (another servo
+law, another arm shape), the fitted value absorbs part of that difference:
+a 30 ms dead time on top of a servo that is slower than ours fits as less
+than 30 ms, a plate tilt fits as whatever tilt gives *our* robot the
+measured drift. A statistical interval says nothing about that. What can be
+checked is whether the fitted model reproduces the measured quantities the
+effect moves, and how much of each the effect itself accounts for:
+
+* **arm delay** (ms): the time from the command's switch to the arm
+  crossing its midpoint, averaged over every swing of every arm; it moves
+  with a servo lag, a dead time, a slower or weaker servo;
+* **phase lead** (periods): how far robot i's arm swings run ahead of robot
+  0's, for robots that share robot 0's gait; it moves with a phase offset
+  between robots;
+* **plate drift** (mm/s): the drift fixed to the plate with the body-frame
+  step taken out (:mod:`calibrate.drift`); it moves with a plate tilt;
+* **body step** (mm/cycle): the length of that body-frame step, and the
+  **rotation** (deg/cycle) of lone robots: they move with friction, masses
+  and the arms' shape.
+
+All are computed the same way on measured tracks and on model tracks masked
+like them (numpy only), each with a standard error from the spread over
+swings (arm delay, phase lead) or from the drift regression.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .drift import cycles, group_drift
+from .residuals import cycle_poses
+
+_GRID = 4096  # samples per period of the commanded (instant) gait, for its switch times
+SETTLE = 0.5  # periods at the start of a track whose swings are left out
+
+
+def _command_switches(gait) -> list[tuple[int, int, float]]:
+    """Where the commanded arms cross their midpoint: [(arm, direction, phase)], phase in [0, 1).
+
+    The command is the gait at an instant servo: its midpoint crossings are
+    the switches (the quarter starts of a square gait).
+    """
+    u = (np.arange(_GRID) + 0.5) / _GRID
+    sp = np.asarray(gait.setpoints(u * gait.period(), 1e6))  # [G, 2]
+    out = []
+    for k in range(2):
+        s = np.sign(sp[:, k])
+        for j in np.nonzero(s != np.roll(s, -1))[0]:
+            if s[j] == 0:
+                continue
+            out.append((k, int(np.sign(s[(j + 1) % _GRID] - s[j])), float((j + 1) / _GRID % 1.0)))
+    return out
+
+
+def crossings(t: np.ndarray, angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Times and directions (+1 up, -1 down) at which an arm angle [F] crosses 0,
+    by linear interpolation between consecutive tracked frames."""
+    ok = np.isfinite(angle)
+    tt, a = t[ok], angle[ok]
+    if len(a) < 2:
+        return np.zeros(0), np.zeros(0, int)
+    j = np.nonzero((a[:-1] < 0) != (a[1:] < 0))[0]
+    w = a[j] / (a[j] - a[j + 1])
+    return tt[j] + w * (tt[j + 1] - tt[j]), np.where(a[j + 1] > a[j], 1, -1)
+
+
+def swing_delays(t: np.ndarray, arms: np.ndarray, gait, settle: float = SETTLE) -> np.ndarray:
+    """Delays (s) of one robot's arm swings [F frames, 2 arms] behind the command.
+
+    Each crossing is matched to the nearest command switch of the same arm
+    and direction, the delay wrapped into (-T/2, T/2]. Crossings within
+    ``settle`` periods of the track's first frame are left out (the start
+    transient: the arms start at rest, wherever the servo's state is).
+    """
+    T = gait.period()
+    sw = _command_switches(gait)
+    out = []
+    for k in range(2):
+        tc, dirs = crossings(t, arms[:, k])
+        keep = tc >= t[0] + settle * T
+        tc, dirs = tc[keep], dirs[keep]
+        for d in (1, -1):
+            ref = [p for (kk, dd, p) in sw if kk == k and dd == d]
+            if not ref or not (dirs == d).any():
+                continue
+            u = np.mod(tc[dirs == d] / T, 1.0)
+            diff = np.stack([np.mod(u - r + 0.5, 1.0) - 0.5 for r in ref])  # to each switch, wrapped
+            out.append(diff[np.argmin(np.abs(diff), 0), np.arange(diff.shape[1])] * T)
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def _mean_se(x) -> dict:
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    if len(x) == 0:
+        return {"mean": float("nan"), "se": float("nan"), "n": 0}
+    se = float(x.std(ddof=1) / math.sqrt(len(x))) if len(x) > 1 else float("nan")
+    return {"mean": float(x.mean()), "se": se, "n": int(len(x))}
+
+
+def _gait_label(g) -> str:
+    return f"{g.amplitude_deg:g}° {g.chirality} {g.kind}, T = {g.period():.4g} s"
+
+
+def observables(trials, tracks=None) -> dict:
+    """The observables of measured trials (``tracks`` None) or of model tracks
+    [F, N, 5] aligned with ``trials`` (masked where the measurement is missing).
+
+    Returns:
+      dict of lists, one row per gait: ``arm_delay_ms`` (gait, mean, se, n
+      swings) from each trial's robot 0 and every robot on another gait than
+      its trial's robot 0; ``phase_lead`` (gait, robot, mean, se, n swings,
+      in periods) of each robot that shares robot 0's gait, against robot 0
+      swing by swing; ``drift_mm_per_s`` (gait, v [2], se [2]) from the
+      plate-frame drift regression; ``body_step_mm`` (gait, mean, se, n
+      cycles): the body-frame step's length from the same regression;
+      ``rotation_deg`` (gait, mean, se, n cycles) per cycle of lone robots.
+    """
+    delays: dict = {}
+    lead: dict = {}
+    for k, tr in enumerate(trials):
+        if tr.arms is None:
+            continue
+        arms = tr.arms
+        if tracks is not None:
+            arms = np.asarray(tracks[k])[..., 3:5].copy()
+            arms[~np.isfinite(tr.arms)] = np.nan
+        per = [swing_delays(tr.t, arms[:, i], tr.gaits[i]) for i in range(tr.robots)]
+        d0 = _mean_se(per[0])["mean"]
+        for i, g in enumerate(tr.gaits):
+            if i == 0 or g != tr.gaits[0]:
+                delays.setdefault(g, []).append(per[i])
+            elif len(per[i]) and np.isfinite(d0):
+                # robot 0's mean delay minus this robot's: how far ahead it swings (periods)
+                lead.setdefault((g, i), []).append((d0 - per[i]) / g.period())
+    out: dict = {"arm_delay_ms": [], "phase_lead": [], "drift_mm_per_s": [], "body_step_mm": [], "rotation_deg": []}
+    rot: dict = {}
+    for g, parts in delays.items():
+        m = _mean_se(np.concatenate(parts) * 1e3)
+        out["arm_delay_ms"].append({"gait": _gait_label(g), **m})
+    for (g, i), parts in lead.items():
+        out["phase_lead"].append({"gait": _gait_label(g), "robot": i, **_mean_se(np.concatenate(parts))})
+    for key, r in sorted(group_drift(trials, tracks).items()):
+        T = key[3]
+        label = f"{key[0]:g}° {key[1]} {key[2]}, T = {T:.4g} s"
+        out["drift_mm_per_s"].append({"gait": label, "v": (np.asarray(r["v"]) / T).tolist(),
+                                      "se": (np.sqrt(np.diag(r["cov_v"])) / T).tolist()})
+        # the step's length in the body frame, its error propagated from the step's covariance
+        s, cs = np.asarray(r["s"]), np.asarray(r["cov_s"])
+        n = float(np.hypot(*s))
+        se = float(np.sqrt(s @ cs @ s) / n) if n > 0 else float(np.sqrt(np.trace(cs)))
+        out["body_step_mm"].append({"gait": label, "mean": n, "se": se, "n": r["cycles"]})
+    for tr_k, tr in enumerate(trials):
+        pose = tr.pose if tracks is None else np.asarray(tracks[tr_k])[..., :3].copy()
+        if tracks is not None:
+            pose[~np.isfinite(tr.pose).all(-1)] = np.nan
+        for i, h, _ in cycles(tr.t, pose, tr.periods, tr.params.robot.body_length):
+            _, pc = cycle_poses(tr.t, pose[:, i], tr.periods[i])
+            rot.setdefault(tr.gaits[i], []).append(np.degrees(np.diff(pc[:, 2])))
+    for g, parts in rot.items():
+        out["rotation_deg"].append({"gait": _gait_label(g), **_mean_se(np.concatenate(parts))})
+    return out
