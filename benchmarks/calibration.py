@@ -27,6 +27,7 @@ import time
 
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.fit import calibrate
+from smarticle_mjx.calibrate.observables import observables
 from smarticle_mjx.calibrate.synth import CASES, case_truth, make_case
 
 
@@ -41,6 +42,7 @@ MISMATCH = {
     "lag_20ms_low": (dict(lag_s=0.02, amplitudes=(10, 20)), "servo_lag"),
     "tilt_0.5deg": (dict(tilt_deg=(0.5, 0.0)), "plate_tilt"),
     "friction_0.25": (dict(friction=0.25), "nominal:plate_friction"),
+    "friction_0.15": (dict(friction=0.15), "nominal:plate_friction"),
     "outside_arm2_bias": (dict(arm2_bias_deg=5.0), None),
     "dead_time_30ms": (dict(dead_s=0.03), "servo_dead_time"),
     "phase_offset_0.1": (dict(phase_offset=0.1, robots=2), "phase_offset"),
@@ -79,15 +81,27 @@ def truth_inside(r: dict):
     return all(out)
 
 
-def make_mismatch(name: str, out, seed: int) -> None:
+EFFECT_KEYS = ("lag_s", "dead_s", "tilt_deg", "friction", "phase_offset", "arm2_bias_deg")  # generator effects
+
+
+def make_mismatch(name: str, out, seed: int, effects: bool = True) -> None:
+    """Write the case's data; ``effects`` False: its clean twin (same starts, frame times and noise)."""
     kw, _ = MISMATCH[name]
-    kw = dict(kw)
+    kw = {k: v for k, v in kw.items() if effects or k not in EFFECT_KEYS}
     amps = kw.pop("amplitudes", (15, 60))
     mixed = kw.pop("mixed", False)
     for k, a in enumerate(amps):
         if mixed:  # robot 0 at this amplitude ccw, robot 1 at the other amplitude cw
             kw["gaits"] = [(float(a), "ccw"), (float(amps[1 - k]), "cw")]
         IND.write_case(out, amplitude_deg=float(a), name=f"a{a}", trials=3, periods=5, seed=seed * 100 + a, **kw)
+
+
+def clean_twin(name: str, seed: int) -> dict:
+    """Observables of the generator's data with every effect off (same seed: same starts, frame times
+    and noise): the data minus these is what the injected effect did to the tracks, by the generator."""
+    with tempfile.TemporaryDirectory() as tmp:
+        make_mismatch(name, tmp, seed, effects=False)
+        return observables(load(tmp))
 
 
 def run_mismatch(name: str, seed: int) -> dict:
@@ -97,6 +111,7 @@ def run_mismatch(name: str, seed: int) -> dict:
         t = time.perf_counter()
         res = calibrate(trials)
         wall = time.perf_counter() - t
+    twin = clean_twin(name, seed) if any(k in MISMATCH[name][0] for k in EFFECT_KEYS) else None
     _, want = MISMATCH[name]
     added = [a["effect"] for a in res["added"]]
     findings = [f["param"] for f in res["nominal_findings"]]
@@ -113,7 +128,8 @@ def run_mismatch(name: str, seed: int) -> dict:
             "intervals": {a["effect"]: a["interval"] for a in res["added"]},
             "nominal_findings": res["nominal_findings"], "conventions_warning": res["conventions"]["warning"],
             "heldout_before": b, "heldout_after_nominal": res["after_nominal"]["err_heldout"], "heldout_after": f,
-            "heldout_drop": 1 - f / b, "wall_s": wall, "model_runs": res["model_runs"]}
+            "heldout_drop": 1 - f / b, "wall_s": wall, "model_runs": res["model_runs"],
+            "observables": res["observables"], "clean_twin": twin}
 
 
 def run_case(name: str, seed: int) -> dict:
@@ -152,6 +168,7 @@ def main():
         rows = json.loads(pathlib.Path(args.out).read_text())["rows"]
         print(markdown([r for r in rows if r.get("suite", "synth") == "synth"]))
         print(mismatch_markdown([r for r in rows if r.get("suite") == "mismatch"]))
+        print(observables_markdown([r for r in rows if r.get("suite") == "mismatch"]))
         return
     t0 = time.perf_counter()
     plan = []
@@ -179,13 +196,15 @@ def main():
     print(summary)
     print(markdown([r for r in rows if r["suite"] == "synth"]))
     print(mismatch_markdown([r for r in rows if r["suite"] == "mismatch"]))
+    print(observables_markdown([r for r in rows if r["suite"] == "mismatch"]))
 
 
 def mismatch_markdown(rows) -> str:
     """The mismatch table and its confusion table (cases × what was named) for docs/calibration.md."""
     out = ["| case (seed) | generator | expected | verdict | structural effects added [95 % interval] | nominal "
-           "findings (× preset) | named right | truth inside (same law) | held-out error: preset → nominal → final |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "findings (× preset) | named right | truth inside (same law) | what it moves, final model vs data | "
+           "held-out error: preset → nominal → final |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         fit = "; ".join(f"{e}: " + ", ".join(f"{k} = {v:.3g} [{r['intervals'][e][k][0]:.3g}, "
                                              f"{r['intervals'][e][k][1]:.3g}]" for k, v in vals.items())
@@ -194,7 +213,8 @@ def mismatch_markdown(rows) -> str:
         gen = ", ".join(f"{k} = {v}" for k, v in r["generator"].items()) or "nothing"
         out.append(f"| {r['case']} ({r['seed']}) | {gen} | {r['expected'] or 'none'} | {r['verdict']} | {fit} | {nom} | "
                    f"{'yes' if r['named_first'] else 'no'} | "
-                   f"{ {True: 'yes', False: 'no', None: '–'}[truth_inside(r)]} | {r['heldout_before']:.3g} → "
+                   f"{ {True: 'yes', False: 'no', None: '–'}[truth_inside(r)]} | {observable_agreement(r)} | "
+                   f"{r['heldout_before']:.3g} → "
                    f"{r['heldout_after_nominal']:.3g} → {r['heldout_after']:.3g} |")
     names = sorted({a for r in rows for a in r["added"]} | {"(none)"})
     out += ["", "| case | runs | " + " | ".join(names) + " |", "|---|---|" + "---|" * len(names)]
@@ -202,6 +222,66 @@ def mismatch_markdown(rows) -> str:
         rs = [r for r in rows if r["case"] == case]
         cnt = [sum((n in r["added"][:1]) if n != "(none)" else (not r["added"]) for r in rs) for n in names]
         out.append(f"| {case} | {len(rs)} | " + " | ".join(str(c) for c in cnt) + " |")
+    return "\n".join(out)
+
+
+# the observable each expected effect moves (calibrate.observables)
+OBSERVABLE = {"servo_lag": "arm_delay_ms", "servo_dead_time": "arm_delay_ms", "phase_offset": "phase_lead",
+              "plate_tilt": "drift_mm_per_s", "nominal:plate_friction": "body_step_mm"}
+
+
+def observable_agreement(r: dict) -> str:
+    """Whether the final model reproduces, within 95 %, the observable the expected effect moves, per gait."""
+    from smarticle_mjx.calibrate.fit import reproduced
+    obs = r.get("observables")
+    if not obs:
+        return "–"
+    kind = OBSERVABLE.get(r["expected"] or "", "arm_delay_ms")
+    marks = []
+    for row in obs[kind]:
+        ok = reproduced(row["measured"], row.get("final"))
+        amp = row["gait"].split("°")[0] + "°" + (f" r{row['robot']}" if "robot" in row else "")
+        if ok:
+            marks.append(f"{amp} ✓")
+        elif "v" in row["measured"]:
+            marks.append(f"{amp} ✗")
+        else:
+            marks.append(f"{amp} {row['final']['mean'] - row['measured']['mean']:+.3g}")
+    short = {"arm_delay_ms": "arm delay (ms)", "phase_lead": "phase lead", "drift_mm_per_s": "drift",
+             "body_step_mm": "body step (mm)"}[kind]
+    return f"{short}: " + ", ".join(marks)
+
+
+def observables_markdown(rows) -> str:
+    """What the fitted values mean on the tracks: per case with an injected effect, the observable it moves,
+    the generator's change (its data minus its clean twin), the fitted effect's share in the model (final
+    minus final without it) and the final model against the data."""
+    out = ["| case | observable | gait | generator: clean twin → data | model: without effect → final | "
+           "effect's share (model / generator) | final − data |", "|---|---|---|---|---|---|---|"]
+
+    def val(m, j=None):
+        if m is None:
+            return float("nan")
+        return m["v"][j] if "v" in m else m["mean"]
+
+    for r in rows:
+        if not r.get("clean_twin") or not r.get("observables"):
+            continue
+        kind = OBSERVABLE.get(r["expected"] or "", "arm_delay_ms")
+        name = {"arm_delay_ms": "arm delay (ms)", "phase_lead": "phase lead (periods)",
+                "drift_mm_per_s": "drift along y (mm/s)", "body_step_mm": "body-frame step (mm/cycle)"}[kind]
+        j = 1 if kind == "drift_mm_per_s" else None  # the generator's tilt turns gravity toward -y
+        added = r["added"][:1]
+        for row in r["observables"][kind]:
+            twin = next((x for x in r["clean_twin"][kind] if x["gait"] == row["gait"]
+                         and x.get("robot") == row.get("robot")), None)
+            g0, g1 = val(twin, j), val(row["measured"], j)
+            fin = val(row.get("final"), j)
+            wo = val(row.get(f"without {added[0]}"), j) if added else fin
+            share = (fin - wo) / (g1 - g0) if added and abs(g1 - g0) > 0 else float("nan")
+            fmt = {"arm_delay_ms": ".1f", "body_step_mm": ".3f"}.get(kind, ".4f")
+            out.append(f"| {r['case']} ({r['seed']}) | {name} | {row['gait']} | {g0:{fmt}} → {g1:{fmt}} | "
+                       f"{wo:{fmt}} → {fin:{fmt}} | {share:.2f} | {fin - g1:+{fmt}} |")
     return "\n".join(out)
 
 
