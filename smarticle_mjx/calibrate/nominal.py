@@ -85,7 +85,7 @@ NOMINAL: tuple[NominalParam, ...] = (
     NominalParam("arm2_length", 0.8, 1.2, False, "m"),
     NominalParam("arm_mass", 0.5, 2.0, True, "kg"),
     NominalParam("mass", 0.7, 1.3, False, "kg"),
-    NominalParam("plate_friction", 0.5, 2.0, True, ""),
+    NominalParam("plate_friction", 0.2, 2.0, True, ""),
 )
 BY_NAME = {p.name: p for p in NOMINAL}
 
