@@ -27,7 +27,7 @@ import time
 
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.fit import calibrate
-from smarticle_mjx.calibrate.observables import observables
+from smarticle_mjx.calibrate.observables import LABELS, observables, reproduced
 from smarticle_mjx.calibrate.synth import CASES, case_truth, make_case
 
 
@@ -230,13 +230,17 @@ OBSERVABLE = {"servo_lag": "arm_delay_ms", "servo_dead_time": "arm_delay_ms", "p
               "plate_tilt": "drift_mm_per_s", "nominal:plate_friction": "body_step_mm"}
 
 
+def _moved(r: dict) -> str:
+    """The observable the case's expected effect moves (the arm delay where none is expected)."""
+    return OBSERVABLE.get(r["expected"] or "", "arm_delay_ms")
+
+
 def observable_agreement(r: dict) -> str:
     """Whether the final model reproduces, within 95 %, the observable the expected effect moves, per gait."""
-    from smarticle_mjx.calibrate.fit import reproduced
     obs = r.get("observables")
     if not obs:
         return "–"
-    kind = OBSERVABLE.get(r["expected"] or "", "arm_delay_ms")
+    kind = _moved(r)
     marks = []
     for row in obs[kind]:
         ok = reproduced(row["measured"], row.get("final"))
@@ -247,9 +251,7 @@ def observable_agreement(r: dict) -> str:
             marks.append(f"{amp} ✗")
         else:
             marks.append(f"{amp} {row['final']['mean'] - row['measured']['mean']:+.3g}")
-    short = {"arm_delay_ms": "arm delay (ms)", "phase_lead": "phase lead", "drift_mm_per_s": "drift",
-             "body_step_mm": "body step (mm)"}[kind]
-    return f"{short}: " + ", ".join(marks)
+    return f"{LABELS[kind]}: " + ", ".join(marks)
 
 
 def observables_markdown(rows) -> str:
@@ -267,10 +269,9 @@ def observables_markdown(rows) -> str:
     for r in rows:
         if not r.get("clean_twin") or not r.get("observables"):
             continue
-        kind = OBSERVABLE.get(r["expected"] or "", "arm_delay_ms")
-        name = {"arm_delay_ms": "arm delay (ms)", "phase_lead": "phase lead (periods)",
-                "drift_mm_per_s": "drift along y (mm/s)", "body_step_mm": "body-frame step (mm/cycle)"}[kind]
+        kind = _moved(r)
         j = 1 if kind == "drift_mm_per_s" else None  # the generator's tilt turns gravity toward -y
+        name = LABELS[kind] + (", along y" if j else "")
         added = r["added"][:1]
         for row in r["observables"][kind]:
             twin = next((x for x in r["clean_twin"][kind] if x["gait"] == row["gait"]

@@ -94,7 +94,7 @@ def test_a_phase_offset_of_the_independent_robots_is_their_swings_lead(tmp_path)
 
 
 def test_agreement_is_within_the_combined_error_of_data_and_model():
-    from smarticle_mjx.calibrate.fit import reproduced
+    from smarticle_mjx.calibrate.observables import reproduced
     data = {"mean": 10.0, "se": 0.3}
     assert reproduced(data, {"mean": 10.7, "se": 0.4})          # 0.7 < 1.96 * 0.5
     assert not reproduced(data, {"mean": 11.1, "se": 0.4})      # 1.1 > 0.98

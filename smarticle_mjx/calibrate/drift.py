@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from .residuals import CONTACT_W, MM, cycle_poses
+from .residuals import CONTACT_W, MM, cycle_poses, masked
 
 MIN_SPREAD_DEG = 60.0  # headings of a group must span at least this
 P_DRIFT = 1e-3  # significance that makes drift a finding
@@ -145,10 +145,7 @@ def group_drift(trials, tracks=None) -> dict:
     model tracks [F, N, 5] aligned with ``trials`` (masked like the data)."""
     groups: dict = {}
     for k, tr in enumerate(trials):
-        pose = tr.pose
-        if tracks is not None:
-            pose = np.asarray(tracks[k])[..., :3].copy()
-            pose[~np.isfinite(tr.pose).all(-1)] = np.nan
+        pose = tr.pose if tracks is None else masked(tracks[k], tr)[0]
         for i, h, d in cycles(tr.t, pose, tr.periods, tr.params.robot.body_length):
             g = groups.setdefault(_group_key(tr.gaits[i]), ([], []))
             g[0].append(h)

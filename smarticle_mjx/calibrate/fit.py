@@ -394,34 +394,22 @@ def observable_stages(train: Problem, test: Problem, trials: list[Trial], stages
     data = observables(trials)
     model = {label: observables(trials, tracks(nom, eff)) for label, (nom, eff) in stages.items()}
 
-    def key(kind, row):
+    def key(row):
         return (row["gait"], row.get("robot"))
 
     rows = {}
     for kind in data:
         out = []
         for r in data[kind]:
-            k = key(kind, r)
+            k = key(r)
             row = {"gait": r["gait"], "measured": r}
             if "robot" in r:
                 row["robot"] = r["robot"]
             for label, o in model.items():
-                row[label] = next((m for m in o[kind] if key(kind, m) == k), None)
+                row[label] = next((m for m in o[kind] if key(m) == k), None)
             out.append(row)
         rows[kind] = out
     return rows
-
-
-def reproduced(measured: dict, model: dict | None, z: float = 1.96) -> bool | None:
-    """Whether a model observable agrees with the measured one within z combined standard errors."""
-    if model is None:
-        return None
-    if "v" in measured:
-        d = np.subtract(measured["v"], model["v"])
-        s = np.hypot(measured["se"], model["se"])
-        return bool(np.all(np.abs(d) <= z * s))
-    s = math.hypot(measured["se"], model["se"]) if np.isfinite(model["se"]) else measured["se"]
-    return bool(abs(measured["mean"] - model["mean"]) <= z * s)
 
 
 def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_step=None, nominal: bool = True) -> dict:

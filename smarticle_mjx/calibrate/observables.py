@@ -32,11 +32,14 @@ import math
 
 import numpy as np
 
-from .drift import cycles, group_drift
-from .residuals import cycle_poses
+from .drift import _group_key, _robot_alone, group_drift
+from .residuals import cycle_poses, masked
 
 _GRID = 4096  # samples per period of the commanded (instant) gait, for its switch times
 SETTLE = 0.5  # periods at the start of a track whose swings are left out
+LABELS = {"arm_delay_ms": "arm delay (ms)", "phase_lead": "phase lead (periods)",
+          "drift_mm_per_s": "plate drift (mm/s)", "body_step_mm": "body-frame step (mm/cycle)",
+          "rotation_deg": "rotation (deg/cycle)"}  # each observable's name in tables
 
 
 def _command_switches(gait) -> list[tuple[int, int, float]]:
@@ -103,8 +106,13 @@ def _mean_se(x) -> dict:
     return {"mean": float(x.mean()), "se": se, "n": int(len(x))}
 
 
+def _key_label(key) -> str:
+    """A gait group's row label, from its key (drift._group_key)."""
+    return f"{key[0]:g}° {key[1]} {key[2]}, T = {key[3]:.4g} s"
+
+
 def _gait_label(g) -> str:
-    return f"{g.amplitude_deg:g}° {g.chirality} {g.kind}, T = {g.period():.4g} s"
+    return _key_label(_group_key(g))
 
 
 def observables(trials, tracks=None) -> dict:
@@ -123,13 +131,16 @@ def observables(trials, tracks=None) -> dict:
     """
     delays: dict = {}
     lead: dict = {}
+    rot: dict = {}
     for k, tr in enumerate(trials):
-        if tr.arms is None:
+        pose, arms = (tr.pose, tr.arms) if tracks is None else masked(tracks[k], tr)
+        for i, g in enumerate(tr.gaits):  # lone robots' rotation per cycle
+            if _robot_alone(pose, i, tr.params.robot.body_length):
+                _, pc = cycle_poses(tr.t, pose[:, i], tr.periods[i])
+                if len(pc) >= 2:
+                    rot.setdefault(g, []).append(np.degrees(np.diff(pc[:, 2])))
+        if arms is None:
             continue
-        arms = tr.arms
-        if tracks is not None:
-            arms = np.asarray(tracks[k])[..., 3:5].copy()
-            arms[~np.isfinite(tr.arms)] = np.nan
         per = [swing_delays(tr.t, arms[:, i], tr.gaits[i]) for i in range(tr.robots)]
         d0 = _mean_se(per[0])["mean"]
         for i, g in enumerate(tr.gaits):
@@ -139,29 +150,31 @@ def observables(trials, tracks=None) -> dict:
                 # robot 0's mean delay minus this robot's: how far ahead it swings (periods)
                 lead.setdefault((g, i), []).append((d0 - per[i]) / g.period())
     out: dict = {"arm_delay_ms": [], "phase_lead": [], "drift_mm_per_s": [], "body_step_mm": [], "rotation_deg": []}
-    rot: dict = {}
     for g, parts in delays.items():
-        m = _mean_se(np.concatenate(parts) * 1e3)
-        out["arm_delay_ms"].append({"gait": _gait_label(g), **m})
+        out["arm_delay_ms"].append({"gait": _gait_label(g), **_mean_se(np.concatenate(parts) * 1e3)})
     for (g, i), parts in lead.items():
         out["phase_lead"].append({"gait": _gait_label(g), "robot": i, **_mean_se(np.concatenate(parts))})
     for key, r in sorted(group_drift(trials, tracks).items()):
         T = key[3]
-        label = f"{key[0]:g}° {key[1]} {key[2]}, T = {T:.4g} s"
-        out["drift_mm_per_s"].append({"gait": label, "v": (np.asarray(r["v"]) / T).tolist(),
+        out["drift_mm_per_s"].append({"gait": _key_label(key), "v": (np.asarray(r["v"]) / T).tolist(),
                                       "se": (np.sqrt(np.diag(r["cov_v"])) / T).tolist()})
         # the step's length in the body frame, its error propagated from the step's covariance
         s, cs = np.asarray(r["s"]), np.asarray(r["cov_s"])
         n = float(np.hypot(*s))
         se = float(np.sqrt(s @ cs @ s) / n) if n > 0 else float(np.sqrt(np.trace(cs)))
-        out["body_step_mm"].append({"gait": label, "mean": n, "se": se, "n": r["cycles"]})
-    for tr_k, tr in enumerate(trials):
-        pose = tr.pose if tracks is None else np.asarray(tracks[tr_k])[..., :3].copy()
-        if tracks is not None:
-            pose[~np.isfinite(tr.pose).all(-1)] = np.nan
-        for i, h, _ in cycles(tr.t, pose, tr.periods, tr.params.robot.body_length):
-            _, pc = cycle_poses(tr.t, pose[:, i], tr.periods[i])
-            rot.setdefault(tr.gaits[i], []).append(np.degrees(np.diff(pc[:, 2])))
+        out["body_step_mm"].append({"gait": _key_label(key), "mean": n, "se": se, "n": r["cycles"]})
     for g, parts in rot.items():
         out["rotation_deg"].append({"gait": _gait_label(g), **_mean_se(np.concatenate(parts))})
     return out
+
+
+def reproduced(measured: dict, model: dict | None, z: float = 1.96) -> bool | None:
+    """Whether a model observable agrees with the measured one within z combined standard errors."""
+    if model is None:
+        return None
+    if "v" in measured:
+        d = np.subtract(measured["v"], model["v"])
+        s = np.hypot(measured["se"], model["se"])
+        return bool(np.all(np.abs(d) <= z * s))
+    s = math.hypot(measured["se"], model["se"]) if np.isfinite(model["se"]) else measured["se"]
+    return bool(abs(measured["mean"] - model["mean"]) <= z * s)

@@ -12,6 +12,7 @@ from ..report import json_default
 from .data import Trial
 from .effects import BY_NAME, EffectSet
 from .nominal import apply as apply_nominal
+from .observables import LABELS, reproduced
 from .residuals import BINS, DEG, metrics
 from .sim import simulate_trials
 
@@ -209,7 +210,6 @@ def observables_markdown(obs: dict | None) -> list[str]:
     """The table of observables: measured, and the model at each stage (calibrate.observables)."""
     if not obs or not any(obs.values()):
         return []
-    from .fit import reproduced
     stages = [k for k in next(r for rows in obs.values() for r in rows) if k not in ("gait", "measured", "robot")]
     lines = ["## What the fitted values mean on the tracks", "",
              "Quantities read off the tracks the same way for the data and for the model (all trials): the **arm "
@@ -229,12 +229,9 @@ def observables_markdown(obs: dict | None) -> list[str]:
             return (f"({m['v'][0]:+.4f}, {m['v'][1]:+.4f}) ± ({m['se'][0]:.4f}, {m['se'][1]:.4f}){ok}")
         return f"{m['mean']:.4g} ± {_num(m['se'], '.2g')}{ok}"
 
-    names = {"arm_delay_ms": "arm delay (ms)", "phase_lead": "phase lead (periods)",
-             "drift_mm_per_s": "plate drift (mm/s)", "body_step_mm": "body-frame step (mm/cycle)",
-             "rotation_deg": "rotation (deg/cycle)"}
     for kind, rows in obs.items():
         for r in rows:
-            label = names[kind] + (f", robot {r['robot']}" if "robot" in r else "")
+            label = LABELS[kind] + (f", robot {r['robot']}" if "robot" in r else "")
             lines.append(f"| {label} | {r['gait']} | {one(r['measured'])} | "
                          + " | ".join(one(r.get(k), r["measured"]) for k in stages) + " |")
     return lines + [""]
