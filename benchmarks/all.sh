@@ -5,6 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PY:-.venv/bin/python}
 $PY benchmarks/engine.py
+$PY benchmarks/mjx_warp_path.py  # MuJoCo Warp direct vs MJX's impl='warp' (needs the gpu extra; ~5 min on the CPU)
 $PY benchmarks/mjx_costs.py
 $PY benchmarks/mjx_collision.py
 $PY benchmarks/solver_convergence.py
