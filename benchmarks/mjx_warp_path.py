@@ -151,6 +151,8 @@ def stage_times(lib, wp, model, state, cuts, ctrl, nconmax, njmax, device, n=20)
                 f(mw, d)
             wp.synchronize_device(device)
             out[name] = 1e3 * (time.perf_counter() - t) / n
+            if name == "solve":  # the same iterations at a higher cost each, or more iterations?
+                out["solver_iterations_mean"] = float(d.solver_niter.numpy().mean())
         return out
 
 
@@ -271,7 +273,10 @@ def main():
     out["stages_worlds"] = b
     print(f"stages at {b} worlds, ms per call: " + "; ".join(
         f"{st} direct {out['stages_ms']['direct'].get(st, float('nan')):.1f} / vendored "
-        f"{out['stages_ms']['vendored'].get(st, float('nan')):.1f}" for st in STAGES))
+        f"{out['stages_ms']['vendored'].get(st, float('nan')):.1f}" for st in STAGES)
+        + "; solver iterations (mean over worlds) direct {:.2f} / vendored {:.2f}".format(
+            out["stages_ms"]["direct"].get("solver_iterations_mean", float("nan")),
+            out["stages_ms"]["vendored"].get("solver_iterations_mean", float("nan"))))
     pathlib.Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     pathlib.Path(args.out).write_text(json.dumps(out, indent=2))
     print(f"wrote {args.out}")
