@@ -259,3 +259,37 @@ def test_mjx_runs_robots_with_their_own_gaits_like_native(scene, mjx_backend):
     _, got, _ = mjx_backend.advance(mjx_backend.initial_state(own), own, 3)
     np.testing.assert_allclose(got.poses[..., 3:], ref.poses[..., 3:], atol=2e-3)
     np.testing.assert_allclose(got.poses[..., :2], ref.poses[..., :2], atol=1e-4)
+
+
+def test_lane_controls_are_each_lanes_own_gait_and_compile_once_per_shape():
+    """Each lane gets the controls of its own gait (amplitude, chirality, kind,
+    phase, its robots' own periods) whatever else shares its batch, checked
+    against the gait function evaluated for that robot alone; and lanes that
+    share one gait evaluate it once, so batches of 3, 5 and 17 such lanes do
+    not each compile the gait function anew."""
+    from smarticle_mjx import gait as G
+    from smarticle_mjx.engine import core
+    params = S.SceneParams()
+    scene = Scene.build(params, 2)
+    rng = np.random.default_rng(3)
+    g = GaitSpec(90.0)
+    a0 = g.setpoints(0.0, params.robot.servo_speed)
+    poses = C.sample_valid_pairs(9, rng, (0.8, 2.0), a0[0], a0[1])
+    t = params.timestep * np.arange(0, 3200, 7)
+    mixed = Lanes(poses, rng.choice([0.6, 1.2, 1.5], size=(9, 2)), rng.choice([-1, 1], size=(9, 2)),
+                  rng.choice([0, 1], size=(9, 2)), rng.choice([0.0, 0.1, 0.25], size=(9, 2)), 1.6,
+                  rng.choice([1.6, 1.7], size=(9, 2)))
+    got = core.lane_controls(scene, mixed, t)
+    amp, chi, kind, period = mixed.robot_gait()
+    for i in range(9):
+        for r in range(2):
+            ref = np.asarray(G.setpoints_and_rates(t, amp[i, r], period[i, r], params.robot.servo_speed,
+                                                   chi[i, r], kind[i, r], mixed.phase[i, r]))
+            np.testing.assert_allclose(got[i, :, 4 * r:4 * r + 4], ref, rtol=0, atol=1e-5)
+    one = Lanes.from_gait(C.sample_valid_pairs(17, rng, (0.8, 2.0), a0[0], a0[1]), g)
+    core.lane_controls(scene, one.take(np.arange(3)), t)
+    compiled = core._controls._cache_size()
+    outs = [core.lane_controls(scene, one.take(np.arange(n)), t) for n in (5, 17)]
+    assert core._controls._cache_size() == compiled
+    assert outs[1].shape[0] == 17 and np.array_equal(outs[1][:5], outs[0])
+    assert np.array_equal(outs[1][0], outs[1][16])  # one gait, one set of controls

@@ -315,17 +315,24 @@ def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
     """Controls [B, len(t), nu] for every lane at times ``t`` (host numpy).
 
     Per robot: setpoints (alpha1, alpha2) then their rates, as the scene's
-    actuators expect.
+    actuators expect. Each distinct gait among the lanes (amplitude,
+    chirality, kind, period and phase of every robot) is evaluated once and
+    shared: a scan's lanes usually have one, so the jitted gait function
+    sees the same shapes whatever the batch size and compiles once, not once
+    per batch size.
     """
-    if lanes.per_robot:
-        amp, chi, kind, period = (x[:, None, :] for x in lanes.robot_gait())
+    key = np.concatenate([*lanes.robot_gait(), lanes.phase], axis=1)  # [B, 5N]: one row per distinct gait
+    _, first, row = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    u = lanes.take(np.sort(first))
+    order = np.argsort(np.argsort(first))  # unique row (sorted by key) -> its place in u
+    if u.per_robot:
+        amp, chi, kind, period = (x[:, None, :] for x in u.robot_gait())
     else:
-        amp, chi, kind = (x[:, None, None] for x in (lanes.amplitude, lanes.chirality, lanes.kind))
-        period = lanes.period
-    sp = _controls(t[None, :, None], amp, period, scene.params.robot.servo_speed, chi, kind,
-                   lanes.phase[:, None, :])
-    sp = np.asarray(sp)  # [B, T, N, 4]
-    return sp.reshape(sp.shape[0], sp.shape[1], -1)
+        amp, chi, kind = (x[:, None, None] for x in (u.amplitude, u.chirality, u.kind))
+        period = u.period
+    sp = _controls(t[None, :, None], amp, period, scene.params.robot.servo_speed, chi, kind, u.phase[:, None, :])
+    sp = np.asarray(sp)  # [U, T, N, 4]
+    return sp.reshape(sp.shape[0], sp.shape[1], -1)[order[np.asarray(row).reshape(-1)]]
 
 
 @dataclasses.dataclass
