@@ -31,9 +31,18 @@ from smarticle_mjx.engine.simulate import simulate
 from smarticle_mjx.gait import GaitSpec
 
 
-def sample_lanes(n, params, gait, seed=0):
-    a0 = gait.setpoints(0.0, params.robot.servo_speed)
-    return Lanes.from_gait(C.sample_valid_pairs(n, np.random.default_rng(seed), (0.8, 2.0), a0[0], a0[1]), gait)
+_POOL = {}
+
+
+def sample_lanes(n, params, gait, seed=0, pool=16384):
+    """The first ``n`` of one fixed sample of valid pair configurations, so that
+    every batch size (and backend) runs a prefix of the same workload."""
+    key = (id(params), gait.amplitude, seed)
+    if key not in _POOL or _POOL[key].size < n:
+        a0 = gait.setpoints(0.0, params.robot.servo_speed)
+        poses = C.sample_valid_pairs(max(n, pool), np.random.default_rng(seed), (0.8, 2.0), a0[0], a0[1])
+        _POOL[key] = Lanes.from_gait(poses, gait)
+    return _POOL[key].take(np.arange(n))
 
 
 def mj_step_rate(model, seconds=3.0):

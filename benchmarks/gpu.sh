@@ -2,12 +2,13 @@
 # The GPU figures of docs/engine.md, in one command, on a machine with an NVIDIA
 # GPU and the gpu extra installed (pip install -e '.[gpu]'; JAX with CUDA for mjx):
 #
-#   bash benchmarks/gpu.sh            # every stage (about 30 minutes on one H100)
+#   bash benchmarks/gpu.sh            # every stage
 #   bash benchmarks/gpu.sh tests      # one stage: tests | throughput | mjx | mjxwarp | agreement | agreement-mjx | scan
 #
-# Each stage is sized to finish within ten minutes on one H100, so a stage can
-# run as one call on a machine lent for a limited time. The default model
-# (lab-lag, dt 0.5 ms) is measured.
+# The Warp stages have run on one H100 (at 0.25 ms: the scan stage took about
+# 5 minutes); the MJX stages (mjx, mjxwarp, agreement-mjx) have not been timed
+# on a GPU. Run one stage per call where the machine is lent for a limited
+# time. The default model (lab-lag, dt 0.5 ms) is measured.
 # Results go to benchmarks/results/*_gpu.json (RESULTS=DIR to put them elsewhere).
 set -euo pipefail
 cd "$(dirname "$0")/.."
