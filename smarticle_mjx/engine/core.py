@@ -311,6 +311,15 @@ def on_step_grid(lanes: "Lanes", timestep: float) -> "Lanes":
 _controls = jax.jit(gait_mod.setpoints_and_rates)
 
 
+def distinct_gaits(lanes: Lanes) -> tuple[np.ndarray, np.ndarray]:
+    """(first, row): a lane index for each distinct gait among the lanes (amplitude,
+    chirality, kind, period and phase of every robot), and each lane's gait as
+    an index into ``first``."""
+    key = np.concatenate([*lanes.robot_gait(), lanes.phase], axis=1)  # [B, 5N]
+    _, first, row = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    return first, np.asarray(row).reshape(-1)
+
+
 def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
     """Controls [B, len(t), nu] for every lane at times ``t`` (host numpy).
 
@@ -321,10 +330,8 @@ def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
     sees the same shapes whatever the batch size and compiles once, not once
     per batch size.
     """
-    key = np.concatenate([*lanes.robot_gait(), lanes.phase], axis=1)  # [B, 5N]: one row per distinct gait
-    _, first, row = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    u = lanes.take(np.sort(first))
-    order = np.argsort(np.argsort(first))  # unique row (sorted by key) -> its place in u
+    first, row = distinct_gaits(lanes)
+    u = lanes.take(first)
     if u.per_robot:
         amp, chi, kind, period = (x[:, None, :] for x in u.robot_gait())
     else:
@@ -332,7 +339,7 @@ def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
         period = u.period
     sp = _controls(t[None, :, None], amp, period, scene.params.robot.servo_speed, chi, kind, u.phase[:, None, :])
     sp = np.asarray(sp)  # [U, T, N, 4]
-    return sp.reshape(sp.shape[0], sp.shape[1], -1)[order[np.asarray(row).reshape(-1)]]
+    return sp.reshape(sp.shape[0], sp.shape[1], -1)[row]
 
 
 @dataclasses.dataclass

@@ -28,7 +28,8 @@ import time
 import mujoco
 import numpy as np
 
-from .core import Lanes, PeriodRecords, Record, Scene, Status, lane_controls, on_step_grid, steps_per_period
+from .core import (Lanes, PeriodRecords, Record, Scene, Status, distinct_gaits, lane_controls, on_step_grid,
+                   steps_per_period)
 
 MISSING = "the warp backend needs MuJoCo Warp: pip install -e '.[gpu]'"
 
@@ -240,20 +241,18 @@ class WarpBackend:
             raise ValueError("robots with different gait periods in one lane run on the native or MJX backend, "
                              "not on Warp (its control table holds one period)")
         wp = self._wp
-        key = np.column_stack([*lanes.robot_gait(), lanes.phase])  # [B, 5N]: lanes with one gait share a row
-        uniq, row = np.unique(key, axis=0, return_inverse=True)
-        first = np.array([np.flatnonzero(row == u)[0] for u in range(len(uniq))])
+        first, row = distinct_gaits(lanes)  # lanes with one gait share a row
         dt = float(self.model.opt.timestep)
         ctrl = lane_controls(self.scene, lanes.take(first), dt * np.arange(nstep)).astype(np.float32)
-        shape = (max(len(uniq), 1), nstep, self.model.nu)
-        if b.table is None or b.table.shape[1] != nstep or b.table.shape[0] < len(uniq):
-            cap = max(len(uniq), 4)
+        shape = (max(len(first), 1), nstep, self.model.nu)
+        if b.table is None or b.table.shape[1] != nstep or b.table.shape[0] < len(first):
+            cap = max(len(first), 4)
             b.table = wp.zeros((cap, nstep, self.model.nu), dtype=wp.float32, device=self.device)
             b.graph = None  # captured with the old table's address
         full = np.zeros(b.table.shape, np.float32)
         full[:shape[0]] = ctrl
         b.table.assign(wp.array(full, device=self.device))
-        b.row.assign(wp.array(np.asarray(row, np.int32).reshape(-1), device=self.device))
+        b.row.assign(wp.array(row.astype(np.int32), device=self.device))
 
     # ---- stepping -------------------------------------------------------
     def _one_step(self, b: _Batch):
