@@ -35,16 +35,11 @@ import time
 import mujoco
 import numpy as np
 
-from smarticle_mjx import configs as C
+from engine import sample_lanes  # benchmarks/engine.py: the same lanes as the throughput benchmark
 from smarticle_mjx import presets
-from smarticle_mjx.engine import Lanes, Scene
+from smarticle_mjx.engine import Scene
 from smarticle_mjx.engine.core import lane_controls, on_step_grid
 from smarticle_mjx.gait import GaitSpec
-
-
-def sample_lanes(n, params, gait, seed=0):
-    a0 = gait.setpoints(0.0, params.robot.servo_speed)
-    return Lanes.from_gait(C.sample_valid_pairs(n, np.random.default_rng(seed), (0.8, 2.0), a0[0], a0[1]), gait)
 
 
 class CallbackClock:
@@ -85,27 +80,34 @@ class CallbackClock:
         self.calls = 0
 
 
+def warp_data(lib, wp, model, state, cuts, nconmax, njmax):
+    """``lib``'s Model and a Data of one world per row of ``state`` (on the current
+    Warp device), and a function that (re)loads ``state`` into it."""
+    b = state.shape[0]
+    mw = lib.put_model(model)
+    try:
+        d = lib.make_data(model, nworld=b, nconmax=nconmax, njmax=njmax)
+    except TypeError:  # an older MuJoCo Warp takes the contact pool of all worlds
+        d = lib.make_data(model, nworld=b, naconmax=nconmax * b, njmax=njmax)
+    if hasattr(mw.opt, "warn_overflow"):
+        mw.opt.warn_overflow = 0  # printed warnings would be timed; overflow is checked by the tests
+
+    def upload():
+        for k, arr in enumerate((d.qpos, d.qvel, d.act, d.qacc_warmstart)):
+            if cuts[k + 1] > cuts[k]:
+                arr.assign(wp.array(np.ascontiguousarray(state[:, cuts[k]:cuts[k + 1]], np.float32)))
+        d.time.zero_()
+
+    upload()
+    return mw, d, upload
+
+
 def warp_direct(lib, wp, model, state, cuts, ctrl, nconmax, njmax, device):
     """Run ``ctrl`` [T, B, nu] through ``lib.step``; (first call s, run s, qpos [B, nq])."""
-    nstep, b, _ = ctrl.shape
+    nstep = ctrl.shape[0]
     with wp.ScopedDevice(device):
-        mw = lib.put_model(model)
-        try:
-            d = lib.make_data(model, nworld=b, nconmax=nconmax, njmax=njmax)
-        except TypeError:  # an older MuJoCo Warp takes the contact pool of all worlds
-            d = lib.make_data(model, nworld=b, naconmax=nconmax * b, njmax=njmax)
-        table = wp.array(ctrl.astype(np.float32), device=device)
-        if hasattr(mw.opt, "warn_overflow"):
-            mw.opt.warn_overflow = 0  # printed warnings would be timed; overflow is checked by the tests
-
-        def upload():
-            for k, arr in enumerate((d.qpos, d.qvel, d.act, d.qacc_warmstart)):
-                if cuts[k + 1] > cuts[k]:
-                    arr.assign(wp.array(np.ascontiguousarray(state[:, cuts[k]:cuts[k + 1]], np.float32),
-                                        device=device))
-            d.time.zero_()
-
-        upload()
+        mw, d, upload = warp_data(lib, wp, model, state, cuts, nconmax, njmax)
+        table = wp.array(ctrl.astype(np.float32))
         t = time.perf_counter()
         d.ctrl.assign(table[0])
         lib.step(mw, d)
@@ -125,19 +127,9 @@ STAGES = ("collision", "fwd_position", "solve", "step")
 
 def stage_times(lib, wp, model, state, cuts, ctrl, nconmax, njmax, device, n=20):
     """ms per call of MuJoCo Warp's pipeline stages on the state after the timed run's first step."""
-    b = ctrl.shape[1]
     with wp.ScopedDevice(device):
-        mw = lib.put_model(model)
-        try:
-            d = lib.make_data(model, nworld=b, nconmax=nconmax, njmax=njmax)
-        except TypeError:
-            d = lib.make_data(model, nworld=b, naconmax=nconmax * b, njmax=njmax)
-        if hasattr(mw.opt, "warn_overflow"):
-            mw.opt.warn_overflow = 0
-        for k, arr in enumerate((d.qpos, d.qvel, d.act)):
-            if cuts[k + 1] > cuts[k]:
-                arr.assign(wp.array(np.ascontiguousarray(state[:, cuts[k]:cuts[k + 1]], np.float32), device=device))
-        d.ctrl.assign(wp.array(ctrl[0].astype(np.float32), device=device))
+        mw, d, _ = warp_data(lib, wp, model, state, cuts, nconmax, njmax)
+        d.ctrl.assign(wp.array(ctrl[0].astype(np.float32)))
         lib.step(mw, d)
         out = {}
         for name in STAGES:
