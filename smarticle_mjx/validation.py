@@ -854,13 +854,37 @@ def _wall_minutes(paths) -> float:
     return tot
 
 
+def _provenance(paths) -> str:
+    """When and with what numerics the stores were made, read from the stores
+    themselves ("November 2026, smarticle-mjx 0.3.3, 0.5 ms step, implicitfast"),
+    so the page cannot claim a time step or a version its data did not use."""
+    months, packages, steps, integrators = set(), set(), set(), set()
+    for p in paths:
+        st = Store(p)
+        try:
+            months.add(datetime.datetime.fromisoformat(str(st.attrs["created"])).strftime("%B %Y"))
+        except (KeyError, ValueError):
+            pass
+        packages.add(str(st.attrs.get("package", "an unrecorded version")))
+        scene = st.config.get("scene", {})
+        if "timestep" in scene:
+            steps.add(f"{float(scene['timestep']) * 1e3:g} ms")
+        if "integrator" in scene:
+            integrators.add(str(scene["integrator"]))
+    if not paths:
+        return "No study has been run yet."
+    join = lambda xs: " and ".join(sorted(xs)) or "unrecorded"  # noqa: E731
+    return (f"Measured {join(months)} with {join(packages)}, time step {join(steps)} ({join(integrators)}); "
+            "every store says so in its attributes.")
+
+
 def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathlib.Path, command: str,
                model: str) -> None:
     rel = pathlib.Path(figures).name
     every = [q for v in stores.values() for q in (v if isinstance(v, list) else [v])]
     held = sum(r["verdict"] == "holds" for r in result["rows"])
     lines = ["# Validation against the paper", "",
-             f"Model `{model}` (docs/model.md). Regenerate with `{command}`: it reuses complete stores made by the "
+             f"Model `{model}` (docs/model.md). {_provenance(every)} Regenerate with `{command}`: it reuses complete stores made by the "
              "same model and package version, resumes interrupted ones and runs the missing studies "
              f"(these took {_wall_minutes(every):.0f} minutes of wall time on 2 cores). "
              "`--studies NAME,...` runs a subset; the page is written from the complete stores there are.", "",

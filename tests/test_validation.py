@@ -50,6 +50,10 @@ def test_validate_writes_a_row_per_claim_and_reuses_stores(tmp_path):
     page = out.read_text()
     assert page.count("\n| ") >= 13 and f"smx validate --data DIR --out PAGE --model {DEFAULT}" in page
     assert str(tmp_path) not in page  # no path of this machine on the page
+    # the page says which time step and package version made its data (read from the stores)
+    from smarticle_mjx import __version__, presets
+    assert f"time step {presets.params(DEFAULT).timestep * 1e3:g} ms" in page
+    assert f"smarticle-mjx {__version__}" in page.split("## Studies")[0]
     assert (tmp_path / "validation" / "pb.png").stat().st_size > 1000
     stores = data / DEFAULT
     # the started-bound studies ran from the random study's gliders: one store per stage
