@@ -20,6 +20,7 @@ import argparse
 import datetime
 import json
 import os
+import re
 import pathlib
 import sys
 import tempfile
@@ -47,7 +48,9 @@ def timed(trials: int, periods: int, model: str) -> dict:
 
 def study(folder: pathlib.Path) -> dict:
     rows = []
-    for p in sorted(folder.glob("validation_relax_s*.h5")):
+    # the stages only: smx validate keeps stores of an older version beside them
+    # (validation_relax_s00.replaced-<stamp>.h5), which are not this study
+    for p in sorted(q for q in folder.glob("validation_relax_s*.h5") if re.fullmatch(r"validation_relax_s\d+\.h5", q.name)):
         st = Store(p)
         t0 = datetime.datetime.fromisoformat(str(st.attrs["created"]))
         t1 = datetime.datetime.fromisoformat(str(st.attrs["finished"]))
