@@ -1,0 +1,121 @@
+"""Do the glider quantities converge in the time step? A reference run at a fine step
+against the 0.25 ms and 0.5 ms runs of the same starts.
+
+The validation study at 0.5 ms gave beta 1.54 [1.45, 1.62] and V_com 0.0033 W/period
+where the same 400 starts at 0.25 ms gave 1.29 [1.20, 1.36] and 0.0019: intervals that
+do not overlap, although only the step changed. Labels converge in dt (docs/timestep.md);
+whether the glider quantities do is measured here. Starts: the first ``--starts`` of the
+fidelity confirmation's 128 (benchmarks/fidelity_screen.py, seed 1, 100 periods, model
+lab-lag), whose tracks at 0.25 ms (``lab-lag_glide_128x100_s1.npz``, made before version
+0.3.0) and 0.5 ms (``lab-lag~implicitfast-0.5ms_...``) are in results/fidelity_tracks/.
+This script runs the same starts at ``--dt`` (default 0.0625 ms, the reference of
+docs/timestep.md), saves the tracks there, and prints each quantity per step with the
+95 % paired bootstrap interval of its difference from the reference (starts resampled
+together in both runs; a start counts as a glider in each run where it is one).
+
+    python benchmarks/glider_step.py                 # ~15-25 min on 2 cores
+    python benchmarks/glider_step.py --starts 128    # all of them (about twice that)
+
+Resumable: the reference tracks are reused when they exist. Writes results/glider_step.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(ROOT.parent))
+sys.path.insert(0, str(ROOT))
+from fidelity_screen import _run  # noqa: E402
+from smarticle_mjx import configs as C  # noqa: E402
+from smarticle_mjx import presets  # noqa: E402
+from smarticle_mjx.gait import GaitSpec  # noqa: E402
+from smarticle_mjx.reduce import transport  # noqa: E402
+
+TRACKS = ROOT / "results" / "fidelity_tracks"
+RUNS = {"0.25 ms": "lab-lag_glide_128x100_s1.npz", "0.5 ms": "lab-lag~implicitfast-0.5ms_glide_128x100_s1.npz"}
+BURN_IN = 10
+
+
+def quantities(com: np.ndarray, touched: np.ndarray) -> dict:
+    """beta (centred MSD, delays 5-15), net speed and direction persistence of the gliders
+    (bound in every period after the burn-in) among these starts."""
+    glide = touched[:, BURN_IN:].all(1)
+    g = com[glide, BURN_IN:].astype(float)
+    if len(g) < 3:
+        return dict(gliders=int(glide.sum()), beta=np.nan, net_speed=np.nan, persistence=np.nan)
+    return dict(gliders=int(glide.sum()),
+                beta=transport.msd_exponent(g, lag_range=(5, 15), centered=True, n_boot=0).beta,
+                net_speed=float(np.nanmean(transport.net_speed(g))),
+                persistence=transport.direction_persistence(g))
+
+
+def reference(poses: np.ndarray, dt: float, periods: int) -> pathlib.Path:
+    path = TRACKS / f"lab-lag@{dt * 1e3:g}ms_glide_{len(poses)}x{periods}_s1.npz"
+    if path.exists() and np.array_equal(np.load(path)["poses"], poses):
+        print(f"reusing {path.name}")
+        return path
+    params = dataclasses.replace(presets.params("lab-lag"), timestep=dt)
+    params.validate()
+    W = params.robot.body_length
+    t = time.perf_counter()
+    tr, touched, wall, steps = _run(params, GaitSpec(90.0), poses, periods, quiet=2)
+    com = (tr[:, :, 0, :2] + tr[:, :, 1, :2]) / 2 / W
+    r, th, ph = C.relative_coordinates(tr[:, :, 0], tr[:, :, 1], W)
+    np.savez_compressed(path, com=com, rel=np.stack([r, th, ph], -1), touched=touched, poses=poses,
+                        wall_s=wall, steps=steps)
+    print(f"ran {len(poses)} starts x {periods} periods at {dt * 1e3:g} ms in {time.perf_counter() - t:.0f} s")
+    return path
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--starts", type=int, default=64)
+    ap.add_argument("--dt", type=float, default=6.25e-5)
+    ap.add_argument("--boot", type=int, default=1000)
+    ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "glider_step.json")
+    args = ap.parse_args()
+    runs = {k: np.load(TRACKS / v) for k, v in RUNS.items()}
+    poses = runs["0.25 ms"]["poses"][:args.starts]
+    if not np.array_equal(runs["0.5 ms"]["poses"][:args.starts], poses):
+        raise SystemExit("the 0.25 ms and 0.5 ms tracks were not run from the same starts")
+    periods = runs["0.25 ms"]["touched"].shape[1]
+    ref_name = f"{args.dt * 1e3:g} ms (reference)"
+    runs[ref_name] = np.load(reference(poses, args.dt, periods))
+    data = {k: (z["com"][:args.starts], z["touched"][:args.starts]) for k, z in runs.items()}
+    rng = np.random.default_rng(0)
+    idx = [rng.integers(0, args.starts, args.starts) for _ in range(args.boot)]
+    point = {k: quantities(*v) for k, v in data.items()}
+    boots = {k: [quantities(v[0][i], v[1][i]) for i in idx] for k, v in data.items()}
+    res = {"model": "lab-lag", "starts": args.starts, "periods": periods, "burn_in": BURN_IN,
+           "reference_dt_s": args.dt, "runs": {}}
+    for k in data:
+        row = {"gliders": point[k]["gliders"]}
+        for q in ("beta", "net_speed", "persistence"):
+            vals = np.array([b[q] for b in boots[k]])
+            lo, hi = np.nanpercentile(vals, [2.5, 97.5])
+            row[q] = {"value": point[k][q], "ci95": [float(lo), float(hi)]}
+            if k != ref_name:
+                d = vals - np.array([b[q] for b in boots[ref_name]])
+                dlo, dhi = np.nanpercentile(d, [2.5, 97.5])
+                row[q]["minus_reference"] = point[k][q] - point[ref_name][q]
+                row[q]["minus_reference_ci95"] = [float(dlo), float(dhi)]
+        res["runs"][k] = row
+        print(f"{k:>20}: {row['gliders']} gliders; " + "; ".join(
+            f"{q} {row[q]['value']:.4g} [{row[q]['ci95'][0]:.4g}, {row[q]['ci95'][1]:.4g}]"
+            + (f" (vs ref {row[q]['minus_reference']:+.3g} [{row[q]['minus_reference_ci95'][0]:+.3g}, "
+               f"{row[q]['minus_reference_ci95'][1]:+.3g}])" if "minus_reference" in row[q] else "")
+            for q in ("beta", "net_speed", "persistence")))
+    args.out.write_text(json.dumps(res, indent=1, default=float))
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
