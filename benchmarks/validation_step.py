@@ -1,0 +1,69 @@
+"""The validation page's 90-degree random study (sweeps/validation_random.toml, model
+lab-lag) at a reference time step, against the same study at other steps: are the
+page's glider verdicts the model's or the step's?
+
+Runs the study's 400 starts x 75 periods at ``--dt`` (default 0.0625 ms, the reference of
+docs/timestep.md) into ``--store`` (resumed if interrupted), then reduces it and every
+``--compare`` store exactly as `smx validate` does (report.analyse_run): gliders, beta
+(centred MSD over delays 5-15, bootstrap interval over gliders), net gliding speed, bound
+fraction at the end. Writes results/validation_step.json.
+
+    python benchmarks/validation_step.py --compare validation-data/lab-lag/validation_random.h5 \\
+        --compare validation-data/lab-lag/validation_random.replaced-<stamp>.h5     # ~25 min on 2 cores
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import pathlib
+import sys
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(ROOT.parent))
+from smarticle_mjx import presets  # noqa: E402
+from smarticle_mjx.report import analyse_run  # noqa: E402
+from smarticle_mjx.scan import load_study, run_scan  # noqa: E402
+from smarticle_mjx.store import Store  # noqa: E402
+
+STUDY = ROOT.parent / "sweeps" / "validation_random.toml"
+
+
+def reduce(path: pathlib.Path) -> dict:
+    st = Store(path)
+    run = st.runs[0] if isinstance(st.runs, list) else next(iter(st.runs))
+    s = analyse_run(st, run)["summary"]
+    b, v = s.get("beta") or {}, s.get("v_com") or {}
+    return {"store": path.name, "timestep_ms": float(st.config["scene"]["timestep"]) * 1e3,
+            "package": str(st.attrs.get("package")), "valid": s["valid"], "gliders": s["gliders"],
+            "beta": [b.get("value"), b.get("lo"), b.get("hi")],
+            "v_com_W_per_period": [v.get("net_W_per_period"), v.get("net_lo"), v.get("net_hi")],
+            "pb_end": s.get("pb_end")}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--dt", type=float, default=6.25e-5)
+    ap.add_argument("--store", type=pathlib.Path, default=ROOT / "results" / "validation_random_ref.h5")
+    ap.add_argument("--compare", type=pathlib.Path, action="append", default=[])
+    ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "validation_step.json")
+    args = ap.parse_args()
+    cfg = dataclasses.replace(load_study(STUDY), model="lab-lag")
+    params = dataclasses.replace(presets.params("lab-lag"), timestep=args.dt)
+    if not (args.store.exists() and Store(args.store).attrs.get("complete")):
+        t = time.perf_counter()
+        run_scan(cfg, args.store, mode="resume" if args.store.exists() else "new", params=params)
+        print(f"ran {STUDY.name} at {args.dt * 1e3:g} ms in {time.perf_counter() - t:.0f} s", flush=True)
+    rows = [reduce(p) for p in [args.store, *args.compare]]
+    for r in rows:
+        b, v = r["beta"], r["v_com_W_per_period"]
+        print(f"{r['timestep_ms']:g} ms ({r['package']}): {r['gliders']} gliders of {r['valid']} valid; "
+              f"beta {b[0]} [{b[1]}, {b[2]}]; V_com {v[0]} [{v[1]}, {v[2]}] W/period")
+    args.out.write_text(json.dumps({"study": STUDY.name, "model": "lab-lag", "rows": rows}, indent=1, default=float))
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
