@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Every benchmark in one command (about 6 hours on 2 cores; the paper-sized
+# Every benchmark in one command (about 7 hours on 2 cores; the paper-sized
 # scan alone is over an hour, the fidelity study about an hour). Results land in benchmarks/results/*.json.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -33,3 +33,8 @@ $PY benchmarks/fidelity_mechanism.py --return-maps --models paper,paper-stiff,pa
 # periods of 7 robots, about 1.5 hours in five resumable stages); stores reused when current
 $PY -m smarticle_mjx.cli validate --data validation-data --out docs/validation.md --quiet
 $PY benchmarks/relax_cost.py --study validation-data/lab-lag
+# glider transport against the time step (docs/timestep.md): 0.25 and 0.5 ms against a 0.0625 ms
+# reference on the fidelity confirmation's starts (~30 min), and the validation page's 90° study at the
+# reference (~25 min; compared with the page's own store)
+$PY benchmarks/glider_step.py
+$PY benchmarks/validation_step.py --compare validation-data/lab-lag/validation_random.h5

@@ -1,22 +1,20 @@
-"""Do the glider quantities converge in the time step? A reference run at a fine step
-against the 0.25 ms and 0.5 ms runs of the same starts.
+"""Do the glider quantities converge in the time step? Runs at 0.25 ms and 0.5 ms
+against a reference run at a fine step, from the same starts.
 
 The validation study at 0.5 ms gave beta 1.54 [1.45, 1.62] and V_com 0.0033 W/period
 where the same 400 starts at 0.25 ms gave 1.29 [1.20, 1.36] and 0.0019: intervals that
 do not overlap, although only the step changed. Labels converge in dt (docs/timestep.md);
-whether the glider quantities do is measured here. Starts: the first ``--starts`` of the
-fidelity confirmation's 128 (benchmarks/fidelity_screen.py, seed 1, 100 periods, model
-lab-lag), whose tracks at 0.25 ms (``lab-lag_glide_128x100_s1.npz``, made before version
-0.3.0) and 0.5 ms (``lab-lag~implicitfast-0.5ms_...``) are in results/fidelity_tracks/.
-This script runs the same starts at ``--dt`` (default 0.0625 ms, the reference of
-docs/timestep.md), saves the tracks there, and prints each quantity per step with the
-95 % paired bootstrap interval of its difference from the reference (starts resampled
-together in both runs; a start counts as a glider in each run where it is one).
+whether the glider quantities do is measured here. Starts: the fidelity confirmation's
+(benchmarks/fidelity_screen.py: 128 random valid starts, seed 1, 100 periods at 90 deg,
+model lab-lag), the first ``--starts`` of them. Each step's per-period tracks are saved in
+results/fidelity_tracks/ under a name that carries the step (reused when they exist and
+were run from the same starts). Prints each quantity per step with the 95 % paired
+bootstrap interval of its difference from the reference (starts resampled together in
+all runs; a start counts as a glider in each run where it is one).
 
-    python benchmarks/glider_step.py                 # ~15-25 min on 2 cores
-    python benchmarks/glider_step.py --starts 128    # all of them (about twice that)
+    python benchmarks/glider_step.py                 # ~30 min on 2 cores (the reference ~21 of them)
 
-Resumable: the reference tracks are reused when they exist. Writes results/glider_step.json.
+Writes results/glider_step.json.
 """
 
 from __future__ import annotations
@@ -33,14 +31,15 @@ import numpy as np
 ROOT = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(ROOT.parent))
 sys.path.insert(0, str(ROOT))
-from fidelity_screen import _run  # noqa: E402
+from fidelity_screen import _run, pair_starts  # noqa: E402
 from smarticle_mjx import configs as C  # noqa: E402
 from smarticle_mjx import presets  # noqa: E402
 from smarticle_mjx.gait import GaitSpec  # noqa: E402
 from smarticle_mjx.reduce import transport  # noqa: E402
 
 TRACKS = ROOT / "results" / "fidelity_tracks"
-RUNS = {"0.25 ms": "lab-lag_glide_128x100_s1.npz", "0.5 ms": "lab-lag~implicitfast-0.5ms_glide_128x100_s1.npz"}
+STEPS = (2.5e-4, 5e-4)  # the default before version 0.3.0, and since
+POOL, SEED, PERIODS = 128, 1, 100  # the fidelity confirmation's starts
 BURN_IN = 10
 
 
@@ -57,7 +56,7 @@ def quantities(com: np.ndarray, touched: np.ndarray) -> dict:
                 persistence=transport.direction_persistence(g))
 
 
-def reference(poses: np.ndarray, dt: float, periods: int) -> pathlib.Path:
+def tracks(poses: np.ndarray, dt: float, periods: int) -> pathlib.Path:
     path = TRACKS / f"lab-lag@{dt * 1e3:g}ms_glide_{len(poses)}x{periods}_s1.npz"
     if path.exists() and np.array_equal(np.load(path)["poses"], poses):
         print(f"reusing {path.name}")
@@ -77,18 +76,16 @@ def reference(poses: np.ndarray, dt: float, periods: int) -> pathlib.Path:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--starts", type=int, default=64)
+    ap.add_argument("--starts", type=int, default=POOL)
     ap.add_argument("--dt", type=float, default=6.25e-5)
     ap.add_argument("--boot", type=int, default=1000)
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "glider_step.json")
     args = ap.parse_args()
-    runs = {k: np.load(TRACKS / v) for k, v in RUNS.items()}
-    poses = runs["0.25 ms"]["poses"][:args.starts]
-    if not np.array_equal(runs["0.5 ms"]["poses"][:args.starts], poses):
-        raise SystemExit("the 0.25 ms and 0.5 ms tracks were not run from the same starts")
-    periods = runs["0.25 ms"]["touched"].shape[1]
+    poses = pair_starts(presets.params("lab-lag"), POOL, SEED, 90.0)[:args.starts]
     ref_name = f"{args.dt * 1e3:g} ms (reference)"
-    runs[ref_name] = np.load(reference(poses, args.dt, periods))
+    runs = {f"{dt * 1e3:g} ms": np.load(tracks(poses, dt, PERIODS)) for dt in STEPS}
+    runs[ref_name] = np.load(tracks(poses, args.dt, PERIODS))
+    periods = PERIODS
     data = {k: (z["com"][:args.starts], z["touched"][:args.starts]) for k, z in runs.items()}
     rng = np.random.default_rng(0)
     idx = [rng.integers(0, args.starts, args.starts) for _ in range(args.boot)]
