@@ -20,7 +20,6 @@ import argparse
 import datetime
 import json
 import os
-import re
 import pathlib
 import sys
 import tempfile
@@ -29,7 +28,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
-from smarticle_mjx import presets  # noqa: E402
+from smarticle_mjx import presets, validation  # noqa: E402
 from smarticle_mjx.relax import RelaxConfig, run_relax  # noqa: E402
 from smarticle_mjx.store import Store  # noqa: E402
 
@@ -48,9 +47,13 @@ def timed(trials: int, periods: int, model: str) -> dict:
 
 def study(folder: pathlib.Path) -> dict:
     rows = []
-    # the stages only: smx validate keeps stores of an older version beside them
-    # (validation_relax_s00.replaced-<stamp>.h5), which are not this study
-    for p in sorted(q for q in folder.glob("validation_relax_s*.h5") if re.fullmatch(r"validation_relax_s\d+\.h5", q.name)):
+    # the stages' stores as smx validate names them (it keeps stores of an older
+    # version beside them, validation_relax_s00.replaced-<stamp>.h5: not this study)
+    name = validation.STUDIES["relax"]
+    rs = validation.read_study(validation.SWEEPS / name)
+    for p in (validation.relax_stage_path(folder, pathlib.Path(name).stem, s) for s in range(rs.stages)):
+        if not p.exists():
+            continue
         st = Store(p)
         t0 = datetime.datetime.fromisoformat(str(st.attrs["created"]))
         t1 = datetime.datetime.fromisoformat(str(st.attrs["finished"]))

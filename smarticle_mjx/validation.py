@@ -289,6 +289,11 @@ def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.
     return paths
 
 
+def relax_stage_path(data: pathlib.Path, stem: str, stage: int) -> pathlib.Path:
+    """The store of stage ``stage`` of a relaxation study: ``<stem>_sNN.h5``."""
+    return pathlib.Path(data) / f"{stem}_s{stage:02d}.h5"
+
+
 def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_progress=None,
                  notes: list | None = None, run: bool = True) -> list[pathlib.Path]:
     """Run (or reuse, or resume) the stages of a relaxation study in order,
@@ -302,7 +307,7 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
     for stage in range(rs.stages):
         cfg = rs.stage_config(stage, model)
         want = json.loads(json.dumps({"model": model, "relax": cfg.to_json(), "scene": _params_json(params)}))
-        path = pathlib.Path(data) / f"{stem}_s{stage:02d}.h5"
+        path = relax_stage_path(data, stem, stage)
         journal = _journal(path)
         if path.exists():
             st = Store(path)
@@ -858,6 +863,8 @@ def _provenance(paths) -> str:
     """When and with what numerics the stores were made, read from the stores
     themselves ("November 2026, smarticle-mjx 0.3.3, 0.5 ms step, implicitfast"),
     so the page cannot claim a time step or a version its data did not use."""
+    if not paths:
+        return "No study has been run yet."
     months, packages, steps, integrators = set(), set(), set(), set()
     for p in paths:
         st = Store(p)
@@ -871,8 +878,6 @@ def _provenance(paths) -> str:
             steps.add(f"{float(scene['timestep']) * 1e3:g} ms")
         if "integrator" in scene:
             integrators.add(str(scene["integrator"]))
-    if not paths:
-        return "No study has been run yet."
     join = lambda xs: " and ".join(sorted(xs)) or "unrecorded"  # noqa: E731
     return (f"Measured {join(months)} with {join(packages)}, time step {join(steps)} ({join(integrators)}); "
             "every store says so in its attributes.")
