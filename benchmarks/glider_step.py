@@ -6,7 +6,7 @@ where the same 400 starts at 0.25 ms gave 1.29 [1.20, 1.36] and 0.0019: interval
 do not overlap, although only the step changed. Labels converge in dt (docs/timestep.md);
 whether the glider quantities do is measured here. Starts: the fidelity confirmation's
 (benchmarks/fidelity_screen.py: 128 random valid starts, seed 1, 100 periods at 90 deg,
-model lab-lag), the first ``--starts`` of them. Each step's per-period tracks are saved in
+model lab-lag), run by its ``gliding``. Each step's per-period tracks are saved in
 results/fidelity_tracks/ under a name that carries the step (reused when they exist and
 were run from the same starts). Prints each quantity per step with the 95 % paired
 bootstrap interval of its difference from the reference (starts resampled together in
@@ -31,11 +31,9 @@ import numpy as np
 ROOT = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(ROOT.parent))
 sys.path.insert(0, str(ROOT))
-from fidelity_screen import _run, pair_starts  # noqa: E402
-from smarticle_mjx import configs as C  # noqa: E402
+from fidelity_screen import gliding, pair_starts  # noqa: E402
 from smarticle_mjx import presets  # noqa: E402
-from smarticle_mjx.gait import GaitSpec  # noqa: E402
-from smarticle_mjx.reduce import transport  # noqa: E402
+from timestep_candidates import _glide_quantities  # noqa: E402
 
 TRACKS = ROOT / "results" / "fidelity_tracks"
 STEPS = (2.5e-4, 5e-4)  # the default before version 0.3.0, and since
@@ -45,53 +43,42 @@ BURN_IN = 10
 
 def quantities(com: np.ndarray, touched: np.ndarray) -> dict:
     """beta (centred MSD, delays 5-15), net speed and direction persistence of the gliders
-    (bound in every period after the burn-in) among these starts."""
+    (bound in every period after the burn-in) among these starts, as the time-step study
+    measures them (timestep_candidates.py)."""
     glide = touched[:, BURN_IN:].all(1)
-    g = com[glide, BURN_IN:].astype(float)
-    if len(g) < 3:
+    if glide.sum() < 3:
         return dict(gliders=int(glide.sum()), beta=np.nan, net_speed=np.nan, persistence=np.nan)
-    return dict(gliders=int(glide.sum()),
-                beta=transport.msd_exponent(g, lag_range=(5, 15), centered=True, n_boot=0).beta,
-                net_speed=float(np.nanmean(transport.net_speed(g))),
-                persistence=transport.direction_persistence(g))
+    return dict(gliders=int(glide.sum()), **_glide_quantities(com[glide, BURN_IN:].astype(float)))
 
 
-def tracks(poses: np.ndarray, dt: float, periods: int) -> pathlib.Path:
-    path = TRACKS / f"lab-lag@{dt * 1e3:g}ms_glide_{len(poses)}x{periods}_s1.npz"
+def tracks(poses: np.ndarray, dt: float) -> pathlib.Path:
+    """The per-period tracks of the confirmation's starts at step ``dt`` (run if missing)."""
+    path = TRACKS / f"lab-lag@{dt * 1e3:g}ms_glide_{POOL}x{PERIODS}_s{SEED}.npz"
     if path.exists() and np.array_equal(np.load(path)["poses"], poses):
         print(f"reusing {path.name}")
         return path
-    params = dataclasses.replace(presets.params("lab-lag"), timestep=dt)
-    params.validate()
-    W = params.robot.body_length
     t = time.perf_counter()
-    tr, touched, wall, steps = _run(params, GaitSpec(90.0), poses, periods, quiet=2)
-    com = (tr[:, :, 0, :2] + tr[:, :, 1, :2]) / 2 / W
-    r, th, ph = C.relative_coordinates(tr[:, :, 0], tr[:, :, 1], W)
-    np.savez_compressed(path, com=com, rel=np.stack([r, th, ph], -1), touched=touched, poses=poses,
-                        wall_s=wall, steps=steps)
-    print(f"ran {len(poses)} starts x {periods} periods at {dt * 1e3:g} ms in {time.perf_counter() - t:.0f} s")
+    gliding(dataclasses.replace(presets.params("lab-lag"), timestep=dt), POOL, PERIODS, SEED, BURN_IN, save=path)
+    print(f"ran {POOL} starts x {PERIODS} periods at {dt * 1e3:g} ms in {time.perf_counter() - t:.0f} s")
     return path
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--starts", type=int, default=POOL)
     ap.add_argument("--dt", type=float, default=6.25e-5)
     ap.add_argument("--boot", type=int, default=1000)
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "glider_step.json")
     args = ap.parse_args()
-    poses = pair_starts(presets.params("lab-lag"), POOL, SEED, 90.0)[:args.starts]
+    poses = pair_starts(presets.params("lab-lag"), POOL, SEED, 90.0)
     ref_name = f"{args.dt * 1e3:g} ms (reference)"
-    runs = {f"{dt * 1e3:g} ms": np.load(tracks(poses, dt, PERIODS)) for dt in STEPS}
-    runs[ref_name] = np.load(tracks(poses, args.dt, PERIODS))
-    periods = PERIODS
-    data = {k: (z["com"][:args.starts], z["touched"][:args.starts]) for k, z in runs.items()}
+    runs = {f"{dt * 1e3:g} ms": np.load(tracks(poses, dt)) for dt in STEPS}
+    runs[ref_name] = np.load(tracks(poses, args.dt))
+    data = {k: (z["com"], z["touched"]) for k, z in runs.items()}
     rng = np.random.default_rng(0)
-    idx = [rng.integers(0, args.starts, args.starts) for _ in range(args.boot)]
+    idx = [rng.integers(0, POOL, POOL) for _ in range(args.boot)]
     point = {k: quantities(*v) for k, v in data.items()}
     boots = {k: [quantities(v[0][i], v[1][i]) for i in idx] for k, v in data.items()}
-    res = {"model": "lab-lag", "starts": args.starts, "periods": periods, "burn_in": BURN_IN,
+    res = {"model": "lab-lag", "starts": POOL, "periods": PERIODS, "burn_in": BURN_IN,
            "reference_dt_s": args.dt, "runs": {}}
     for k in data:
         row = {"gliders": point[k]["gliders"]}

@@ -33,8 +33,7 @@ STUDY = ROOT.parent / "sweeps" / "validation_random.toml"
 
 def reduce(path: pathlib.Path) -> dict:
     st = Store(path)
-    run = st.runs[0] if isinstance(st.runs, list) else next(iter(st.runs))
-    s = analyse_run(st, run)["summary"]
+    s = analyse_run(st, st.runs[0])["summary"]  # one amplitude, one run, as smx validate reads it
     b, v = s.get("beta") or {}, s.get("v_com") or {}
     return {"store": path.name, "timestep_ms": float(st.config["scene"]["timestep"]) * 1e3,
             "package": str(st.attrs.get("package")), "valid": s["valid"], "gliders": s["gliders"],
