@@ -8,8 +8,12 @@ only complete chunks. When every run is complete the journal is merged into
 continues from the journal; a lock file held with ``flock`` refuses a second
 writer, and is released by the kernel even on SIGKILL (the file itself is
 removed when its writer finishes or fails; one killed leaves it, harmless).
+A run that fails before it journals any row leaves nothing behind: the new
+journal is removed, and the one ``--overwrite`` was replacing comes back.
 
-Schema (version 1; see docs/store.md)::
+Schema (version 2; version 1 lacked the dimension scales, units and long
+names and is still read; see docs/store.md). Missing float values are one
+NaN, the canonical quiet NaN (:func:`canonical`), whoever computed them::
 
     /                      attrs: schema_version, package, mujoco, jax, h5py,
                                   numpy versions, config (JSON), created, seed
@@ -80,6 +84,24 @@ def longest_run(flags: np.ndarray) -> np.ndarray:
     return best
 
 
+# Missing float values are stored as this one NaN (the positive quiet NaN,
+# float32 0x7fc00000, float64 0x7ff8000000000000). NaNs made by arithmetic
+# carry whatever sign and payload the CPU's vector unit gives them (x86's
+# default NaN has the sign bit set), so the same rows computed by another
+# executor, batch split or CPU would otherwise differ bit for bit.
+def canonical(data: np.ndarray) -> np.ndarray:
+    """``data`` with every NaN replaced by the canonical quiet NaN (other dtypes unchanged)."""
+    data = np.asarray(data)
+    if data.dtype.kind != "f":
+        return data
+    nan = np.isnan(data)
+    if not nan.any():
+        return data
+    out = data.copy()
+    out[nan] = np.array(np.nan, data.dtype)
+    return out
+
+
 def _journal(path: pathlib.Path) -> pathlib.Path:
     return path.with_name(path.name + ".parts")
 
@@ -108,6 +130,9 @@ class Writer:
         self.parts = _journal(self.path)
         self._lock = None
         self._done: dict[str, int] = {}
+        self._created = False  # this writer made the journal (new or overwrite)
+        self._appended = False  # and journaled rows into it
+        self._aside = None  # the journal --overwrite replaces, kept until the first rows arrive
 
     # -------------------------------------------------------------- set-up
     def __enter__(self):
@@ -146,8 +171,8 @@ class Writer:
         self._lock = (fd, lock_path)
         try:
             self._prepare()
-        except BaseException:
-            self._release()
+        except BaseException as e:
+            self.__exit__(type(e), e, e.__traceback__)
             raise
         return self
 
@@ -173,9 +198,13 @@ class Writer:
         elif self.mode != "overwrite":
             raise ValueError(f"unknown mode {self.mode!r}")
         if self.mode == "overwrite" and journal:
-            shutil.rmtree(self.parts)
+            self._aside = self.parts.with_name(self.parts.name + ".replaced")
+            if self._aside.exists():
+                shutil.rmtree(self._aside)
+            os.replace(self.parts, self._aside)
         if self.mode != "resume":
             self.parts.mkdir()
+            self._created = True
             meta = {"config": self.config, "runs": self.runs, "created": _now(), **versions()}
             _atomic_text(self.parts / "meta.json", json.dumps(meta, indent=1))
             _atomic_text(self.parts / "config.json", json.dumps(self.config, indent=1, sort_keys=True))
@@ -191,9 +220,21 @@ class Writer:
             os.close(fd)
             self._lock = None
 
-    def __exit__(self, *exc):
-        self._release()
+    def __exit__(self, exc_type, *exc):
+        try:
+            if exc_type is not None and self._created and not self._appended and self.parts.exists():
+                shutil.rmtree(self.parts)  # nothing was computed: nothing is left behind
+                if self._aside is not None:
+                    os.replace(self._aside, self.parts)
+                    self._aside = None
+        finally:
+            self._release()
         return False
+
+    def _drop_aside(self):
+        if self._aside is not None:
+            shutil.rmtree(self._aside, ignore_errors=True)
+            self._aside = None
 
     # -------------------------------------------------------------- journal
     def done_ranges(self, run: str) -> list[tuple[int, int]]:
@@ -252,8 +293,10 @@ class Writer:
             f.attrs["start"], f.attrs["stop"] = start, start + n
             for k in self.fields + OPTIONAL_FIELDS:
                 if k in rows:
-                    f.create_dataset(k, data=rows[k])
+                    f.create_dataset(k, data=canonical(rows[k]))
         os.replace(tmp, final)
+        self._appended = True
+        self._drop_aside()
         self._done[run] = sorted(self.done_ranges(run) + [(start, start + n)])
 
     # -------------------------------------------------------------- finalise
@@ -290,11 +333,13 @@ class Writer:
                             raise StoreError(f"journal of run {run} mixes parts with fields {fields} and {have}")
                         fields = have
                         for k in have:
-                            _append_rows(g, k, f[k][()])
+                            _append_rows(g, k, canonical(f[k][()]))  # journals of older versions too
                 _label_run(g)
             out.attrs["complete"] = True
         os.replace(tmp, self.path)
         shutil.rmtree(self.parts)
+        self._appended = True
+        self._drop_aside()
 
 
 # configuration keys that say how a store was computed, not what it holds: a
