@@ -228,8 +228,8 @@ class DaskExecutor:
                                    host="127.0.0.1", dashboard_address="127.0.0.1:8787" if self.dashboard else None,
                                    silence_logs=50)
             return cluster, Client(cluster)
-        try:
-            return None, Client(self.scheduler, security=self.security, timeout="20s")
+        try:  # waits Dask's connect timeout (distributed.comm.timeouts.connect, 30 s unless configured)
+            return None, Client(self.scheduler, security=self.security)
         except (OSError, TimeoutError) as e:
             raise ExecutorError(f"cannot reach the Dask scheduler at {self.scheduler}: {e}") from None
 

@@ -245,19 +245,49 @@ def test_xarray_opens_a_run_group_with_named_dimensions_units_and_booleans(tmp_p
 
 
 def test_a_schema_1_store_still_opens(tmp_path):
-    """Stores written before the labels (schema 1) are read as before."""
-    from smarticle_mjx.scan import ScanConfig, run_scan
-    out = tmp_path / "old.h5"
-    run_scan(ScanConfig(n=3, periods=1, r_range_W=(0.8, 1.5), seed=2), out)
-    with h5py.File(out, "r+") as f:  # strip schema 2's additions: what an old store is
-        f.attrs["schema_version"] = 1
-        g = f["runs/a090.00"]
-        for k in list(g.keys()):
-            if k not in ("config", "valid", "status", "periods_run", "touched", "min_dist", "poses", "rel", "com",
-                         "lifetime"):
-                del g[k]
+    """A store as version 1 wrote it, built here with h5py alone (no code of
+    this package): root attributes, one group per amplitude with its
+    attributes, the ten row fields as gzip-chunked datasets, no dimension
+    scales or units, and a configuration from before model presets. The
+    reader opens it, takes its model as "paper" (the only model then) and
+    reads back every value and attribute that was written."""
+    import json
+    rng = np.random.default_rng(7)
+    m, k = 5, 3
+    rows = {"config": rng.uniform(0, 3, (m, 3)), "valid": np.array([1, 1, 0, 1, 1], bool),
+            "status": np.array([0, 0, 1, 8, 0], np.int32), "periods_run": np.array([3, 3, 0, 2, 3], np.int32),
+            "touched": rng.random((m, k, 1)) < 0.5, "min_dist": rng.normal(0, 1e-3, (m, k, 1)).astype(np.float32),
+            "poses": rng.normal(0, 0.05, (m, k, 2, 5)).astype(np.float32),
+            "rel": rng.normal(1, 0.1, (m, k, 3)).astype(np.float32),
+            "com": rng.normal(0, 0.01, (m, k, 3)).astype(np.float32), "lifetime": np.array([3, 1, 0, 2, 0], np.int32)}
+    config = {"scan": {"configs": "random", "n": m, "r_range_W": [0.5, 2.5], "amplitudes_deg": [90.0], "periods": k,
+                       "backend": "native", "seed": 2, "batch_size": 256},
+              "scene": {"timestep": 0.00025, "robot": {"body_length": 0.05}}}
+    run_attrs = {"amplitude_deg": 90.0, "period_s": 1.6, "chirality": "ccw", "gait": "square", "periods": k,
+                 "n_configs": m}
+    out = tmp_path / "v1.h5"
+    with h5py.File(out, "w") as f:
+        f.attrs.update({"schema_version": 1, "package": "smarticle-mjx 0.1.0", "mujoco": "3.3.0", "jax": "0.6.0",
+                        "h5py": "3.13.0", "numpy": "2.2.0", "config": json.dumps(config),
+                        "created": "2026-11-18T10:00:00+00:00", "finished": "2026-11-18T10:05:00+00:00", "seed": 2,
+                        "complete": True})
+        g = f.create_group("runs").create_group("a090.00")
+        g.attrs.update(run_attrs)
+        for name, data in rows.items():
+            g.create_dataset(name, data=data, maxshape=(None,) + data.shape[1:], chunks=(2,) + data.shape[1:],
+                             compression="gzip", compression_opts=4, shuffle=True)
     st = Store(out)
-    assert st.run()["touched"].shape == (3, 1, 1) and set(st.run_fields[st.runs[0]]) >= {"rel", "com"}
+    assert st.attrs["schema_version"] == 1 and st.model == "paper" and st.kind == "scan"
+    assert st.runs == ["a090.00"] and set(st.run_fields["a090.00"]) == set(rows)
+    assert {key: st.run_attrs["a090.00"][key] for key in run_attrs} == run_attrs
+    got = st.run()
+    for name, data in rows.items():
+        assert got[name].dtype == data.dtype, name
+        np.testing.assert_array_equal(got[name], data, err_msg=name)
+    with h5py.File(out, "r+") as f:  # a version this reader does not know is refused in one line
+        f.attrs["schema_version"] = 9
+    with pytest.raises(StoreError, match="schema version 9"):
+        Store(out)
 
 
 def test_a_stale_lock_file_of_a_killed_writer_is_reused_and_removed(tmp_path):
@@ -273,3 +303,92 @@ def test_a_stale_lock_file_of_a_killed_writer_is_reused_and_removed(tmp_path):
                 pass
         assert stale.exists()  # the refused writer did not remove the holder's file
     assert not stale.exists()
+
+
+def _rows(n, nan_bits=0xFFC00000):
+    """Journal rows whose missing values carry the NaN ``nan_bits`` (x86's default NaN: sign bit set)."""
+    neg = np.array([nan_bits], np.uint32).view(np.float32)[0]
+    rel = np.zeros((n, 2, 3), np.float32)
+    rel[:, 1] = neg  # a period not run
+    poses = np.zeros((n, 2, 2, 5), np.float32)
+    poses[:, 1] = neg
+    config = np.zeros((n, 3))
+    config[0, 0] = np.array([0xFFF8000000000001], np.uint64).view(np.float64)[0]  # negative NaN, payload 1
+    return {"config": config, "valid": np.ones(n, bool), "status": np.zeros(n, np.int32),
+            "periods_run": np.ones(n, np.int32), "touched": np.zeros((n, 2, 1), bool),
+            "min_dist": np.full((n, 2, 1), np.inf, np.float32), "poses": poses, "rel": rel,
+            "com": np.zeros((n, 2, 3), np.float32), "lifetime": np.zeros(n, np.int32)}
+
+
+def test_missing_values_are_stored_as_one_nan_whoever_computed_them(tmp_path):
+    """NaNs made by arithmetic carry the CPU's sign and payload: the writer
+    stores the canonical quiet NaN instead, in the journal and in the merged
+    store, so two executors' stores of one scan are the same bits on any
+    machine. Values read back as NaN where they were NaN, and nowhere else."""
+    from storecmp import non_canonical_nans
+    path = tmp_path / "s.h5"
+    with Writer(path, {"x": 1}, {"r": {"n_configs": 3}}) as w:
+        w.append("r", 0, _rows(3))
+        part = next(w.parts.glob("r--*.h5"))
+        with h5py.File(part) as f:
+            assert f["rel"][0, 1].view(np.uint32).tolist() == [0x7FC00000] * 3
+        w.finalize()
+    assert non_canonical_nans(path) == []
+    d = Store(path).run()
+    assert np.isnan(d["rel"][:, 1]).all() and not np.isnan(d["rel"][:, 0]).any()
+    assert np.isnan(d["config"][0, 0]) and np.isinf(d["min_dist"]).all()
+
+
+def test_the_store_comparison_sees_a_nan_of_another_pattern(tmp_path):
+    """The check the Dask tests rely on is not blind: a store written around
+    the canonicalisation (h5py directly) is flagged, and two stores that
+    differ in one value or one attribute are told apart."""
+    from storecmp import assert_same_store, non_canonical_nans
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    for path in (a, b):
+        with Writer(path, {"x": 1}, {"r": {"n_configs": 2}}) as w:
+            w.append("r", 0, _rows(2))
+            w.finalize()
+    assert_same_store(a, b)
+    with h5py.File(b, "r+") as f:
+        f["runs/r/rel"][0, 1, 0] = np.array([0xFFC00000], np.uint32).view(np.float32)[0]
+    bad = non_canonical_nans(b)
+    assert len(bad) == 1 and bad[0].startswith("runs/r/rel:") and "0xffc00000" in bad[0], bad
+    with pytest.raises(AssertionError, match="non-canonical"):
+        assert_same_store(a, b)
+    with h5py.File(b, "r+") as f:
+        f["runs/r/rel"][0, 1, 0] = np.nan
+        f["runs/r/lifetime"][1] = 3
+    with pytest.raises(AssertionError, match="lifetime"):
+        assert_same_store(a, b)
+    with h5py.File(b, "r+") as f:
+        f["runs/r/lifetime"][1] = 0
+        f["runs/r"].attrs["n_configs"] = 5
+    with pytest.raises(AssertionError, match="attributes of runs/r"):
+        assert_same_store(a, b)
+
+
+def test_a_scan_whose_scheduler_cannot_be_reached_leaves_nothing_behind(tmp_path):
+    """``smx scan --executor dask --scheduler ADDRESS`` with nobody listening:
+    one line, exit 2, no store, no journal, no lock file. With --overwrite the
+    store and the unfinished journal it would have replaced are left as they were."""
+    pytest.importorskip("distributed")
+    import dask
+    out = tmp_path / "x.h5"
+    args = ["scan", *SMALL, "--executor", "dask", "--scheduler", "tcp://127.0.0.1:1", "--out", out]
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        r = _smx(*args)
+        assert r.exit_code == 2 and "cannot reach the Dask scheduler" in r.output, r.output
+        assert len(r.output.strip().splitlines()) == 1
+        assert sorted(tmp_path.iterdir()) == []
+        # an existing store and an unfinished journal of another scan at the same path
+        assert _smx("scan", *SMALL, "--out", out).exit_code == 0
+        parts = tmp_path / "x.h5.parts"
+        parts.mkdir()
+        (parts / "config.json").write_text("{}")
+        before = _digest(out)
+        r = _smx(*args, "--overwrite")
+        assert r.exit_code == 2 and "cannot reach the Dask scheduler" in r.output, r.output
+    assert _digest(out) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.h5", "x.h5.parts"]
+    assert [p.name for p in parts.iterdir()] == ["config.json"] and (parts / "config.json").read_text() == "{}"
