@@ -167,25 +167,48 @@ def test_refill_writes_new_lanes_into_device_state_and_leaves_the_rest():
     np.testing.assert_array_equal(np.asarray(_take_state(out, idx)["act"]), np.ones((2, 2)))
 
 
+def _dot_generals(jaxpr):
+    """Every dot_general equation of a jaxpr, sub-jaxprs (scan, cond, pjit) included."""
+    for e in jaxpr.eqns:
+        if e.primitive.name == "dot_general":
+            yield e
+        for v in e.params.values():
+            for x in v if isinstance(v, (list, tuple)) else (v,):
+                inner = getattr(x, "jaxpr", x)
+                if hasattr(inner, "eqns"):
+                    yield from _dot_generals(inner)
+
+
 def test_mjx_backend_runs_at_full_matmul_precision(scene, monkeypatch):
-    """On GPUs JAX defaults to TF32 matmuls; the MJX backend must not: after it
-    is built, JAX's default precision is 'highest', and a traced matmul of
-    float32 numbers that TF32 would round (1 + 2^-12) keeps its low bits.
-    (The backend's contact-slot map, which compiles MJX's forward, is stubbed:
-    the setting is made before it.)"""
+    """On GPUs JAX defaults to TF32 matmuls (10-bit mantissa); the MJX backend
+    must not: after it is built, every matrix product in its traced gait
+    period (mjx.step with our contact records, vmapped over lanes) asks for
+    HIGHEST precision. The only exceptions are MJX's own: its box-box
+    separating-axis test pins Precision.HIGH on two support products
+    (mujoco/mjx/_src/collision_convex.py), which no global setting reaches.
+    Checked on the traced program, so it holds on a CPU too, where every
+    precision computes the same. (The contact-slot map, which compiles
+    MJX's forward, is stubbed: the setting is made before it.)"""
     import jax
-    import jax.numpy as jnp
     from smarticle_mjx.engine import mjx as mjx_mod
     monkeypatch.setattr(mjx_mod, "_contact_slots", lambda scene, model, mx: np.zeros((1, 1), bool))
     jax.config.update("jax_default_matmul_precision", None)
     try:
-        make_backend("mjx", scene)
+        be = make_backend("mjx", scene)
         assert jax.config.jax_default_matmul_precision == "highest"
+        lanes = Lanes.from_gait(C.sample_valid_pairs(2, np.random.default_rng(0), (0.8, 1.4), A0[0], A0[1]), GAIT)
+        args, per_robot = be._lane_args(lanes)
+        traced = be._period_fn(2, per_robot).trace(be.initial_state(lanes), *args)
     finally:
         jax.config.update("jax_default_matmul_precision", "highest")
-    a = jnp.full((1, 4), 1 + 2.0 ** -12, jnp.float32)
-    got = float(jax.jit(lambda x: x @ x.T)(a)[0, 0])
-    assert abs(got - 4 * (1 + 2.0 ** -12) ** 2) < 1e-5
+    highest = (jax.lax.Precision.HIGHEST,) * 2
+    dots = list(_dot_generals(traced.jaxpr.jaxpr))
+    assert sum(e.params["precision"] == highest for e in dots) > 50
+    others = [e for e in dots if e.params["precision"] != highest]
+    for e in others:
+        files = [f.file_name for f in e.source_info.traceback.frames]
+        assert any(f.endswith("mjx/_src/collision_convex.py") for f in files), (e.params["precision"], files[:3])
+        assert e.params["precision"] == (jax.lax.Precision.HIGH,) * 2
 
 
 # ---- robots with their own gaits in one lane -------------------------------------------------

@@ -136,15 +136,22 @@ def test_refill_keeps_every_lane_and_matches_a_full_batch(scene, warp):
 
 @needs_warp
 def test_touch_records_agree_with_native(scene, warp, native):
-    """Per lane and period, whether the robots touched (the bound/unbound
-    label's input) is the same in MuJoCo Warp and MuJoCo C; the deepest
-    contact distance agrees within 0.2 mm where both touched. Bodies end
-    the 400 steps within 2 mm (4 % of W): colliding pairs amplify float32
-    rounding, as for MJX (tests/test_engine.py uses the same bound)."""
-    lanes = _lanes(8, 3, period=0.1, r_range=(0.8, 2.2))
-    _, w, _ = warp.advance(warp.initial_state(lanes), lanes, 1)
-    _, n, _ = native.advance(native.initial_state(lanes), lanes, 1)
-    assert n.touched.any() and (~n.touched).any(), "the sample must hold touching and apart lanes"
+    """Bound/unbound labels over whole gait periods: per lane and period,
+    whether the robots touched is the same in MuJoCo Warp and MuJoCo C, for
+    pairs running the real square gait (45 degrees, its own 0.8 s period:
+    1600 steps, every arm edge and dwell) for two periods from starts that
+    touch and starts that stay apart; the deepest contact distance agrees
+    within 0.2 mm where both touched. Bodies end within 2 mm (4 % of W):
+    colliding pairs amplify float32 rounding, as for MJX (tests/test_engine.py)."""
+    gait = GaitSpec(45.0)
+    a0 = gait.setpoints(0.0, P.robot.servo_speed)
+    poses = C.sample_valid_pairs(8, np.random.default_rng(3), (0.8, 1.6), a0[0], a0[1])
+    lanes = Lanes.from_gait(poses, gait)
+    assert lanes.period == gait.period() and round(lanes.period / P.timestep) == 1600
+    _, w, _ = warp.advance(warp.initial_state(lanes), lanes, 2)
+    _, n, _ = native.advance(native.initial_state(lanes), lanes, 2)
+    bound = n.touched[:, :, 0]
+    assert bound.any() and (~bound).any(), "the sample must hold touching and apart lanes"
     np.testing.assert_array_equal(w.touched, n.touched)
     both = w.touched & n.touched
     assert np.abs(w.min_dist[both] - n.min_dist[both]).max() < 2e-4
