@@ -40,8 +40,8 @@ _GEOMETRY = {
     "paper": ({}, {}, (
         ("body_length, arm_length, arm_thickness, body_thickness, mass", "paper (W 5.0 cm, L 5.4 cm, 0.3 cm, D 2.2 cm, 34.8 g)"),
         ("arm_mass 2 g, capsule arms, body_height 2.5 cm", "chosen where the paper is silent (docs/model.md)"),
-        ("plate_friction 0.37", "DART-derived comments in public code"),
-        ("robot_friction 0.3", "chosen (plastic on plastic)"),
+        ("plate_friction 0.37", f"{_DART}: the DART-derived value"),
+        ("robot_friction 0.3", "chosen: plastic on plastic (docs/model.md)"),
     )),
     "lab": (dict(
         body_length=0.054, arm_length=0.050, hinge_inset=0.006,
@@ -63,7 +63,8 @@ _GEOMETRY = {
 _SERVO = {
     "pd": ({}, (
         ("servo: PD + feed-forward, kp 0.5 N m/rad, kv critical, 0.078 N m, armature 5e-5 kg m^2",
-         "stall torque: Savoie's public Chrono code; gains and armature chosen (docs/model.md, docs/timestep.md)"),
+         "stall torque: Savoie's public Chrono code (wsavoie/SmarticleSim); gains and armature chosen "
+         "(docs/model.md, docs/timestep.md)"),
     )),
     # DART's "SERVO" joint: a velocity constraint whose force is bounded, hard stops at
     # +-90 deg. The command is a velocity (the gait's rate): an arm a neighbour blocks does not
@@ -80,8 +81,9 @@ _SERVO = {
         ("servo_torque 0.03 N m, arm_limit 90 deg (hard stops), velocity command",
          f"{_DART}; dartsim/dart JointAspect.hpp"),
         ("servo_kv 0.003 (1 ms loop), armature 0",
-         "the stiffest velocity loop the implicit integrator keeps consistent while clipped (dt kv / I ~ 0.1)"),
-        ("servo_kp kv / 1.6 s", "chosen: a trim too slow to catch up within a period (no source)"),
+         "chosen: the stiffest velocity loop the implicit integrator keeps consistent while clipped "
+         "(dt kv / I ~ 0.1; docs/fidelity.md)"),
+        ("servo_kp kv / 1.6 s", "chosen: a trim too slow to catch up within a period (docs/fidelity.md)"),
     )),
     # The same bound and stops with a stiff position loop: the arm keeps pushing toward its
     # setpoint (a setpoint error of 1 deg saturates 0.03 N m), as a hobby servo does.
@@ -89,7 +91,7 @@ _SERVO = {
                    arm_limit_deg=90.0), (
         ("servo_torque 0.03 N m, arm_limit 90 deg (hard stops)", f"{_DART}; dartsim/dart JointAspect.hpp"),
         ("servo_kp 1.72 (1 deg of error saturates the bound), kv critical, armature 0",
-         "chosen: a stiff position servo within DART's bound"),
+         "chosen: a stiff position servo within DART's bound (docs/fidelity.md)"),
     )),
     # A hobby servo is commanded by a pulse every 20 ms (50 Hz) and the lab firmware sends step
     # setpoints (wsavoie/ArduinoSmarticle cloudSmarticle.ino): the arm responds to a command on
@@ -97,19 +99,25 @@ _SERVO = {
     "lag": (dict(servo_timeconst=0.010), (
         ("servo_timeconst 10 ms", "half the 20 ms command frame of a hobby servo; lab firmware sends step setpoints "
                                   "(wsavoie/ArduinoSmarticle cloudSmarticle.ino)"),
-        ("servo otherwise as 'pd'", "see the pd servo"),
+        ("servo otherwise as 'pd'", "as the pd servo: stall torque from wsavoie/SmarticleSim, gains and armature "
+         "chosen (docs/model.md)"),
     )),
 }
 
 
 # numerics name -> (SceneParams changes, sources)
 _NUMERICS = {
-    "default": ({}, (("timestep 0.25 ms, contacts solref 5 ms", "chosen by convergence (docs/timestep.md)"),)),
+    # the values are SceneParams' own (written from them, so the text cannot fall behind)
+    "default": ({}, ((f"timestep {SceneParams.timestep * 1e3:g} ms, contacts solref "
+                      f"{SceneParams.contact_timeconst * 1e3:g} ms",
+                      "chosen: labels and lone drift converge against a 0.0625 ms reference, glider transport "
+                      "does not (docs/timestep.md)"),)),
     # DART's time stepping is an LCP: rigid contacts, 0.1 ms steps. MuJoCo's contacts are soft;
     # the stiffest it integrates stably has a time constant of two steps.
     "rigid": (dict(timestep=1e-4, contact_timeconst=2e-4), (
         ("timestep 0.1 ms", "the paper's SI (DART, 1e-4 s)"),
-        ("contact_timeconst 0.2 ms", "as rigid as MuJoCo allows at that step (2 dt), standing in for DART's LCP"),
+        ("contact_timeconst 0.2 ms", "chosen: as rigid as MuJoCo allows at that step (2 dt), standing in for "
+         "DART's LCP (docs/fidelity.md)"),
     )),
 }
 

@@ -3,6 +3,8 @@
 import dataclasses
 import json
 import math
+import pathlib
+import re
 
 import mujoco
 import numpy as np
@@ -33,17 +35,67 @@ def _changed_fields(params: S.SceneParams) -> set[str]:
     return out
 
 
+# the public records a source may cite (shared/reference/smarticle.md, "Beyond the paper's text")
+PUBLIC_CODE = ("wsavoie/ArduinoSmarticle", "wsavoie/SmarticleSim", "LuningFang/smarticle_v6",
+               "AkashVardhan7/smarticle_cloud_open_Boundary", "dartsim/dart")
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+# words of the source lines that name a parameter field, and the unit a value is written in
+FIELD_ALIASES = {"kp": "servo_kp", "kv": "servo_kv", "armature": "servo_armature", "arm_limit": "arm_limit_deg",
+                 "contacts solref": "contact_timeconst"}
+UNITS = {"ms": 1e-3, "mm": 1e-3, "cm": 1e-2, "g": 1e-3, "deg": 1.0, "N m/rad": 1.0, "N m": 1.0, "kg m^2": 1.0}
+_VALUE = re.compile(r"(contacts solref|[a-z_]+) (-?\d+(?:\.\d+)?(?:e-?\d+)?)(?![\d.e])"
+                    r"(?: (N m/rad|N m|kg m\^2|ms|mm|cm|g|deg)\b)?(?! of)")
+
+
+def _stated_values(text: str):
+    """(field, value in SI, number as written) for every 'field value [unit]' a source line states."""
+    fields = {f.name for f in dataclasses.fields(S.SceneParams)} | {f.name for f in dataclasses.fields(S.RobotParams)}
+    for m in _VALUE.finditer(text):
+        field = FIELD_ALIASES.get(m.group(1), m.group(1))
+        if field in fields:
+            yield field, float(m.group(2)) * UNITS.get(m.group(3), 1.0), m.group(2)
+
+
+def _close(stated: float, actual: float, written: str) -> bool:
+    """Equal to the precision the number is written with (1.72 for 1.7189; 5e-5 exactly)."""
+    if "e" in written or "." not in written:
+        return math.isclose(stated, actual, rel_tol=1e-9, abs_tol=1e-15)
+    return abs(stated - actual) <= 0.5 * 10 ** -len(written.split(".")[1]) * (stated / float(written)) + 1e-15
+
+
 @pytest.mark.parametrize("name", list(presets.PRESETS))
 def test_every_preset_value_cites_a_source(name):
-    """Each parameter a preset changes from the base model is named in one of its source lines."""
+    """Each parameter a preset changes from the base model is named in one of
+    its source lines; each line cites the paper, a public repository of the
+    reference table, or, for a value chosen here, the page of this
+    repository that argues the choice (and that page exists); and every value
+    a line states ('timestep 0.5 ms', 'arm_mass 3.19 g') is the preset's
+    value, so no line can say 0.25 ms of a 0.5 ms model."""
     p = presets.get(name)
     cited = " ".join(field for field, _ in p.sources)
     changed = _changed_fields(p.params)
-    aliases = {"servo_kp": "kp", "servo_kv": "kv", "servo_torque": "torque", "servo_armature": "armature", "servo_kp": "kp",
+    aliases = {"servo_kp": "kp", "servo_kv": "kv", "servo_torque": "torque", "servo_armature": "armature",
                "arm_limit_deg": "arm_limit", "contact_timeconst": "contact_timeconst"}
     missing = [f for f in changed if f not in cited and aliases.get(f, f) not in cited]
     assert not missing, f"{name}: no source for {missing}"
-    assert all(src.strip() for _, src in p.sources)
+    for field, source in p.sources:
+        assert "no source" not in source, f"{name}: {field}: {source}"
+        pages = re.findall(r"docs/[\w-]+\.md", source)
+        assert all((ROOT / page).exists() for page in pages), f"{name}: {source}: no such page"
+        public = re.search(r"\bpaper\b", source) or any(repo in source for repo in PUBLIC_CODE)
+        assert public or pages, f"{name}: {field}: {source!r} cites neither the paper, public code nor a docs page"
+        if "chosen" in source:
+            assert pages, f"{name}: {field}: a chosen value must name the page that argues it: {source!r}"
+        for f, stated, written in _stated_values(field):
+            actual = getattr(p.params.robot, f) if hasattr(p.params.robot, f) else getattr(p.params, f)
+            assert _close(stated, actual, written), f"{name}: {field!r} states {f} = {written}, the preset has {actual}"
+
+
+def test_the_source_check_reads_values_as_written():
+    """The value check is not blind: it finds a stale step and passes a rounded one."""
+    got = {f: (v, w) for f, v, w in _stated_values("timestep 0.25 ms, contacts solref 5 ms, arm_height 0.96 of x")}
+    assert got == {"timestep": (0.00025, "0.25"), "contact_timeconst": (0.005, "5")}
+    assert not _close(0.00025, 0.0005, "0.25") and _close(1.72, 0.03 / math.radians(1), "1.72")
 
 
 def test_unknown_preset_is_one_line():
@@ -189,6 +241,7 @@ def test_a_preset_round_trips_through_a_store_and_a_sidecar(tmp_path):
     ["simulate", "--periods", "1"],
     ["scan", "--configs", "polar", "--positions", "2", "--periods", "1"],
     ["sweep-amplitude", "--amplitudes", "90", "--periods", "1"],
+    ["relax", "--trials", "1", "--periods", "1"],
     ["models", "--check"],
     ["validate"],
     ["synth", "SYNTH"],
