@@ -54,6 +54,14 @@ SINGLE_AMPLITUDES = (10, 20, 30, 40, 50, 60, 70, 80, 90)
 SINGLE_PERIODS = 75
 GLIDER_MIN_PERIODS = 30  # the paper keeps gliders that survive more than 30 cycles
 BETA_LAGS = (5, 15)  # long delays for beta (periods)
+BETA_PAPER, BETA_TOLERANCE = 1.8, 0.3  # gliders at 90 deg: |beta - 1.8| < 0.3
+# the 90-degree random study re-run at a reference time step (benchmarks/validation_step.py)
+STEP_CHECK = REPO / "benchmarks" / "results" / "validation_step.json"
+
+
+def beta_holds(beta) -> bool | None:
+    """The beta row's test (None: no beta measured)."""
+    return bool(abs(beta - BETA_PAPER) < BETA_TOLERANCE) if _finite(beta) else None
 
 
 # ------------------------------------------------------------------ studies
@@ -670,8 +678,8 @@ def _random_rows(a90: dict, claims, extra: dict) -> list[dict]:
                              f"persistence {_f(tu.get('direction_persistence'))}; signed body-heading turn "
                              f"{_ci(ht.get('deg_per_period'), ht.get('lo'), ht.get('hi'))}°/period")
                 if b else "no gliders",
-                "test": "|β − 1.8| < 0.3",
-                "verdict": _verdict(abs(b["value"] - 1.8) < 0.3 if _finite(b.get("value")) else None),
+                "test": f"|β − {BETA_PAPER:g}| < {BETA_TOLERANCE:g}",
+                "verdict": _verdict(beta_holds(b.get("value"))),
                 "note": f"Gliders = each lane's longest bound run ≥ {s90['options']['glider_min_periods']} periods "
                         "(the paper: > 30 cycles); the paper's centred MSD ⟨x²⟩ − ⟨x⟩² pooled over gliders and time "
                         f"origins, slope over delays {s90['options']['fit_lags']} periods; 95 % bootstrap interval "
@@ -883,18 +891,56 @@ def _provenance(paths) -> str:
             "every store says so in its attributes.")
 
 
+def step_check(result: dict, model: str, step_ms: set, check: pathlib.Path = STEP_CHECK) -> list[str]:
+    """The page's paragraph on its time step, written from the step check's
+    JSON (``benchmarks/validation_step.py``): the 90-degree random study's beta
+    and net gliding speed at the reference step beside this page's, the beta
+    verdict at each, and how many claims hold once the reference's verdict is
+    taken. Says so when the check is missing or was made on other stores."""
+    try:
+        got = json.loads(pathlib.Path(check).read_text())
+    except (OSError, ValueError):
+        return ["No reference-step check of this page's glider rows exists (`benchmarks/validation_step.py`)."]
+    rows = result["rows"]
+    beta = ((result["extra"].get("random_90") or {}).get("beta") or {}).get("value")
+    if got.get("model") != model or len(step_ms) != 1 or not _finite(beta):
+        return [f"The reference-step check (`benchmarks/results/{check.name}`) is of model `{got.get('model')}`, not "
+                "of this page's stores."]
+    step = next(iter(step_ms))
+    ref = min(got["rows"], key=lambda r: r["timestep_ms"])
+    here = [r for r in got["rows"] if abs(r["timestep_ms"] - step) < 1e-9 and r["beta"][0] is not None
+            and abs(r["beta"][0] - beta) < 5e-4]
+    if not here or ref["timestep_ms"] >= step:
+        return [f"The reference-step check (`benchmarks/results/{check.name}`) was not made on this page's "
+                f"{step:g} ms stores; re-run `benchmarks/validation_step.py` to compare them with a finer step."]
+    h = here[0]
+    fmt = lambda r: (f"β {r['beta'][0]:.2f} [{r['beta'][1]:.2f}, {r['beta'][2]:.2f}], net gliding speed "  # noqa: E731
+                     f"{r['v_com_W_per_period'][0]:.4f} W/period ({r['gliders']} gliders)")
+    at_ref, at_here = beta_holds(ref["beta"][0]), beta_holds(h["beta"][0])
+    held = sum(r["verdict"] == "holds" for r in rows)
+    held_ref = held - int(bool(at_here)) + int(bool(at_ref))
+    verdict = "the same" if at_ref == at_here else f"**{_verdict(at_ref)}** at the reference, so that row's verdict is the step's"
+    return [f"The time step is checked on the glider row against a reference step "
+            f"(`benchmarks/validation_step.py`, `benchmarks/results/{check.name}`): the 90° random study gives "
+            f"{fmt(h)} at {step:g} ms and {fmt(ref)} at {ref['timestep_ms']:g} ms. "
+            f"The β test |β − {BETA_PAPER:g}| < {BETA_TOLERANCE:g}: {_verdict(at_here)} here, {verdict}. "
+            f"With the reference's verdict, **{held_ref} of {len(rows)} claims hold**."]
+
+
 def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathlib.Path, command: str,
-               model: str) -> None:
+               model: str, check: pathlib.Path = STEP_CHECK) -> None:
     rel = pathlib.Path(figures).name
     every = [q for v in stores.values() for q in (v if isinstance(v, list) else [v])]
     held = sum(r["verdict"] == "holds" for r in result["rows"])
+    steps = {float(Store(q).config["scene"]["timestep"]) * 1e3 for q in every if "scene" in Store(q).config}
     lines = ["# Validation against the paper", "",
              f"Model `{model}` (docs/model.md). {_provenance(every)} Regenerate with `{command}`: it reuses complete stores made by the "
              "same model and package version, resumes interrupted ones and runs the missing studies "
              f"(these took {_wall_minutes(every):.0f} minutes of wall time on 2 cores). "
              "`--studies NAME,...` runs a subset; the page is written from the complete stores there are.", "",
              "Every row states its test before the number. A claim that does not hold is reported as such; the "
-             f"model was not tuned to any row. **{held} of {len(result['rows'])} claims hold.**", "",
+             f"model was not tuned to any row. **{held} of {len(result['rows'])} claims hold** at this step.", "",
+             *step_check(result, model, steps, check), "",
              "| claim | paper | measured | test | verdict | how measured, what was tried |", "|---|---|---|---|---|---|"]
     cell = lambda x: str(x).replace("|", "\\|").replace("\\\\|", "\\|")  # noqa: E731
     for r in result["rows"]:

@@ -117,3 +117,33 @@ def test_validate_refuses_missing_study_files(tmp_path):
     r = CliRunner().invoke(app, ["validate", "--sweeps", str(tmp_path), "--out", str(tmp_path / "v.md")])
     assert r.exit_code == 2 and "study files missing" in r.output
     assert not pathlib.Path(tmp_path / "v.md").exists()
+
+
+def _check_file(tmp_path, beta_here, beta_ref, step_here=0.5, model="lab-lag"):
+    row = lambda dt, b: {"store": "x.h5", "timestep_ms": dt, "package": "p", "valid": 100, "gliders": 20,  # noqa: E731
+                         "beta": [b, b - 0.1, b + 0.1], "v_com_W_per_period": [0.002, 0.001, 0.003]}
+    path = tmp_path / "validation_step.json"
+    path.write_text(json.dumps({"model": model, "rows": [row(0.0625, beta_ref), row(step_here, beta_here)]}))
+    return path
+
+
+def test_the_page_writes_its_time_step_check_itself(tmp_path):
+    """The validation page's paragraph on its step is the code's, from the
+    step check's file: built data where the β verdict moves between the
+    page's step and the reference (1.54 holds |β − 1.8| < 0.3, 1.35 does
+    not: one claim fewer), where it does not move, and files that belong to
+    another model or to other stores, which the paragraph refuses to use."""
+    from smarticle_mjx.validation import beta_holds, step_check
+    assert beta_holds(1.54) and not beta_holds(1.35) and not beta_holds(2.2) and beta_holds(float("nan")) is None
+    result = {"rows": [{"verdict": "holds"}] * 5 + [{"verdict": "does not hold"}] * 8,
+              "extra": {"random_90": {"beta": {"value": 1.5401}}}}
+    text = step_check(result, "lab-lag", {0.5}, _check_file(tmp_path, 1.54, 1.35))[0]
+    assert "**does not hold** at the reference, so that row's verdict is the step's" in text
+    assert "**4 of 13 claims hold**" in text and "β 1.35 [1.25, 1.45]" in text and "at 0.0625 ms" in text
+    result["extra"]["random_90"]["beta"]["value"] = 1.6
+    text = step_check(result, "lab-lag", {0.5}, _check_file(tmp_path, 1.6, 1.7))[0]
+    assert "holds here, the same" in text and "**5 of 13 claims hold**" in text
+    assert "not made on this page's" in step_check(result, "lab-lag", {0.5}, _check_file(tmp_path, 1.3, 1.7))[0]
+    assert "is of model `paper`" in step_check(result, "lab-lag", {0.5},
+                                                 _check_file(tmp_path, 1.6, 1.7, model="paper"))[0]
+    assert "No reference-step check" in step_check(result, "lab-lag", {0.5}, tmp_path / "none.json")[0]
