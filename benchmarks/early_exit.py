@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from smarticle_mjx import configs as C
-from smarticle_mjx import scene as S
+from smarticle_mjx import presets
 from smarticle_mjx.engine import Lanes, Scene, make_backend
 from smarticle_mjx.engine.batch import RetireRule, run_lanes
 from smarticle_mjx.gait import GaitSpec
@@ -44,15 +44,16 @@ def main():
     ap.add_argument("--amplitude", type=float, default=90.0)
     ap.add_argument("--chunk", type=int, default=5)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--model", default=presets.DEFAULT, help="model preset (the JSON of November 2026: paper at 0.25 ms)")
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "early_exit.json"))
     args = ap.parse_args()
 
-    params, gait = S.SceneParams(), GaitSpec(args.amplitude)
+    params, gait = presets.params(args.model), GaitSpec(args.amplitude)
     a0 = gait.setpoints(0.0, params.robot.servo_speed)
     rng = np.random.default_rng(args.seed)
     cf = C.random_configs(args.configs, rng, (0.5, 2.5))
-    poses = C.pair_poses(cf[:, 0], cf[:, 1], cf[:, 2], a0[0], a0[1])
-    valid = C.poses_valid(poses)
+    poses = C.pair_poses(cf[:, 0], cf[:, 1], cf[:, 2], a0[0], a0[1], params.robot)
+    valid = C.poses_valid(poses, params.robot)
     lanes = Lanes.from_gait(poses, gait)
     scene = Scene.build(params, 2)
     be = make_backend("native", scene)
@@ -85,7 +86,7 @@ def main():
         rows.append(row)
         print(f"{quiet:5d} {row['changed_bound_end']:11.4f} {row['changed_attracted']:12.4f} {row['retired']:8.3f} "
               f"{row['saved_work']:10.3f}")
-    out = dict(configs=int(args.configs), valid=int(valid.sum()), periods=args.periods, amplitude=args.amplitude,
+    out = dict(model=args.model, timestep=params.timestep, configs=int(args.configs), valid=int(valid.sum()), periods=args.periods, amplitude=args.amplitude,
                wall_s_full=wall, lane_periods=summary["lane_periods"], bound_end_fraction=float(end_full.mean()),
                rows=rows)
     pathlib.Path(args.out).write_text(json.dumps(out, indent=2))
