@@ -35,10 +35,12 @@ def main():
     cfg = ScanConfig(n=args.n, periods=args.periods, backend=args.backend, batch_size=args.batch_size)
     with tempfile.TemporaryDirectory() as tmp:
         path = pathlib.Path(args.store) if args.store else pathlib.Path(tmp) / "scan.h5"
+        timeline = []  # (elapsed s, rows done, steps) as rows finish: where the time goes
         t = time.perf_counter()
-        s = run_scan(cfg, path)
+        s = run_scan(cfg, path, on_progress=lambda p: timeline.append((p["elapsed"], p["done"], p["steps"])))
         wall = time.perf_counter() - t
         size = path.stat().st_size
+        outcome = _outcome(path, args.periods)
     usage = resource.getrusage(resource.RUSAGE_SELF)
     rss = usage.ru_maxrss / 1024
     cpu = usage.ru_utime + usage.ru_stime
@@ -46,7 +48,9 @@ def main():
     out = dict(n=args.n, periods=args.periods, backend=args.backend, batch_size=args.batch_size,
                model=cfg.model, device=_device(args.backend), wall_s=wall, steps=s["steps"],
                steps_per_s=s["steps_per_s"], valid=run["valid"], bound_end_fraction=run["bound_end_fraction"],
-               peak_rss_mib=rss, store_mib=size / 2 ** 20, cpu_s=cpu, cpu_per_wall=cpu / wall)
+               peak_rss_mib=rss, store_mib=size / 2 ** 20, cpu_s=cpu, cpu_per_wall=cpu / wall,
+               backend_s=s.get("backend_s"), tail=_tail(timeline, args.n, args.batch_size, wall),
+               **outcome)
     print(f"{args.n} configurations ({run['valid']} valid) x {args.periods} periods, {args.backend}: "
           f"{wall:.0f} s wall, {s['steps']:,} steps ({s['steps_per_s']:,.0f}/s), peak RSS {rss:.0f} MiB, "
           f"store {size / 2 ** 20:.1f} MiB, bound at end {run['bound_end_fraction']:.1%}, "
@@ -60,6 +64,31 @@ def main():
         print(f"estimated 75-period wall time with early exit (saves {saved:.0%} of lane-periods): "
               f"{est / 3600:.1f} h")
     pathlib.Path(args.out).write_text(json.dumps(out, indent=2))
+
+
+def _outcome(path, periods: int) -> dict:
+    """What the store says of the lanes: periods run, work early exit saved, status counts."""
+    from smarticle_mjx.store import BAD_STATUS, Store
+    st = Store(path)
+    d = st.run(st.runs[0], fields=("valid", "status", "periods_run"))
+    v, status = d["valid"], d["status"]
+    mean = float(d["periods_run"][v].mean()) if v.any() else 0.0
+    return {"mean_periods_run_valid": mean, "lane_period_work_saved_by_early_exit": 1 - mean / periods,
+            "status_counts": {"ok_ran_all_periods": int((v & (status == 0)).sum()),
+                              "invalid_start_not_simulated": int((~v).sum()),
+                              "retired_early": int((v & ((status & 8) > 0)).sum())},
+            "nonfinite_or_penetration_lanes": int(((status & BAD_STATUS) > 0).sum())}
+
+
+def _tail(timeline, n: int, batch: int, wall: float) -> dict:
+    """When the queue ran out: from then on fewer lanes than the batch remain
+    and the batch runs part-empty (rows done counts the invalid starts too,
+    which are reported first; a lane's slot is refilled as soon as it
+    finishes, so the last lane starts once all but a batch of rows are done)."""
+    after = [t for t, done, _ in timeline if done >= n - batch]
+    if not after:
+        return {}
+    return {"queue_empty_at_s": after[0], "tail_s": wall - after[0], "tail_fraction_of_wall": (wall - after[0]) / wall}
 
 
 def _device(backend: str) -> str:

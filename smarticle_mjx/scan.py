@@ -214,8 +214,11 @@ class RunInputs:
 
 def simulate_rows(backend, config: ScanConfig, params: SceneParams, inputs: RunInputs, lo: int, hi: int,
                   on_rows: Callable[[np.ndarray, dict], None],
-                  on_progress: Callable[[int], None] | None = None) -> None:
+                  on_progress: Callable[[int], None] | None = None) -> dict:
     """Simulate rows ``lo .. hi-1`` of one run; ``on_rows(rows index, rows)`` as lanes finish (any order).
+
+    Returns the engine's summary (``run_lanes``): lane-periods run and the
+    seconds spent inside the backend.
 
     Every executor runs configurations through this one function, so a row's
     content does not depend on which executor, shard or batch computed it.
@@ -227,7 +230,7 @@ def simulate_rows(backend, config: ScanConfig, params: SceneParams, inputs: RunI
         idx = lo + res.index
         on_rows(idx, _rows(inputs.cfg[idx], inputs.valid[idx], res, params.robot.body_length))
 
-    run_lanes(backend, lanes, config.periods, batch_size=config.batch_size, chunk_periods=config.chunk_periods,
+    return run_lanes(backend, lanes, config.periods, batch_size=config.batch_size, chunk_periods=config.chunk_periods,
               rule=RetireRule(quiet_periods=config.quiet_periods), valid=inputs.valid[lo:hi], on_lanes=on_lanes,
               on_progress=(lambda done, total, lp: on_progress(done)) if on_progress else None, record=record)
 
@@ -252,7 +255,8 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
 
     Returns:
       Summary: configurations, valid, bound-at-end fraction per run, wall
-      time, simulated steps and steps per second.
+      time, simulated steps and steps per second; with the local executor
+      also ``backend_s``, the seconds spent inside the engine's advance.
     """
     model = config.model if params is None else "custom"
     params = config.scene_params() if params is None else params
@@ -339,7 +343,8 @@ def _run_here(config, params, runs, cfg, w, flush_rows, summary, nsteps, done, p
                     flush()
                     progress(name)
 
-                simulate_rows(backend, config, params, inputs, lo, hi, on_rows)
+                ran = simulate_rows(backend, config, params, inputs, lo, hi, on_rows)
+                summary["backend_s"] = summary.get("backend_s", 0.0) + ran["backend_seconds"]
                 flush(force=True)
     finally:
         if hasattr(backend, "close"):
