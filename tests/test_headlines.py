@@ -1,0 +1,127 @@
+"""The headline figures on the README and the docs are the result files' figures.
+
+Each check formats a number from the JSON a benchmark or ``smx validate``
+wrote, the way the page prints it, and looks for that phrase on the page
+(line breaks read as spaces). A re-run that moves a number, or a page
+edited by hand away from its result, fails here until the page says what
+the file says.
+"""
+
+import json
+import pathlib
+import re
+import sys
+
+import pytest
+
+from smarticle_mjx import validation as V
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+
+
+def _json(name: str) -> dict:
+    return json.loads((RESULTS / name).read_text())
+
+
+def _page(name: str) -> str:
+    return re.sub(r"\s+", " ", (ROOT / name).read_text())
+
+
+def _full_scan() -> list[tuple[str, str]]:
+    d = _json("full_scan_75.json")
+    minutes = f"{d['wall_s'] / 60:.0f}"
+    return [("README.md", f"took {minutes} minutes ({d['steps_per_s'] / 1e3:.0f}k steps/s) with "
+                          f"{d['peak_rss_mib']:.0f} MiB peak memory"),
+            ("docs/engine.md", f"**{d['wall_s']:.0f} s ({minutes} min)**"),
+            ("docs/engine.md", f"{d['peak_rss_mib']:.0f} MiB RSS"),
+            ("docs/timestep.md", f"**{d['wall_s']:.0f} s ({minutes} min)**")]
+
+
+def _early_exit() -> list[tuple[str, str]]:
+    d = _json("early_exit.json")
+    row = next(r for r in d["rows"] if r["quiet_periods"] == 2)  # the default rule
+    changed = round(row["changed_bound_end"] * d["valid"])
+    saved = f"{row['saved_work']:.0%}".replace("%", " %")
+    return [("README.md", f"changed {changed} of {d['valid']} labels"),
+            ("README.md", f"early exit saved {saved} of the work"),
+            ("docs/engine.md", f"**{changed} of {d['valid']}**")]
+
+
+def _claims() -> list[tuple[str, str]]:
+    """The count of claims that hold, at the page's step and at the reference step."""
+    result = json.loads((ROOT / "docs" / "validation" / "validation.json").read_text())
+    total = len(result["rows"])
+    held = sum(r["verdict"] == "holds" for r in result["rows"])
+    check = V.step_check(result, result["model"], {0.5})[0]
+    held_ref = int(re.search(r"\*\*(\d+) of \d+ claims hold\*\*", check).group(1))
+    return [("docs/validation.md", f"**{held} of {total} claims hold** at this step"),
+            ("docs/validation.md", check),
+            ("README.md", f"{held} of {total} claims pass their tests"),
+            ("README.md", f"**{held_ref} of {total} hold**"),
+            ("docs/fidelity.md", f"{held} of {total} pass their tests at the 0.5 ms step, {held_ref} of {total} "
+                                 "with the reference step's verdict")]
+
+
+def _relax_and_lone() -> list[tuple[str, str]]:
+    ex = json.loads((ROOT / "docs" / "validation" / "validation.json").read_text())["extra"]
+    r = ex["relax"]
+    lone = ex["single"]["90.0"]["net_W_per_cycle"]
+    return [("README.md", f"gliders emerge in {r['emerged']} of {r['valid']} trials"),
+            ("README.md", f"travel {r['distance']['mean']:.2f} W against 2.9 W"),
+            ("README.md", f"the lone robot's drift ({lone:.0e} W per cycle against 1.5e-3)")]
+
+
+def _glider_step() -> list[tuple[str, str]]:
+    runs = _json("glider_step.json")["runs"]
+    fmt = lambda b: f"β {b['value']:.2f} [{b['ci95'][0]:.2f}, {b['ci95'][1]:.2f}]"  # noqa: E731
+    ref, half = runs["0.0625 ms (reference)"]["beta"], runs["0.5 ms"]["beta"]
+    return [("README.md", f"{fmt(half)} at the 0.5 ms step"),
+            ("README.md", f"{fmt(ref)} at a 0.0625 ms reference"),
+            ("docs/model.md", f"{fmt(half)} at 0.5 ms against {fmt(ref)} at the 0.0625 ms reference")]
+
+
+def _engine() -> list[tuple[str, str]]:
+    d = _json("engine.json")
+    native = [r["steps_per_s"] for r in d["throughput"] if r["backend"] == "native" and r["batch"] >= 4]
+    return [("README.md", f"{min(native) / 1e3:.0f}–{max(native) / 1e3:.0f}k pair-scene steps/s on 2 cores "
+                          f"at 4–{max(r['batch'] for r in d['throughput'] if r['backend'] == 'native')} lanes")]
+
+
+def _agreement() -> list[tuple[str, str]]:
+    mjx, warp = _json("backend_agreement.json"), _json("backend_agreement_gpu.json")
+    labels = _json("timestep_candidates.json")["labels:implicitfast-0.5ms"]
+    return [("README.md", f"MJX and native agree on {100 * mjx['agree_bound_end']:.1f} % of bound/unbound labels "
+                          f"over {mjx['configs']} configurations × {mjx['periods']} periods"),
+            ("README.md", f"MuJoCo Warp and native agree on {100 * warp['warp_vs_native_agree_bound_end']:.1f} %"),
+            ("README.md", f"agree with a 0.0625 ms reference on {100 * labels['agree']:.2f} % of {labels['n']} "
+                          f"configurations (exact 95 % interval {100 * labels['agree_lo']:.1f}–"
+                          f"{100 * labels['agree_hi']:.1f} %)")]
+
+
+HEADLINES = {"full scan": _full_scan, "early exit": _early_exit, "claims": _claims,
+             "relaxation and lone robot": _relax_and_lone, "glider step": _glider_step, "engine": _engine,
+             "backend agreement": _agreement}
+
+
+@pytest.mark.parametrize("name", list(HEADLINES))
+def test_headline_figures_are_the_result_files(name):
+    missing = [f"{page}: {phrase!r}" for page, phrase in HEADLINES[name]() if phrase not in _page(page)]
+    assert not missing, "pages disagree with their result files:\n" + "\n".join(missing)
+
+
+def test_a_page_that_moved_away_from_its_file_is_caught(monkeypatch):
+    """The check reads the file: a result file whose number changed (here the
+    early-exit replay, one more label changed) no longer matches the page."""
+    real = _json
+
+    def edited(name):
+        d = real(name)
+        if name == "early_exit.json":
+            for r in d["rows"]:
+                r["changed_bound_end"] += 1 / d["valid"]
+        return d
+
+    monkeypatch.setattr(sys.modules[__name__], "_json", edited)
+    with pytest.raises(AssertionError, match="changed 1 of"):
+        test_headline_figures_are_the_result_files("early exit")
