@@ -102,6 +102,13 @@ def canonical(data: np.ndarray) -> np.ndarray:
     return out
 
 
+def _plain(x):
+    """numpy scalars and arrays in a configuration as the Python numbers and lists JSON stores."""
+    if isinstance(x, (np.generic, np.ndarray)):
+        return x.tolist()
+    raise TypeError(f"a store's configuration holds {type(x).__name__}, which JSON cannot store")
+
+
 def _journal(path: pathlib.Path) -> pathlib.Path:
     return path.with_name(path.name + ".parts")
 
@@ -124,7 +131,7 @@ class Writer:
                  fields: tuple[str, ...] = ROW_FIELDS):
         self.path = pathlib.Path(path)
         self.fields = tuple(fields)
-        self.config = json.loads(json.dumps(config))  # normalised
+        self.config = json.loads(json.dumps(config, default=_plain))  # normalised
         self.runs = runs
         self.mode = mode
         self.parts = _journal(self.path)

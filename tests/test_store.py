@@ -392,3 +392,17 @@ def test_a_scan_whose_scheduler_cannot_be_reached_leaves_nothing_behind(tmp_path
     assert _digest(out) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.h5", "x.h5.parts"]
     assert [p.name for p in parts.iterdir()] == ["config.json"] and (parts / "config.json").read_text() == "{}"
+
+
+def test_numpy_numbers_in_a_configuration_are_stored_as_numbers(tmp_path):
+    """A library caller's configuration may hold numpy scalars and arrays
+    (a plate side computed from float32 poses, say): the store keeps them
+    as the JSON numbers and lists they are, and refuses what JSON cannot hold."""
+    import json
+    path = tmp_path / "s.h5"
+    with Writer(path, {"side": np.float32(0.5), "n": np.int64(3), "xs": np.arange(2)}, {"r": {"n_configs": 2}}) as w:
+        w.append("r", 0, _rows(2))
+        w.finalize()
+    assert json.loads(Store(path).attrs["config"]) == {"side": 0.5, "n": 3, "xs": [0, 1]}
+    with pytest.raises(TypeError, match="holds object"):
+        Writer(tmp_path / "t.h5", {"x": object()}, {"r": {}})
