@@ -1,0 +1,247 @@
+"""The paper's engine as a twin: smarticles built in DART (``dartpy``), the simulator
+the paper's own runs used (implicit LCP contacts, 0.1 ms steps, SERVO joints).
+
+This module builds the same ``SceneParams`` as DART skeletons and steps them
+with the gait; it is the first piece of the twin backend (docs/twin.md when
+it exists). What it builds, piece by piece as :mod:`smarticle_mjx.scene`
+builds it for MuJoCo:
+
+* the plate: a static box whose top face is z = 0;
+* each robot: a free body (box ``body_length`` x ``body_thickness`` x
+  ``body_height``, mass ``body_mass``) with two arms on revolute joints
+  ``hinge_x`` from its centre, at the arms' height (``arm_z``), arm 1 about
+  -z pointing along -x, arm 2 about +z along +x, as in the MJCF; plate arms
+  are boxes, capsule arms capsules; masses and box inertias as MuJoCo
+  computes them for a uniform solid;
+* contacts: the plate's and every shape's friction coefficient (DART
+  combines two by their minimum), no restitution; arms never touch the
+  plate and a robot never touches itself (as the MJCF's contact bits);
+* the servo: DART's SERVO actuator, a velocity constraint whose force is
+  bounded by ``servo_torque``, commanded with the gait's rate plus a trim
+  ``servo_kp / servo_kv`` times the angle error (the `dart` preset's law);
+  hinge stops at ``arm_limit_deg`` enforced as hard limits.
+
+Numerics are the caller's: time step (default 0.1 ms, the paper's SI),
+collision detector (``fcl-mesh``, DART's default, which treats boxes as
+meshes; ``fcl``, ``ode``, ``bullet``, ``dart`` with primitive shapes) and
+boxed LCP solver (``dantzig``, DART's default, or ``pgs``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import math
+from typing import Sequence
+
+import numpy as np
+
+from ..gait import GaitSpec
+from ..scene import SceneParams
+
+MISSING = "the dart backend needs DART's Python package: pip install -e '.[dart]'"
+DETECTORS = ("fcl-mesh", "fcl", "ode", "bullet", "dart")
+LCP_SOLVERS = ("dantzig", "pgs")
+PLATE_THICKNESS = 0.02  # m; the plate is a static box whose top face is z = 0
+
+
+def available() -> bool:
+    return importlib.util.find_spec("dartpy") is not None
+
+
+@dataclasses.dataclass(frozen=True)
+class DartNumerics:
+    """How DART integrates: its step, collision detector and LCP solver."""
+
+    timestep: float = 1e-4
+    detector: str = "fcl-mesh"
+    lcp: str = "dantzig"
+
+    def validate(self) -> None:
+        if not self.timestep > 0:
+            raise ValueError(f"DART time step must be positive, got {self.timestep}")
+        if self.detector not in DETECTORS:
+            raise ValueError(f"DART collision detector must be one of {', '.join(DETECTORS)}, got {self.detector!r}")
+        if self.lcp not in LCP_SOLVERS:
+            raise ValueError(f"DART LCP solver must be one of {', '.join(LCP_SOLVERS)}, got {self.lcp!r}")
+
+
+def _box_inertia(mass: float, sx: float, sy: float, sz: float) -> tuple[float, float, float]:
+    """Principal moments of a uniform solid box of full sides sx, sy, sz."""
+    return (mass * (sy ** 2 + sz ** 2) / 12, mass * (sx ** 2 + sz ** 2) / 12, mass * (sx ** 2 + sy ** 2) / 12)
+
+
+def _translation(xyz) -> "object":
+    import dartpy as dart
+    t = dart.math.Isometry3()
+    t.set_translation(np.asarray(xyz, float))
+    return t
+
+
+def _contact_shape(node, shape, mu: float, at=(0.0, 0.0, 0.0), rotation=None):
+    sn = node.createShapeNode(shape)
+    sn.createCollisionAspect()
+    dyn = sn.createDynamicsAspect()
+    dyn.setFrictionCoeff(mu)
+    dyn.setRestitutionCoeff(0.0)
+    if rotation is not None:
+        sn.setRelativeRotation(rotation)
+    sn.setRelativeTranslation(np.asarray(at, float))
+    return sn
+
+
+class DartScene:
+    """N smarticles on a plate in one DART world.
+
+    Args:
+      params: the scene (robot geometry, masses, servo, friction).
+      poses: [N, 5] (x, y, heading, alpha1, alpha2) per robot; bodies rest on the plate.
+      numerics: DART's step, collision detector and LCP solver.
+    """
+
+    def __init__(self, params: SceneParams, poses: Sequence[Sequence[float]],
+                 numerics: DartNumerics = DartNumerics()):
+        if not available():
+            raise ValueError(MISSING)
+        import dartpy as dart
+        numerics.validate()
+        params.validate()
+        self.params, self.numerics = params, numerics
+        D = dart.dynamics
+        self.world = world = dart.simulation.World()
+        world.setGravity(np.asarray(params.gravity, float))
+        world.setTimeStep(numerics.timestep)
+        self._set_numerics(dart)
+        ground = D.Skeleton("plate")
+        _, plate = ground.createWeldJointAndBodyNodePair(None)
+        _contact_shape(plate, D.BoxShape([2.0, 2.0, PLATE_THICKNESS]), params.plate_friction,
+                       at=(0, 0, -PLATE_THICKNESS / 2))
+        world.addSkeleton(ground)
+        self.plate = plate
+        rp = params.robot
+        self.robots = []  # (free joint, body node, (arm joint 1, arm joint 2), (arm node 1, arm node 2))
+        lim = math.radians(rp.arm_limit_deg)
+        filt = dart.collision.BodyNodeCollisionFilter()
+        for i, pose in enumerate(np.asarray(poses, float).reshape(-1, 5)):
+            sk = D.Skeleton(f"r{i}")
+            free, body = sk.createFreeJointAndBodyNodePair(None)
+            body.setMass(rp.body_mass)
+            body.setMomentOfInertia(*_box_inertia(rp.body_mass, rp.body_length, rp.body_thickness, rp.body_height))
+            _contact_shape(body, D.BoxShape([rp.body_length, rp.body_thickness, rp.body_height]),
+                           params.robot_friction)
+            joints, arms = [], []
+            for k, (sign, length) in enumerate(zip((-1, 1), rp.arm_lengths)):
+                props = D.RevoluteJointProperties()
+                props.mName = f"r{i}_a{k + 1}"
+                props.mAxis = np.array([0.0, 0.0, float(sign)])
+                props.mT_ParentBodyToJoint = _translation((sign * rp.hinge_x, 0.0, rp.arm_z - rp.body_height / 2))
+                joint, arm = sk.createRevoluteJointAndBodyNodePair(body, props)
+                arm.setMass(rp.arm_mass)
+                if rp.arm_shape == "plate":
+                    size = (length, rp.arm_thickness, rp.arm_extent_z)
+                    arm.setMomentOfInertia(*_box_inertia(rp.arm_mass, *size))
+                    arm.setLocalCOM(np.array([sign * length / 2, 0.0, 0.0]))
+                    _contact_shape(arm, D.BoxShape(list(size)), params.robot_friction, at=(sign * length / 2, 0, 0))
+                else:
+                    r = rp.arm_radius
+                    tip = length - r  # the capsule ends exactly at the arm length, as in the MJCF
+                    m = rp.arm_mass
+                    arm.setMomentOfInertia(m * r * r / 2, m * (3 * r * r + tip * tip) / 12 + m * (tip / 2) ** 2,
+                                           m * (3 * r * r + tip * tip) / 12 + m * (tip / 2) ** 2)
+                    arm.setLocalCOM(np.array([sign * tip / 2, 0.0, 0.0]))
+                    y90 = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # capsule z -> x
+                    _contact_shape(arm, D.CapsuleShape(r, tip), params.robot_friction, at=(sign * tip / 2, 0, 0),
+                                   rotation=y90)
+                joint.setActuatorType(D.ActuatorType.SERVO)
+                joint.setForceLowerLimit(0, -rp.servo_torque)
+                joint.setForceUpperLimit(0, rp.servo_torque)
+                joint.setPositionLowerLimit(0, -lim)
+                joint.setPositionUpperLimit(0, lim)
+                joint.setLimitEnforcement(True)
+                filt.addBodyNodePairToBlackList(arm, plate)  # arms ride above the plate (the MJCF filters them)
+                joints.append(joint)
+                arms.append(arm)
+            filt.addBodyNodePairToBlackList(arms[0], arms[1])  # a robot never touches itself
+            sk.setSelfCollisionCheck(False)
+            x, y, heading, a1, a2 = pose
+            free.setPositions(np.array([0.0, 0.0, heading, x, y, rp.body_height / 2]))
+            joints[0].setPosition(0, a1)
+            joints[1].setPosition(0, a2)
+            world.addSkeleton(sk)
+            self.robots.append((free, body, tuple(joints), tuple(arms)))
+        world.getConstraintSolver().getCollisionOption().collisionFilter = filt
+        self._filter = filt  # the option holds a reference; keep the filter alive with the scene
+
+    def _set_numerics(self, dart):
+        det = self.numerics.detector
+        if det.startswith("fcl"):
+            detector = dart.collision.FCLCollisionDetector()
+            detector.setPrimitiveShapeType(dart.collision.FCLCollisionDetector.MESH if det == "fcl-mesh"
+                                           else dart.collision.FCLCollisionDetector.PRIMITIVE)
+        else:
+            detector = {"ode": dart.collision.OdeCollisionDetector, "bullet": dart.collision.BulletCollisionDetector,
+                        "dart": dart.collision.DARTCollisionDetector}[det]()
+        solver = self.world.getConstraintSolver()
+        solver.setCollisionDetector(detector)
+        # DART's default: Dantzig's pivoting solver, PGS as its fallback when it fails
+        if self.numerics.lcp == "pgs":
+            solver.setBoxedLcpSolver(dart.constraint.PgsBoxedLcpSolver())
+
+    # ------------------------------------------------------------------ state
+    def poses(self) -> np.ndarray:
+        """[N, 5] (x, y, heading, alpha1, alpha2) of every robot now."""
+        out = np.empty((len(self.robots), 5))
+        for i, (free, body, joints, _) in enumerate(self.robots):
+            t = body.getWorldTransform()
+            rot, pos = np.asarray(t.rotation()), np.asarray(t.translation())
+            out[i] = (pos[0], pos[1], math.atan2(rot[1, 0], rot[0, 0]), joints[0].getPosition(0),
+                      joints[1].getPosition(0))
+        return out
+
+    def set_body_velocity(self, robot: int, vx: float, vy: float, wz: float = 0.0) -> None:
+        """Launch a robot's body: world-frame planar velocity (m/s) and yaw rate (rad/s)."""
+        free, body, _, _ = self.robots[robot]
+        rot = np.asarray(body.getWorldTransform().rotation())
+        v_body = rot.T @ np.array([vx, vy, 0.0])  # the free joint's velocities are in the body frame
+        w_body = rot.T @ np.array([0.0, 0.0, wz])
+        free.setVelocities(np.concatenate([w_body, v_body]))
+
+    # ------------------------------------------------------------------ servo
+    def command(self, setpoints: np.ndarray, rates: np.ndarray) -> None:
+        """SERVO commands of every arm: the setpoint's rate plus the trim
+        ``servo_kp / servo_kv`` x (setpoint - angle), in rad/s; [N, 2] each."""
+        rp = self.params.robot
+        trim = rp.servo_kp / rp.kv if rp.kv else 0.0
+        for (_, _, joints, _), sp, rate in zip(self.robots, np.asarray(setpoints), np.asarray(rates)):
+            for k in range(2):
+                joints[k].setCommand(0, float(rate[k] + trim * (sp[k] - joints[k].getPosition(0))))
+
+    def hold(self) -> None:
+        """Command every arm to stay where it is (the servo at rest)."""
+        p = self.poses()
+        self.command(p[:, 3:5], np.zeros((len(self.robots), 2)))
+
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            self.world.step()
+
+    def run_gait(self, gait: GaitSpec, periods: int) -> np.ndarray:
+        """Step the gait for ``periods`` periods from t = 0; poses at the start and
+        at the end of each period, [periods + 1, N, 5]."""
+        from .. import gait as G
+        dt = self.numerics.timestep
+        T = gait.period()
+        nstep = max(1, int(round(T / dt)))
+        speed = self.params.robot.servo_speed
+        t = dt * np.arange(nstep)
+        ctrl = np.asarray(G.setpoints_and_rates(t, gait.amplitude, T, speed, gait.chirality_sign,
+                                                gait.kind_code, 0.0), float)
+        sp, rate = ctrl[:, :2], ctrl[:, 2:4]
+        n = len(self.robots)
+        out = [self.poses()]
+        for _ in range(periods):
+            for s in range(nstep):
+                self.command(np.tile(sp[s], (n, 1)), np.tile(rate[s], (n, 1)))
+                self.world.step()
+            out.append(self.poses())
+        return np.stack(out)
