@@ -211,8 +211,9 @@ def scan(
     chirality: str = typer.Option("ccw", help="ccw or cw"),
     gait: str = typer.Option("square", help="square or diagonal"),
     period: Optional[float] = typer.Option(None, help="gait period in s (default: 1.6 s x amplitude / 90)"),
-    backend: str = typer.Option("native", help="native (MuJoCo C, all cores), mjx (JAX) or warp "
-                                 "(MuJoCo Warp: GPU, needs the gpu extra)"),
+    backend: str = typer.Option("native", help="native (MuJoCo C, all cores), mjx (JAX), warp "
+                                 "(MuJoCo Warp: GPU, needs the gpu extra) or dart (the DART twin: "
+                                 "the paper's engine, one core per lane; needs the dart extra)"),
     seed: int = typer.Option(0, help="seed of the random configurations"),
     batch_size: int = typer.Option(256, help="lanes simulated together"),
     out: pathlib.Path = typer.Option(pathlib.Path("scan.h5"), help="output store (.h5)"),
@@ -307,7 +308,7 @@ def sweep_amplitude(
     configs: Optional[str] = typer.Option(None, help=_CONFIGS_HELP),
     n: Optional[int] = typer.Option(None, help="random: number of configurations"),
     periods: Optional[int] = typer.Option(None, help="gait periods per configuration"),
-    backend: Optional[str] = typer.Option(None, help="native, mjx or warp"),
+    backend: Optional[str] = typer.Option(None, help="native, mjx, warp or dart"),
     seed: Optional[int] = typer.Option(None, help="seed of the random configurations"),
     out: pathlib.Path = typer.Option(pathlib.Path("sweep.h5"), help="output store (.h5)"),
     resume: bool = typer.Option(False, help="continue an interrupted sweep"),

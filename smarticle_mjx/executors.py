@@ -145,7 +145,7 @@ def _shard_rows(config, params, amplitude_deg, lo, hi, nthread):
     key = (repr(params), config.backend, config.collisions, nthread)
     if key not in _WORKER_BACKENDS:
         scene = Scene.build(params, 2, collisions=config.collisions)
-        kw = {"nthread": nthread} if config.backend == "native" else {}
+        kw = {"nthread": nthread} if config.backend == "native" else config.backend_options()
         _WORKER_BACKENDS.clear()  # one scene per worker process at a time
         _WORKER_BACKENDS[key] = make_backend(config.backend, scene, **kw)
     backend = _WORKER_BACKENDS[key]

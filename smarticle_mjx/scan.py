@@ -53,6 +53,8 @@ class ScanConfig:
     collisions: bool = False  # keep the per-period collision record (native backend)
     collision_bins: int = 16  # its bins per gait period
     initial: tuple[tuple[float, float, float], ...] | None = None  # configs = "explicit"
+    # backend "dart": (time step s, collision detector, LCP solver); None: the DART twin's defaults
+    dart_numerics: tuple[float, str, str] | None = None
 
     def scene_params(self) -> SceneParams:
         """The preset's parameters (ValueError naming the known presets if unknown)."""
@@ -86,8 +88,15 @@ class ScanConfig:
             raise ValueError("amplitudes must be distinct")
         for a in self.amplitudes_deg:
             self.gait_spec(a).validate(params.robot.servo_speed, params.robot.arm_limit_deg)
-        if self.backend not in ("native", "mjx", "warp"):
-            raise ValueError(f"--backend must be native, mjx or warp, got {self.backend!r}")
+        if self.backend not in ("native", "mjx", "warp", "dart"):
+            raise ValueError(f"--backend must be native, mjx, warp or dart, got {self.backend!r}")
+        if self.backend == "dart":
+            from .engine import dart
+            if not dart.available():
+                raise ValueError(dart.MISSING)
+            self.dart().validate()
+        elif self.dart_numerics is not None:
+            raise ValueError("dart numerics are for --backend dart")
         if self.backend == "warp":
             from .engine import mjwarp
             if not mjwarp.available():
@@ -98,6 +107,18 @@ class ScanConfig:
             raise ValueError("--collisions is recorded by the native backend only")
         if self.collision_bins < 1:
             raise ValueError(f"--collision-bins must be positive, got {self.collision_bins}")
+
+    def dart(self):
+        """The DART twin's numerics (backend "dart")."""
+        from .engine.dart import DartNumerics
+        if self.dart_numerics is None:
+            return DartNumerics()
+        timestep, detector, lcp = self.dart_numerics
+        return DartNumerics(timestep=float(timestep), detector=str(detector), lcp=str(lcp))
+
+    def backend_options(self) -> dict:
+        """Keyword arguments of ``make_backend`` beyond the scene (the dart backend's numerics)."""
+        return {"numerics": self.dart()} if self.backend == "dart" else {}
 
     def gait_spec(self, amplitude_deg: float) -> GaitSpec:
         return GaitSpec(amplitude_deg=float(amplitude_deg), chirality=self.chirality, kind=self.gait,
@@ -119,6 +140,11 @@ class ScanConfig:
             del d["initial"]  # stores of random and polar scans keep their earlier configuration
         else:
             d["initial"] = [[float(x) for x in c] for c in self.initial]
+        if self.backend == "dart":  # the twin's numerics, resolved, so the store says what ran
+            n = self.dart()
+            d["dart_numerics"] = [n.timestep, n.detector, n.lcp]
+        else:
+            del d["dart_numerics"]  # other backends' stores keep their earlier configuration
         return d
 
 
@@ -167,6 +193,8 @@ def load_study(path) -> ScanConfig:
             kw[k] = tuple(float(x) for x in kw[k])
     if "initial" in kw:
         kw["initial"] = tuple(tuple(float(x) for x in c) for c in kw["initial"])
+    if "dart_numerics" in kw:
+        kw["dart_numerics"] = tuple(kw["dart_numerics"])
     try:
         return ScanConfig(**kw)
     except TypeError as e:
@@ -314,7 +342,7 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
 def _run_here(config, params, runs, cfg, w, flush_rows, summary, nsteps, done, progress):
     """The local executor: every missing row range of every run, on this machine's cores."""
     scene = Scene.build(params, 2, collisions=config.collisions)
-    backend = make_backend(config.backend, scene)
+    backend = make_backend(config.backend, scene, **config.backend_options())
     try:
         for name, attrs in runs.items():
             inputs = RunInputs.of(config, params, attrs["amplitude_deg"])
@@ -360,6 +388,8 @@ def config_from_json(d: dict) -> ScanConfig:
             kw[k] = tuple(float(x) for x in kw[k])
     if kw.get("initial") is not None:
         kw["initial"] = tuple(tuple(float(x) for x in c) for c in kw["initial"])
+    if kw.get("dart_numerics") is not None:
+        kw["dart_numerics"] = tuple(kw["dart_numerics"])
     return ScanConfig(**kw)
 
 

@@ -177,3 +177,62 @@ def test_with_the_mesh_detector_touches_are_recorded_without_a_depth():
     assert rec.touched.any()
     assert np.isnan(rec.min_dist[rec.touched]).all() and np.isinf(rec.min_dist[~rec.touched]).all()
     assert (rec.status == 0).all()
+
+
+@needs_dart
+def test_smx_scan_runs_on_the_dart_backend_and_the_store_says_so(tmp_path):
+    """``smx scan --backend dart`` end to end: a small random scan at 45
+    degrees writes a complete store whose configuration names the engine and
+    its numerics (step, detector, LCP solver); its valid lanes ran and its
+    invalid ones did not; touches were recorded."""
+    import json
+
+    import h5py
+    from typer.testing import CliRunner
+    from smarticle_mjx.cli import app
+    from smarticle_mjx.store import Store
+    out = tmp_path / "dart.h5"
+    r = CliRunner().invoke(app, ["scan", "--backend", "dart", "--n", "4", "--r-min", "0.8", "--r-max", "1.4",
+                                 "--amplitude", "45", "--periods", "1", "--seed", "2", "--quiet", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    st = Store(out)
+    scan = st.config["scan"]
+    assert scan["backend"] == "dart" and scan["dart_numerics"] == [1e-4, "fcl-mesh", "dantzig"]
+    d = st.run()
+    assert d["valid"].any() and (d["periods_run"][d["valid"]] == 1).all() and (d["periods_run"][~d["valid"]] == 0).all()
+    assert d["touched"][d["valid"]].any()
+    with h5py.File(out) as f:
+        assert json.loads(f.attrs["config"])["scan"]["backend"] == "dart"
+
+
+def test_the_dart_backend_without_dartpy_is_one_line_exit_2(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+    from smarticle_mjx.cli import app
+    monkeypatch.setattr(twin, "available", lambda: False)
+    r = CliRunner().invoke(app, ["scan", "--backend", "dart", "--n", "2", "--periods", "1", "--quiet",
+                                 "--out", str(tmp_path / "x.h5")])
+    assert r.exit_code == 2 and "pip install -e '.[dart]'" in r.output
+    assert len(r.output.strip().splitlines()) == 1 and not list(tmp_path.iterdir())
+
+
+def test_dart_numerics_belong_to_the_dart_backend():
+    from smarticle_mjx.scan import ScanConfig
+    with pytest.raises(ValueError, match="dart numerics are for --backend dart"):
+        ScanConfig(n=2, dart_numerics=(1e-4, "fcl", "dantzig")).validate(P)
+    assert "dart_numerics" not in ScanConfig(n=2).to_json()  # other backends' stores are unchanged
+
+
+@needs_dart
+@pytest.mark.skipif(not __import__("smarticle_mjx.executors", fromlist=["available"]).available(),
+                    reason="Dask is not installed")
+def test_a_dart_scan_on_dask_writes_the_local_store(tmp_path):
+    """The Dask executor runs the twin unchanged: shards on a worker give
+    the store the local executor gives (tests/storecmp.py)."""
+    from storecmp import assert_same_store
+    from smarticle_mjx.executors import DaskExecutor
+    from smarticle_mjx.scan import ScanConfig, run_scan
+    cfg = ScanConfig(n=4, r_range_W=(0.8, 1.4), amplitudes_deg=(45.0,), periods=1, seed=2, backend="dart",
+                     batch_size=2)
+    run_scan(cfg, tmp_path / "local.h5")
+    run_scan(cfg, tmp_path / "dask.h5", executor=DaskExecutor(workers=1, shard_size=2))
+    assert_same_store(tmp_path / "local.h5", tmp_path / "dask.h5")

@@ -1,10 +1,10 @@
-"""Rollout engine: one interface, three backends (``native``, ``mjx`` and ``warp``)."""
+"""Rollout engine: one interface, four backends (``native``, ``mjx``, ``warp`` and ``dart``, the DART twin)."""
 
 from __future__ import annotations
 
 from .core import Lanes, PeriodRecords, Scene, Status, steps_per_period
 
-BACKENDS = ("native", "mjx", "warp")
+BACKENDS = ("native", "mjx", "warp", "dart")
 
 
 def make_backend(name: str, scene: Scene, nthread: int | None = None, **kw):
@@ -18,6 +18,9 @@ def make_backend(name: str, scene: Scene, nthread: int | None = None, **kw):
     if name == "warp":
         from .mjwarp import WarpBackend
         return WarpBackend(scene, **kw)
+    if name == "dart":
+        from .dart import DartBackend
+        return DartBackend(scene, **kw)
     raise ValueError(f"unknown backend {name!r}; choose one of {', '.join(BACKENDS)}")
 
 

@@ -173,12 +173,12 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
     if b == 0:
         return dict(lanes=m, lane_periods=0, full_lane_periods=0, backend_seconds=0.0)
 
-    # native: idle slots cost real work, run only the occupied ones. warp: the
+    # native, dart: idle slots cost real work, run only the occupied ones. warp: the
     # same, in power-of-two sub-batches (each size allocates device buffers
     # and captures a graph once). mjx: idle slots keep running a finished
     # lane, so the batch shape, and so the compiled function, stays the same.
     shrink = getattr(backend, "name", "")
-    shrink = shrink if shrink in ("native", "warp") else None
+    shrink = shrink if shrink in ("native", "warp", "dart") else None
     slot_lane = np.array(queue[:b])
     qpos = b
     slot_lanes = lanes.take(slot_lane)
