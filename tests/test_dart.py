@@ -236,3 +236,58 @@ def test_a_dart_scan_on_dask_writes_the_local_store(tmp_path):
     run_scan(cfg, tmp_path / "local.h5")
     run_scan(cfg, tmp_path / "dask.h5", executor=DaskExecutor(workers=1, shard_size=2))
     assert_same_store(tmp_path / "local.h5", tmp_path / "dask.h5")
+
+
+def _head_on(v: float = 0.1):
+    """Two robots of the default model 1.2 W apart along robot 1's body axis,
+    anti-aligned, arms at the gait's first corner; the launch velocity of
+    robot 1 toward robot 2 (m/s, world x, y)."""
+    from smarticle_mjx import configs as C
+    poses = C.pair_poses(np.array([1.2]), np.array([0.0]), np.array([np.pi]), A0[0], A0[1], P.robot)[0]
+    d = poses[1, :2] - poses[0, :2]
+    return poses, v * d / np.linalg.norm(d)
+
+
+def _mujoco_free_collision(poses, launch, seconds=0.3):
+    """Momentum before and after, and robot 2's speed after, in MuJoCo with
+    gravity off and the robots lifted 2 cm off the plate."""
+    m = S.compile_model(S.build_mjcf(P, poses))
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    m.opt.gravity[:] = 0
+    for i in range(2):
+        d.qpos[m.jnt_qposadr[m.joint(f"r{i}_free").id] + 2] += 0.02
+    d.qvel[m.jnt_dofadr[m.joint("r0_free").id]:][:2] = launch
+    mujoco.mj_forward(m, d)
+    roots = [m.body(f"r{i}").id for i in range(2)]
+
+    def momentum():
+        mujoco.mj_subtreeVel(m, d)
+        return sum(m.body_subtreemass[b] * d.subtree_linvel[b] for b in roots)
+
+    before = momentum()
+    for _ in range(int(round(seconds / m.opt.timestep))):
+        mujoco.mj_step(m, d)
+    return before, momentum(), float(np.linalg.norm(d.subtree_linvel[roots[1]]))
+
+
+@needs_dart
+def test_momentum_is_conserved_when_two_free_robots_collide():
+    """No plate, no gravity: robot 1 launched at 0.1 m/s hits robot 2 head on.
+    Contact impulses are equal and opposite and the servos act inside each
+    robot, so the robots' total linear momentum is the same before and after
+    in both engines (to 1e-9 of its 3.5e-3 kg m/s), and robot 2 was hit
+    (it moves at more than 0.02 m/s)."""
+    poses, launch = _head_on()
+    sc = twin.DartScene(P, poses, plate=False)
+    sc.set_body_velocity(0, *launch)
+    before = sc.momentum()
+    for _ in range(3000):
+        sc.hold()
+        sc.step()
+    hit = np.linalg.norm(sc.robots[1][0].getSkeleton().getCOMLinearVelocity())
+    results = {"dart": (before, sc.momentum(), hit), "mujoco": _mujoco_free_collision(poses, launch)}
+    for engine, (p0, p1, speed) in results.items():
+        np.testing.assert_allclose(p0[:2], P.robot.mass * launch, rtol=1e-9, err_msg=engine)
+        assert np.abs(np.asarray(p1) - np.asarray(p0)).max() < 1e-9, (engine, p0, p1)
+        assert speed > 0.02, (engine, speed)

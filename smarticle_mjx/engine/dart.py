@@ -97,10 +97,13 @@ class DartScene:
       params: the scene (robot geometry, masses, servo, friction).
       poses: [N, 5] (x, y, heading, alpha1, alpha2) per robot; bodies rest on the plate.
       numerics: DART's step, collision detector and LCP solver.
+      plate: False builds the robots in free space, without gravity (for
+        checks of conservation laws); poses then give their heights as on
+        the plate.
     """
 
     def __init__(self, params: SceneParams, poses: Sequence[Sequence[float]],
-                 numerics: DartNumerics = DartNumerics()):
+                 numerics: DartNumerics = DartNumerics(), plate: bool = True):
         if not available():
             raise ValueError(MISSING)
         import dartpy as dart
@@ -109,15 +112,16 @@ class DartScene:
         self.params, self.numerics = params, numerics
         D = dart.dynamics
         self.world = world = dart.simulation.World()
-        world.setGravity(np.asarray(params.gravity, float))
+        world.setGravity(np.asarray(params.gravity, float) if plate else np.zeros(3))
         world.setTimeStep(numerics.timestep)
         self._set_numerics(dart)
         ground = D.Skeleton("plate")
-        _, plate = ground.createWeldJointAndBodyNodePair(None)
-        _contact_shape(plate, D.BoxShape([2.0, 2.0, PLATE_THICKNESS]), params.plate_friction,
-                       at=(0, 0, -PLATE_THICKNESS / 2))
+        _, plate_node = ground.createWeldJointAndBodyNodePair(None)
+        if plate:
+            _contact_shape(plate_node, D.BoxShape([2.0, 2.0, PLATE_THICKNESS]), params.plate_friction,
+                           at=(0, 0, -PLATE_THICKNESS / 2))
         world.addSkeleton(ground)
-        self.plate = plate
+        self.plate = plate_node
         rp = params.robot
         self.robots = []  # (free joint, body node, (arm joint 1, arm joint 2), (arm node 1, arm node 2))
         lim = math.radians(rp.arm_limit_deg)
@@ -158,7 +162,7 @@ class DartScene:
                 joint.setPositionLowerLimit(0, -lim)
                 joint.setPositionUpperLimit(0, lim)
                 joint.setLimitEnforcement(True)
-                filt.addBodyNodePairToBlackList(arm, plate)  # arms ride above the plate (the MJCF filters them)
+                filt.addBodyNodePairToBlackList(arm, plate_node)  # arms ride above the plate (the MJCF filters them)
                 joints.append(joint)
                 arms.append(arm)
             filt.addBodyNodePairToBlackList(arms[0], arms[1])  # a robot never touches itself
@@ -220,6 +224,11 @@ class DartScene:
         """Command every arm to stay where it is (the servo at rest)."""
         p = self.poses()
         self.command(p[:, 3:5], np.zeros((len(self.robots), 2)))
+
+    def momentum(self) -> np.ndarray:
+        """Total linear momentum of the robots (kg m/s, world frame)."""
+        return sum(free.getSkeleton().getMass() * np.asarray(free.getSkeleton().getCOMLinearVelocity())
+                   for free, _, _, _ in self.robots)
 
     def step(self, n: int = 1) -> None:
         for _ in range(n):
