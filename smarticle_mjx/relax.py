@@ -104,6 +104,8 @@ class RelaxConfig:
         from .engine import BACKENDS
         if self.backend not in BACKENDS:
             raise ValueError(f"unknown backend {self.backend!r}; choose one of {', '.join(BACKENDS)}")
+        if self.backend == "dart":  # its store would not record the twin's numerics yet
+            raise ValueError("the relaxation experiment does not run on the dart backend yet; use smx scan")
         self.gait_spec().validate(params.robot.servo_speed, params.robot.arm_limit_deg)
 
     def to_json(self) -> dict:

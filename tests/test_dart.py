@@ -291,3 +291,13 @@ def test_momentum_is_conserved_when_two_free_robots_collide():
         np.testing.assert_allclose(p0[:2], P.robot.mass * launch, rtol=1e-9, err_msg=engine)
         assert np.abs(np.asarray(p1) - np.asarray(p0)).max() < 1e-9, (engine, p0, p1)
         assert speed > 0.02, (engine, speed)
+
+
+def test_smx_relax_refuses_the_dart_backend_in_one_line(tmp_path):
+    """Until a relaxation store records the twin's numerics, smx relax refuses it."""
+    from typer.testing import CliRunner
+    from smarticle_mjx.cli import app
+    r = CliRunner().invoke(app, ["relax", "--backend", "dart", "--trials", "1", "--periods", "1", "--quiet",
+                                 "--out", str(tmp_path / "r.h5")])
+    assert r.exit_code == 2 and "does not run on the dart backend yet" in r.output
+    assert len(r.output.strip().splitlines()) == 1 and not list(tmp_path.iterdir())
