@@ -54,22 +54,16 @@ def mujoco_row(params, gait: GaitSpec, periods: int) -> dict:
 
 
 def dart_row(params, gait: GaitSpec, periods: int, numerics) -> dict:
-    from smarticle_mjx import gait as G
     from smarticle_mjx.engine.dart import DartScene
     a0 = gait.setpoints(0.0, params.robot.servo_speed)
     sc = DartScene(params, [(0, 0, 0, a0[0], a0[1])], numerics)
-    dt, T = numerics.timestep, gait.period()
-    n = int(round(T / dt))
-    ctrl = np.asarray(G.setpoints_and_rates(dt * np.arange(n), gait.amplitude, T, params.robot.servo_speed,
-                                            gait.chirality_sign, gait.kind_code, 0.0))
-    marks = {int(round(q * n / 4)) for q in range(1, 4)}
     xy = [sc.poses()[0, :2]]
-    for _ in range(periods):
-        for s in range(n):
-            sc.command(ctrl[s:s + 1, :2], ctrl[s:s + 1, 2:4])
-            sc.world.step()
-            if s + 1 in marks or s + 1 == n:
-                xy.append(sc.poses()[0, :2])
+
+    def at_quarters(period, step, steps):
+        if step + 1 in {round(q * steps / 4) for q in range(1, 5)}:
+            xy.append(sc.poses()[0, :2])
+
+    sc.run_gait(gait, periods, on_step=at_quarters)
     return _measures(np.array(xy), params.robot.body_length)
 
 

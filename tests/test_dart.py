@@ -85,20 +85,19 @@ def test_the_twin_follows_the_gait_to_its_corners():
     edge starts, and an arm moves only on its own edges."""
     params = presets.params("dart")
     sc = twin.DartScene(params, [(0, 0, 0, A0[0], A0[1])])
-    from smarticle_mjx import gait as Gm
-    dt, T = sc.numerics.timestep, GAIT.period()
-    n = int(round(T / dt))
-    ctrl = np.asarray(Gm.setpoints_and_rates(dt * np.arange(n), GAIT.amplitude, T, params.robot.servo_speed,
-                                             GAIT.chirality_sign, GAIT.kind_code, 0.0))
-    ends = {int(round((q + 1) * T / 4 / dt)) - 2: q for q in range(4)}
+    T = GAIT.period()
     angles = []
-    for s in range(n):
-        sc.command(ctrl[s:s + 1, :2], ctrl[s:s + 1, 2:4])
-        sc.step()
-        if s in ends:
+
+    def at_corner_ends(period, step, steps):
+        q = next((q for q in range(4) if step == round((q + 1) * steps / 4) - 2), None)
+        if q is not None:  # two steps before the next edge starts
+            want = GAIT.setpoints(step * T / steps, params.robot.servo_speed)  # the command of this step
             got = sc.poses()[0, 3:]
-            assert np.degrees(np.abs(got - ctrl[s, :2])).max() < 1.0, (ends[s], np.degrees(got), np.degrees(ctrl[s, :2]))
+            assert np.degrees(np.abs(got - want)).max() < 1.0, (q, np.degrees(got), np.degrees(want))
             angles.append(got)
+
+    sc.run_gait(GAIT, 1, on_step=at_corner_ends)
+    assert len(angles) == 4
     moved = np.abs(np.diff(np.array([A0, *angles]), axis=0)) > math.radians(45)
     assert (moved.sum(1) == 1).all(), moved  # one arm per edge
 

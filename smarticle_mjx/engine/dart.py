@@ -218,7 +218,8 @@ class DartScene:
         trim = rp.servo_kp / rp.kv if rp.kv else 0.0
         for (_, _, joints, _), sp, rate in zip(self.robots, np.asarray(setpoints), np.asarray(rates)):
             for k in range(2):
-                joints[k].setCommand(0, float(rate[k] + trim * (sp[k] - joints[k].getPosition(0))))
+                # in float64 whatever the controls' dtype (float32 from the gait function)
+                joints[k].setCommand(0, float(rate[k]) + trim * (float(sp[k]) - joints[k].getPosition(0)))
 
     def hold(self) -> None:
         """Command every arm to stay where it is (the servo at rest)."""
@@ -234,24 +235,30 @@ class DartScene:
         for _ in range(n):
             self.world.step()
 
-    def run_gait(self, gait: GaitSpec, periods: int) -> np.ndarray:
-        """Step the gait for ``periods`` periods from t = 0; poses at the start and
-        at the end of each period, [periods + 1, N, 5]."""
+    def run_gait(self, gait: GaitSpec, periods: int, on_step=None) -> np.ndarray:
+        """Step the gait (every robot in phase) for ``periods`` periods from t = 0.
+
+        ``on_step(period, step, steps)``, when given, is called after each
+        step (``step`` counts from 0 within the period, of ``steps``).
+
+        Returns poses at the start and at the end of each period, [periods + 1, N, 5].
+        """
         from .. import gait as G
         dt = self.numerics.timestep
         T = gait.period()
         nstep = max(1, int(round(T / dt)))
-        speed = self.params.robot.servo_speed
-        t = dt * np.arange(nstep)
-        ctrl = np.asarray(G.setpoints_and_rates(t, gait.amplitude, T, speed, gait.chirality_sign,
+        ctrl = np.asarray(G.setpoints_and_rates(dt * np.arange(nstep), gait.amplitude, T,
+                                                self.params.robot.servo_speed, gait.chirality_sign,
                                                 gait.kind_code, 0.0), float)
-        sp, rate = ctrl[:, :2], ctrl[:, 2:4]
         n = len(self.robots)
+        sp, rate = np.repeat(ctrl[:, None, :2], n, 1), np.repeat(ctrl[:, None, 2:4], n, 1)
         out = [self.poses()]
-        for _ in range(periods):
+        for k in range(periods):
             for s in range(nstep):
-                self.command(np.tile(sp[s], (n, 1)), np.tile(rate[s], (n, 1)))
+                self.command(sp[s], rate[s])
                 self.world.step()
+                if on_step is not None:
+                    on_step(k, s, nstep)
             out.append(self.poses())
         return np.stack(out)
 
