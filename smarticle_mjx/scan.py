@@ -88,8 +88,9 @@ class ScanConfig:
             raise ValueError("amplitudes must be distinct")
         for a in self.amplitudes_deg:
             self.gait_spec(a).validate(params.robot.servo_speed, params.robot.arm_limit_deg)
-        if self.backend not in ("native", "mjx", "warp", "dart"):
-            raise ValueError(f"--backend must be native, mjx, warp or dart, got {self.backend!r}")
+        from .engine import BACKENDS
+        if self.backend not in BACKENDS:
+            raise ValueError(f"--backend must be {', '.join(BACKENDS[:-1])} or {BACKENDS[-1]}, got {self.backend!r}")
         if self.backend == "dart":
             from .engine import dart
             if not dart.available():
@@ -187,14 +188,7 @@ def load_study(path) -> ScanConfig:
     unknown = set(study) - fields - {"description", "figure"}
     if unknown:
         raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
-    kw = {k: v for k, v in study.items() if k in fields}
-    for k in ("r_range_W", "amplitudes_deg"):
-        if k in kw:
-            kw[k] = tuple(float(x) for x in kw[k])
-    if "initial" in kw:
-        kw["initial"] = tuple(tuple(float(x) for x in c) for c in kw["initial"])
-    if "dart_numerics" in kw:
-        kw["dart_numerics"] = tuple(kw["dart_numerics"])
+    kw = _config_keywords(study)
     try:
         return ScanConfig(**kw)
     except TypeError as e:
@@ -381,6 +375,11 @@ def _run_here(config, params, runs, cfg, w, flush_rows, summary, nsteps, done, p
 
 def config_from_json(d: dict) -> ScanConfig:
     """The ScanConfig a store recorded (its ``config["scan"]``)."""
+    return ScanConfig(**_config_keywords(d))
+
+
+def _config_keywords(d: dict) -> dict:
+    """ScanConfig keywords from a study file's or a store's dict: its fields, lists back to tuples."""
     fields = {f.name for f in dataclasses.fields(ScanConfig)}
     kw = {k: v for k, v in d.items() if k in fields}
     for k in ("r_range_W", "amplitudes_deg"):
@@ -390,7 +389,7 @@ def config_from_json(d: dict) -> ScanConfig:
         kw["initial"] = tuple(tuple(float(x) for x in c) for c in kw["initial"])
     if kw.get("dart_numerics") is not None:
         kw["dart_numerics"] = tuple(kw["dart_numerics"])
-    return ScanConfig(**kw)
+    return kw
 
 
 def params_from_json(d: dict) -> SceneParams:

@@ -867,28 +867,33 @@ def _wall_minutes(paths) -> float:
     return tot
 
 
-def _provenance(paths) -> str:
-    """When and with what numerics the stores were made, read from the stores
-    themselves ("November 2026, smarticle-mjx 0.3.3, 0.5 ms step, implicitfast"),
-    so the page cannot claim a time step or a version its data did not use."""
-    if not paths:
-        return "No study has been run yet."
-    months, packages, steps, integrators = set(), set(), set(), set()
+def _made_with(paths) -> dict[str, set]:
+    """Months, package versions, time steps (ms) and integrators the stores were made with, read from them."""
+    made = {"months": set(), "packages": set(), "steps_ms": set(), "integrators": set()}
     for p in paths:
         st = Store(p)
         try:
-            months.add(datetime.datetime.fromisoformat(str(st.attrs["created"])).strftime("%B %Y"))
+            made["months"].add(datetime.datetime.fromisoformat(str(st.attrs["created"])).strftime("%B %Y"))
         except (KeyError, ValueError):
             pass
-        packages.add(str(st.attrs.get("package", "an unrecorded version")))
+        made["packages"].add(str(st.attrs.get("package", "an unrecorded version")))
         scene = st.config.get("scene", {})
         if "timestep" in scene:
-            steps.add(f"{float(scene['timestep']) * 1e3:g} ms")
+            made["steps_ms"].add(float(scene["timestep"]) * 1e3)
         if "integrator" in scene:
-            integrators.add(str(scene["integrator"]))
+            made["integrators"].add(str(scene["integrator"]))
+    return made
+
+
+def _provenance(made: dict[str, set]) -> str:
+    """When and with what numerics the stores were made ("November 2026, smarticle-mjx 0.3.3,
+    0.5 ms step, implicitfast"), so the page cannot claim a time step or a version its data did not use."""
+    if not made["packages"]:
+        return "No study has been run yet."
     join = lambda xs: " and ".join(sorted(xs)) or "unrecorded"  # noqa: E731
-    return (f"Measured {join(months)} with {join(packages)}, time step {join(steps)} ({join(integrators)}); "
-            "every store says so in its attributes.")
+    steps = {f"{s:g} ms" for s in made["steps_ms"]}
+    return (f"Measured {join(made['months'])} with {join(made['packages'])}, time step {join(steps)} "
+            f"({join(made['integrators'])}); every store says so in its attributes.")
 
 
 def step_check(result: dict, model: str, step_ms: set, check: pathlib.Path = STEP_CHECK) -> list[str]:
@@ -932,15 +937,15 @@ def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathli
     rel = pathlib.Path(figures).name
     every = [q for v in stores.values() for q in (v if isinstance(v, list) else [v])]
     held = sum(r["verdict"] == "holds" for r in result["rows"])
-    steps = {float(Store(q).config["scene"]["timestep"]) * 1e3 for q in every if "scene" in Store(q).config}
+    made = _made_with(every)
     lines = ["# Validation against the paper", "",
-             f"Model `{model}` (docs/model.md). {_provenance(every)} Regenerate with `{command}`: it reuses complete stores made by the "
+             f"Model `{model}` (docs/model.md). {_provenance(made)} Regenerate with `{command}`: it reuses complete stores made by the "
              "same model and package version, resumes interrupted ones and runs the missing studies "
              f"(these took {_wall_minutes(every):.0f} minutes of wall time on 2 cores). "
              "`--studies NAME,...` runs a subset; the page is written from the complete stores there are.", "",
              "Every row states its test before the number. A claim that does not hold is reported as such; the "
              f"model was not tuned to any row. **{held} of {len(result['rows'])} claims hold** at this step.", "",
-             *step_check(result, model, steps, check), "",
+             *step_check(result, model, made["steps_ms"], check), "",
              "| claim | paper | measured | test | verdict | how measured, what was tried |", "|---|---|---|---|---|---|"]
     cell = lambda x: str(x).replace("|", "\\|").replace("\\\\|", "\\|")  # noqa: E731
     for r in result["rows"]:
