@@ -222,7 +222,7 @@ def scan(
     quiet: bool = typer.Option(False, help="no progress bar"),
     flush_rows: int = typer.Option(64, help="journal finished configurations in blocks of this many"),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
-    collisions: bool = typer.Option(False, help="store the per-period collision record (native backend)"),
+    collisions: bool = typer.Option(False, help="store the per-period collision record (native and dart backends)"),
     collision_bins: int = typer.Option(16, help="collision record: bins per gait period"),
     executor: str = typer.Option("local", help=_EXECUTOR_HELP),
     scheduler: Optional[str] = typer.Option(None, help="dask: address of a running scheduler (tcp://host:8786)"),

@@ -50,7 +50,7 @@ class ScanConfig:
     chunk_periods: int = 5
     quiet_periods: int = 2
     model: str = presets.DEFAULT  # model preset (smarticle_mjx/presets.py)
-    collisions: bool = False  # keep the per-period collision record (native backend)
+    collisions: bool = False  # keep the per-period collision record (native and dart backends)
     collision_bins: int = 16  # its bins per gait period
     initial: tuple[tuple[float, float, float], ...] | None = None  # configs = "explicit"
     # backend "dart": (time step s, collision detector, LCP solver); None: the DART twin's defaults
@@ -104,8 +104,8 @@ class ScanConfig:
                 raise ValueError(mjwarp.MISSING)
         if self.batch_size <= 0 or self.chunk_periods <= 0 or self.quiet_periods < 0:
             raise ValueError("batch size and chunk periods must be positive, quiet periods >= 0")
-        if self.collisions and self.backend != "native":
-            raise ValueError("--collisions is recorded by the native backend only")
+        if self.collisions and self.backend not in ("native", "dart"):
+            raise ValueError("--collisions is recorded by the native and dart backends only")
         if self.collision_bins < 1:
             raise ValueError(f"--collision-bins must be positive, got {self.collision_bins}")
 

@@ -78,8 +78,8 @@ def _translation(xyz) -> "object":
     return t
 
 
-def _contact_shape(node, shape, mu: float, at=(0.0, 0.0, 0.0), rotation=None):
-    sn = node.createShapeNode(shape)
+def _contact_shape(node, shape, mu: float, name: str, at=(0.0, 0.0, 0.0), rotation=None):
+    sn = node.createShapeNode(shape, name)
     sn.createCollisionAspect()
     dyn = sn.createDynamicsAspect()
     dyn.setFrictionCoeff(mu)
@@ -119,7 +119,7 @@ class DartScene:
         _, plate_node = ground.createWeldJointAndBodyNodePair(None)
         if plate:
             _contact_shape(plate_node, D.BoxShape([2.0, 2.0, PLATE_THICKNESS]), params.plate_friction,
-                           at=(0, 0, -PLATE_THICKNESS / 2))
+                           "plate", at=(0, 0, -PLATE_THICKNESS / 2))
         world.addSkeleton(ground)
         self.plate = plate_node
         rp = params.robot
@@ -132,7 +132,7 @@ class DartScene:
             body.setMass(rp.body_mass)
             body.setMomentOfInertia(*_box_inertia(rp.body_mass, rp.body_length, rp.body_thickness, rp.body_height))
             _contact_shape(body, D.BoxShape([rp.body_length, rp.body_thickness, rp.body_height]),
-                           params.robot_friction)
+                           params.robot_friction, f"r{i}_body")
             joints, arms = [], []
             for k, (sign, length) in enumerate(zip((-1, 1), rp.arm_lengths)):
                 props = D.RevoluteJointProperties()
@@ -145,7 +145,8 @@ class DartScene:
                     size = (length, rp.arm_thickness, rp.arm_extent_z)
                     arm.setMomentOfInertia(*_box_inertia(rp.arm_mass, *size))
                     arm.setLocalCOM(np.array([sign * length / 2, 0.0, 0.0]))
-                    _contact_shape(arm, D.BoxShape(list(size)), params.robot_friction, at=(sign * length / 2, 0, 0))
+                    _contact_shape(arm, D.BoxShape(list(size)), params.robot_friction, f"r{i}_arm{k + 1}",
+                                   at=(sign * length / 2, 0, 0))
                 else:
                     r = rp.arm_radius
                     tip = length - r  # the capsule ends exactly at the arm length, as in the MJCF
@@ -154,7 +155,8 @@ class DartScene:
                                            m * (3 * r * r + tip * tip) / 12 + m * (tip / 2) ** 2)
                     arm.setLocalCOM(np.array([sign * tip / 2, 0.0, 0.0]))
                     y90 = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # capsule z -> x
-                    _contact_shape(arm, D.CapsuleShape(r, tip), params.robot_friction, at=(sign * tip / 2, 0, 0),
+                    _contact_shape(arm, D.CapsuleShape(r, tip), params.robot_friction, f"r{i}_arm{k + 1}",
+                                   at=(sign * tip / 2, 0, 0),
                                    rotation=y90)
                 joint.setActuatorType(D.ActuatorType.SERVO)
                 joint.setForceLowerLimit(0, -rp.servo_torque)
@@ -174,6 +176,15 @@ class DartScene:
             world.addSkeleton(sk)
             self.robots.append((free, body, tuple(joints), tuple(arms)))
         world.getConstraintSolver().getCollisionOption().collisionFilter = filt
+        # the shape nodes (kept alive, so that DART's contacts hand back these very Python objects),
+        # and id(shape node) -> (robot, part); names cost a string copy per call, identities nothing
+        self._shapes = [plate_node.getShapeNode(0)] if plate else []
+        self._part = {}
+        for i, (_, body, _, arms) in enumerate(self.robots):
+            for q, node in enumerate((body, *arms)):
+                sn = node.getShapeNode(0)
+                self._shapes.append(sn)
+                self._part[id(sn)] = (i, q)
         self._filter = filt  # the option holds a reference; keep the filter alive with the scene
 
     def _set_numerics(self, dart):
@@ -226,6 +237,29 @@ class DartScene:
         p = self.poses()
         self.command(p[:, 3:5], np.zeros((len(self.robots), 2)))
 
+    def robot_contacts(self) -> list[tuple[int, int, int, float, float, float]]:
+        """The robot-robot contacts of the last step: (i, j, kind, fx, fy, depth)
+        with i < j, ``kind`` the index of (robot i's part, robot j's part) in
+        the engine's CONTACT_KINDS, (fx, fy) DART's contact force on robot i
+        (normal and friction, N, world frame) and the depth FCL reports (m)."""
+        out = []
+        part = self._part
+        for c in self.world.getLastCollisionResult().getContacts():
+            a = part.get(id(c.collisionObject1.getShapeFrame()))
+            if a is None:  # the plate
+                continue
+            b = part.get(id(c.collisionObject2.getShapeFrame()))
+            if b is None:
+                continue
+            (ri, pa), (rj, pb) = a, b
+            if ri == rj:
+                continue
+            f = np.asarray(c.force)  # DART's contact force acts on collisionObject1
+            if ri > rj:
+                ri, pa, rj, pb, f = rj, pb, ri, pa, -f
+            out.append((ri, rj, 3 * pa + pb, float(f[0]), float(f[1]), float(c.penetrationDepth)))
+        return out
+
     def momentum(self) -> np.ndarray:
         """Total linear momentum of the robots (kg m/s, world frame)."""
         return sum(free.getSkeleton().getMass() * np.asarray(free.getSkeleton().getCOMLinearVelocity())
@@ -273,7 +307,9 @@ class DartBackend:
     the other backends: poses at period ends, per pair whether the robots
     touched and the deepest contact (-penetration depth, m), status bits
     for non-finite states and penetration beyond ``penetration_limit``.
-    Not recorded here: full-rate tracks and the collision record.
+    The collision record (``Record.collisions``) is that of the native
+    backend, from DART's contact forces (normal and friction, N) times the
+    step. Not recorded here: full-rate tracks.
 
     With DART's default detector (``fcl-mesh``: boxes as meshes) the contact
     depths FCL reports are not geometric: 24 mm for arm-body contacts that
@@ -308,24 +344,31 @@ class DartBackend:
             out[b] = DartScene(self.scene.params, lanes.poses[b], self.numerics)
         return out
 
-    def _touches(self, sc: DartScene, touched: np.ndarray, depth: np.ndarray) -> None:
-        res = sc.world.getLastCollisionResult()
-        for c in res.getContacts():
-            a = c.collisionObject1.getShapeFrame().getBodyNodePtr().getSkeleton().getName()
-            b = c.collisionObject2.getShapeFrame().getBodyNodePtr().getSkeleton().getName()
-            if a == "plate" or b == "plate":
-                continue
-            i, j = sorted((int(a[1:]), int(b[1:])))
-            if i != j:
-                k = self._pair[(i, j)]
-                touched[k] = True
-                depth[k] = max(depth[k], float(c.penetrationDepth))
+    def _contacts(self, sc: "DartScene", touched: np.ndarray, depth: np.ndarray, kinds=None, forces=None) -> bool:
+        """Fold the robot-robot contacts of the step just taken into ``touched`` and
+        ``depth`` [P]; with ``kinds`` [P, 9] (bool) and ``forces`` [P, 9, 2],
+        also which contact kinds touched and the net contact force on each
+        pair's first robot. True if any robot touched another."""
+        found = sc.robot_contacts()
+        for i, j, kind, fx, fy, d in found:
+            k = self._pair[(i, j)]
+            touched[k] = True
+            depth[k] = max(depth[k], d)
+            if kinds is not None:
+                kinds[k, kind] = True
+                forces[k, kind] += (fx, fy)
+        return bool(found)
 
     def advance(self, state: np.ndarray, lanes, n_periods: int, *, t0: float = 0.0, record=None):
-        """Advance every lane's world by ``n_periods`` gait periods (same contract as the native backend)."""
-        from .core import PeriodRecords, Status, lane_controls, on_step_grid, steps_per_period
-        if record is not None and (record.track_stride or record.collisions):
-            raise ValueError("full-rate tracks and the collision record are recorded by the native backend only")
+        """Advance every lane's world by ``n_periods`` gait periods (same contract as the
+        native backend). ``record.collisions`` keeps the collision record: per
+        pair, contact kind and bin of the period, the steps in contact, the
+        contact impulse on robot i (DART's contact force, normal and friction,
+        times the step) and its component along r = c_j - c_i, with the body
+        centres taken after the step (they move ~1e-6 of |r| in one step)."""
+        from .core import PeriodRecords, Status, blank_collisions, lane_controls, on_step_grid, steps_per_period
+        if record is not None and record.track_stride:
+            raise ValueError("full-rate tracks are recorded by the native backend only")
         if lanes.robot_period is not None:
             raise ValueError("the dart backend runs robots that share one gait period")
         dt = self.numerics.timestep
@@ -337,18 +380,35 @@ class DartBackend:
         touched = np.zeros((b, n_periods, p), bool)
         min_dist = np.full((b, n_periods, p), np.inf)
         status = np.zeros(b, np.int32)
+        bins = record.collision_bins if record is not None and record.collisions else 0
+        coll = blank_collisions(b, n_periods, p, bins) if bins else None
+        bin_of = np.minimum((np.arange(nstep) * max(bins, 1)) // nstep, max(bins, 1) - 1)
+        pairs = self.scene.layout.pairs
         for lane in range(b):
             sc = state[lane]
+            bodies = [r[1] for r in sc.robots]
             for k in range(n_periods):
                 depth = np.full(p, -np.inf)
+                kinds, forces = (np.zeros((p, 9), bool), np.zeros((p, 9, 2))) if bins else (None, None)
                 for s in range(nstep):
                     sc.command(u[lane, s, :, :2], u[lane, s, :, 2:])
                     sc.world.step()
-                    self._touches(sc, touched[lane, k], depth)
+                    if self._contacts(sc, touched[lane, k], depth, kinds, forces) and bins:
+                        centres = np.array([np.asarray(bd.getWorldTransform().translation())[:2] for bd in bodies])
+                        g = bin_of[s]
+                        for q in np.flatnonzero(kinds.any(1)):
+                            i, j = pairs[q]
+                            r = centres[j] - centres[i]
+                            imp = forces[q] * dt
+                            coll["steps"][lane, k, q, :, g] += kinds[q]
+                            coll["impulse"][lane, k, q, :, g] += imp
+                            coll["impulse_r"][lane, k, q, :, g] += imp @ (r / max(np.linalg.norm(r), 1e-12))
+                        kinds[:] = False
+                        forces[:] = 0.0
                 poses[lane, k] = sc.poses()
                 min_dist[lane, k] = np.where(touched[lane, k], -depth if self._depth_measured else np.nan, np.inf)
                 if not np.isfinite(poses[lane, k]).all():
                     status[lane] |= int(Status.NONFINITE)
                 if self._depth_measured and (min_dist[lane, k] < -self.penetration_limit).any():
                     status[lane] |= int(Status.PENETRATION)
-        return state, PeriodRecords(poses, touched, min_dist, status), None
+        return state, PeriodRecords(poses, touched, min_dist, status, coll), None
