@@ -129,39 +129,8 @@ def gliding(params, n: int, periods: int, seed: int, burn_in: int, save: pathlib
 
 
 def glide_metrics(com, rel, touched, burn_in: int) -> dict:
-    """The glider quantities of per-period tracks (com in W, rel (|r| W, theta, phi))."""
-    periods = touched.shape[1]
-    glide = touched[:, burn_in:].all(1)
-    g_com, g_rel = com[glide, burn_in:], rel[glide, burn_in:]
-    out = {"gliders": int(glide.sum()), "bound_end": int(touched[:, -1].sum())}
-    if glide.sum() == 0:
-        return out
-    ns = transport.net_speed(g_com)
-    beta = transport.msd_exponent(g_com, lag_range=(5, min(15, periods - burn_in - 2)), centered=True)
-    sp = gliders.sign_persistence(g_rel, hold=min(50, periods - burn_in))
-    aligned = np.cos(g_rel[..., 2]) > 0
-    c1 = ~aligned.any(1)
-    out.update({
-        "net_speed_W_per_period": float(np.nanmean(ns)),
-        "mean_step_W_per_period": float(np.nanmean(transport.step_lengths(g_com))),
-        "persistence": transport.direction_persistence(g_com),
-        "median_turn_deg": float(np.degrees(transport.median_direction_change(g_com))),
-        "straightness20": transport.straightness(g_com, 20),
-        "beta": beta.beta, "beta_err": beta.err, "beta_lags": list(beta.lag_range),
-        "sign_flips_per_period": sp["flips_per_period"], "sign_mean_run": sp["mean_run"],
-        "sign_held_frac": sp["held"], "sign_hold_periods": min(50, periods - burn_in),
-        "repeat": gliders.repeatability(g_rel),
-        "C2_fraction": float(aligned.mean()),
-        "C1_gliders": int(c1.sum()),
-        "steady_r_W": float(np.nanmean(g_rel[..., 0])),
-    })
-    if c1.any():
-        dev = np.degrees(np.abs(np.angle(np.exp(1j * (g_rel[c1, :, 2] - np.pi)))))
-        out["C1_phi_dev_deg"] = float(np.median(dev))  # symmetry breaking: 0 for a symmetric C1
-        spc = gliders.sign_persistence(g_rel[c1], hold=min(50, periods - burn_in))
-        out["C1_sign_held_frac"] = spc["held"]
-        out["C1_straightness20"] = transport.straightness(g_com[c1], 20)
-    return out
+    """The glider quantities of per-period tracks (:func:`smarticle_mjx.reduce.gliders.glide_summary`)."""
+    return gliders.glide_summary(com, rel, touched, burn_in)
 
 
 def pb(params, amplitude: float, n: int, periods: int, seed: int) -> dict:

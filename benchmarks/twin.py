@@ -21,7 +21,9 @@ rows already in the JSON are kept (delete it to re-measure).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+import os
 import pathlib
 import time
 
@@ -67,11 +69,290 @@ def dart_row(params, gait: GaitSpec, periods: int, numerics) -> dict:
     return _measures(np.array(xy), params.robot.body_length)
 
 
+STORES = OUT.parent / "twin_runs"  # the scans' stores (not in the repository; resumable)
+GLIDE = {"n": 32, "periods": 60, "burn_in": 10, "r_range": (0.8, 2.0), "seed": 1, "bins": 16}
+PB = {"n": 64, "periods": 30, "r_range": (0.5, 2.5), "seed": 1, "amplitudes": (30.0, 50.0, 70.0, 90.0)}
+
+
+def valid_starts(params, amplitude: float, n: int, r_range, seed: int) -> np.ndarray:
+    """[n, 3] (|r| W, theta, phi) of the first ``n`` random starts that do not
+    overlap with the arms at the gait's first corner (the same starts in both engines)."""
+    from smarticle_mjx import configs as C
+    a0 = GaitSpec(amplitude).setpoints(0.0, params.robot.servo_speed)
+    rng = np.random.default_rng(seed)
+    out = []
+    while sum(map(len, out)) < n:
+        cf = C.random_configs(4 * n, rng, r_range)
+        ok = C.poses_valid(C.pair_poses(cf[:, 0], cf[:, 1], cf[:, 2], a0[0], a0[1], params.robot), params.robot)
+        out.append(cf[ok])
+    return np.concatenate(out)[:n]
+
+
+def scan_store(engine: str, name: str, starts: np.ndarray, amplitude: float, periods: int, collisions: bool,
+               workers: int, model: str | None = None) -> pathlib.Path:
+    """Run (or resume) one explicit-start scan into ``twin_runs/<name>.h5``:
+    DART through the Dask executor on ``workers`` processes, MuJoCo here."""
+    from smarticle_mjx.scan import ScanConfig, run_scan
+    STORES.mkdir(parents=True, exist_ok=True)
+    out = STORES / f"{name}.h5"
+    cfg = ScanConfig(configs="explicit", initial=tuple(tuple(float(v) for v in row) for row in starts),
+                     amplitudes_deg=(amplitude,), periods=periods, backend="dart" if engine == "dart" else "native",
+                     model=model or presets.DEFAULT, collisions=collisions, collision_bins=GLIDE["bins"],
+                     batch_size=2 if engine == "dart" else 64)
+    executor = None
+    if engine == "dart":
+        from smarticle_mjx.executors import DaskExecutor
+        executor = DaskExecutor(workers=workers, shard_size=2)
+    t = time.perf_counter()
+    summary = run_scan(cfg, out, mode="resume" if out.exists() else "new", executor=executor,
+                       on_progress=lambda p: print(f"  {out.name}: {p['done']}/{p['total']} "
+                                                   f"({time.perf_counter() - t:.0f} s)", flush=True))
+    print(f"{out.name}: {summary.get('wall_s', 0):.0f} s", flush=True)
+    return out
+
+
+def store_tracks(path: pathlib.Path, body_length: float) -> dict:
+    """Per-period tracks of a pair scan's store: com [M, K, 2] (W), rel [M, K, 3], touched [M, K]."""
+    from smarticle_mjx import configs as C
+    from smarticle_mjx.store import Store
+    st = Store(path)
+    fields = ("valid", "poses", "touched", "periods_run")
+    if st.config["scan"].get("collisions"):
+        fields += ("coll_steps", "coll_impulse", "coll_impulse_r")
+    d = st.run(fields=fields)
+    poses = np.asarray(d["poses"], float)
+    r, th, ph = C.relative_coordinates(poses[:, :, 0], poses[:, :, 1], body_length)
+    out = {"com": (poses[:, :, 0, :2] + poses[:, :, 1, :2]) / 2 / body_length, "rel": np.stack([r, th, ph], -1),
+           "touched": np.asarray(d["touched"])[..., 0], "valid": np.asarray(d["valid"]),
+           "periods_run": np.asarray(d["periods_run"])}
+    if "coll_steps" in d:
+        out["coll"] = {"steps": d["coll_steps"], "impulse": d["coll_impulse"], "impulse_r": d["coll_impulse_r"]}
+    return out
+
+
+def collision_level(coll: dict, touched: np.ndarray) -> dict:
+    """The collision record per touching period (pair 0): impulse along r
+    (N s; negative pushes the robots apart) in all and by the part of each
+    robot, contact steps, and the fraction of touching periods with an
+    attractive (positive) kind."""
+    from smarticle_mjx.reduce import collisions as RC
+    t = RC.period_totals(coll)
+    on = touched.astype(bool)
+    ir, st = t["impulse_r"][..., 0][on], t["steps"][..., 0][on]
+    by = t["impulse_r_by_kind"][..., 0, :][on]
+    group = {"arm-arm": [k for k, n in enumerate(RC.KINDS) if "body" not in n],
+             "arm-body": [k for k, n in enumerate(RC.KINDS) if n.count("body") == 1],
+             "body-body": [RC.KINDS.index("body-body")]}
+    return {"touching_periods": int(on.sum()),
+            "impulse_r_per_period_Ns": float(ir.mean()) if on.any() else None,
+            "abs_impulse_r_per_period_Ns": float(np.abs(by).sum(-1).mean()) if on.any() else None,
+            "impulse_r_by_parts_Ns": {g: float(by[:, ks].sum(-1).mean()) for g, ks in group.items()} if on.any() else {},
+            "contact_steps_per_period": float(st.mean()) if on.any() else None,
+            "attractive_fraction": float((by > 0).any(-1).mean()) if on.any() else None}
+
+
+def pairs_part(engine: str, workers: int, rows: dict, label: str | None = None, params=None, model=None):
+    """Gliders from ``GLIDE['n']`` random 90-degree starts and their collision record."""
+    from smarticle_mjx.reduce import gliders
+    params = params or presets.params(model)
+    label = label or engine
+    name = f"glide_{GLIDE['n']}x{GLIDE['periods']}_s{GLIDE['seed']}"
+    if name in rows.get(label, {}):
+        return
+    starts = valid_starts(params, 90.0, GLIDE["n"], GLIDE["r_range"], GLIDE["seed"])
+    t = time.perf_counter()
+    path = scan_store(engine, f"{label.replace(' ', '_')}_{name}", starts, 90.0, GLIDE["periods"], True, workers,
+                      model=model)
+    tr = store_tracks(path, params.robot.body_length)
+    summary = gliders.glide_summary(tr["com"], tr["rel"], tr["touched"], GLIDE["burn_in"])
+    summary.update({"starts": GLIDE["n"], "periods": GLIDE["periods"], "burn_in": GLIDE["burn_in"],
+                    "wall_s": time.perf_counter() - t, "lane_periods": int(tr["periods_run"].sum())})
+    summary["collisions"] = collision_level(tr["coll"], tr["touched"])
+    rows.setdefault(label, {})[name] = summary
+
+
+def pb_part(engine: str, workers: int, rows: dict, label: str | None = None, model=None, save=None):
+    """P_b (bound in the last period) at 30/50/70/90 degrees from ``PB['n']`` random starts each."""
+    from smarticle_mjx.reduce import binding
+    params = presets.params(model)
+    label = label or engine
+    for a in PB["amplitudes"]:
+        name = f"pb{a:g}_{PB['n']}x{PB['periods']}_s{PB['seed']}"
+        if name in rows.get(label, {}):
+            continue
+        starts = valid_starts(params, a, PB["n"], PB["r_range"], PB["seed"])
+        t = time.perf_counter()
+        path = scan_store(engine, f"{label.replace(' ', '_')}_{name}", starts, a, PB["periods"], False, workers,
+                          model=model)
+        tr = store_tracks(path, params.robot.body_length)
+        p = binding.binding_probability(tr["touched"], tr["valid"])
+        rows.setdefault(label, {})[name] = {"n": p["n"], "periods": PB["periods"], "end": p["end"],
+                                            "throughout": p["throughout"], "wall_s": time.perf_counter() - t,
+                                            "lane_periods": int(tr["periods_run"].sum())}
+        if save:
+            save()
+
+
+def _set_opt(**fields):
+    def edit(model):
+        for k, v in fields.items():
+            setattr(model.opt, k, v)
+    return edit
+
+
+# Each of MuJoCo's modelling choices switched alone from the default model:
+# name -> (SceneParams changes, RobotParams changes, edit of the compiled MjModel)
+VARIANTS = {
+    "default": ({}, {}, None),
+    "armature 0": ({}, {"servo_armature": 0.0}, None),
+    "servo without lag": ({}, {"servo_timeconst": 0.0}, None),
+    # DART's SERVO law as a stiff velocity loop (the `dart` servo of presets.py) within the default's torque
+    "velocity servo": ({}, {"servo_kv": 0.003, "servo_kp": 0.003 / 1.6, "servo_armature": 0.0,
+                            "servo_timeconst": 0.0}, None),
+    "pyramidal cone": ({}, {}, _set_opt(cone=0)),  # the default is elliptic
+    "impratio 10": ({}, {}, _set_opt(impratio=10.0)),
+    "noslip 10": ({}, {}, _set_opt(noslip_iterations=10)),
+    "contacts 1 ms": ({"contact_timeconst": 1e-3}, {}, None),  # 2 steps of 0.5 ms, the stiffest stable
+    "step 0.125 ms": ({"timestep": 1.25e-4}, {}, None),
+    "step 0.1 ms with contacts 0.2 ms": ({"timestep": 1e-4, "contact_timeconst": 2e-4}, {}, None),
+}
+
+
+def variant(name: str, combine: str | None = None):
+    """SceneParams and MjModel edit of a variant (``combine``: several names joined by '+')."""
+    params, edits = presets.params(), []
+    for v in (combine or name).split("+"):
+        sc, rb, ed = VARIANTS[v]
+        params = params.replace(robot=dataclasses.replace(params.robot, **rb), **sc)
+        if ed:
+            edits.append(ed)
+    params.validate()
+    return params, (lambda m: [e(m) for e in edits])
+
+
+def _native(params, n_robots: int, edit, collisions: bool):
+    from smarticle_mjx.engine import Scene
+    from smarticle_mjx.engine.native import NativeBackend
+    scene = Scene.build(params, n_robots, collisions=collisions)
+    edit(scene.model)
+    return NativeBackend(scene, nthread=1)
+
+
+def mujoco_variant_lone(params, edit, amplitude: float, periods: int) -> dict:
+    """Drift and slip per edge of one robot (as :func:`mujoco_row`) in an edited model."""
+    from smarticle_mjx.engine import Lanes, steps_per_period
+    gait = GaitSpec(amplitude)
+    a0 = gait.setpoints(0.0, params.robot.servo_speed)
+    be = _native(params, 1, edit, False)
+    try:
+        nstep = steps_per_period(gait.period(), params.timestep)
+        q = be.step_qpos(Lanes.from_gait(np.array([[[0.0, 0.0, 0.0, a0[0], a0[1]]]]), gait), periods * nstep)[0]
+        at = be.scene.layout.free_qpos[0]
+    finally:
+        be.close()
+    xy = np.concatenate([[[0.0, 0.0]], q[:, at:at + 2]])
+    return _measures(xy[[round(k * nstep / 4) for k in range(4 * periods + 1)]], params.robot.body_length)
+
+
+def mujoco_variant_pairs(params, edit, starts: np.ndarray) -> dict:
+    """Gliders and the collision record of ``starts`` at 90 degrees in an edited model (as :func:`pairs_part`)."""
+    from smarticle_mjx import configs as C
+    from smarticle_mjx.engine import Lanes
+    from smarticle_mjx.engine.core import Record
+    from smarticle_mjx.engine.batch import RetireRule, run_lanes
+    from smarticle_mjx.reduce import gliders
+    gait, W, K = GaitSpec(90.0), params.robot.body_length, GLIDE["periods"]
+    a0 = gait.setpoints(0.0, params.robot.servo_speed)
+    poses = C.pair_poses(starts[:, 0], starts[:, 1], starts[:, 2], a0[0], a0[1], params.robot)
+    m = len(poses)
+    tr, touched, run = np.full((m, K, 2, 5), np.nan), np.zeros((m, K), bool), np.zeros(m, int)
+    coll = {}
+
+    def on_lanes(res):
+        tr[res.index], touched[res.index], run[res.index] = res.poses, res.touched[..., 0], res.periods_run
+        for k, v in res.collisions.items():
+            coll.setdefault(k, np.zeros((m,) + v.shape[1:], v.dtype))[res.index] = v
+
+    be = _native(params, 2, edit, True)
+    t = time.perf_counter()
+    try:
+        run_lanes(be, Lanes.from_gait(poses, gait), K, batch_size=32, chunk_periods=5,
+                  rule=RetireRule(quiet_periods=2), on_lanes=on_lanes,
+                  record=Record(collisions=True, collision_bins=GLIDE["bins"]))
+    finally:
+        be.close()
+    r, th, ph = C.relative_coordinates(tr[:, :, 0], tr[:, :, 1], W)
+    out = gliders.glide_summary((tr[:, :, 0, :2] + tr[:, :, 1, :2]) / 2 / W, np.stack([r, th, ph], -1), touched,
+                                GLIDE["burn_in"])
+    out.update({"starts": m, "periods": K, "burn_in": GLIDE["burn_in"], "wall_s": time.perf_counter() - t,
+                "lane_periods": int(run.sum()), "collisions": collision_level(coll, touched)})
+    return out
+
+
+def diagnose(names, out: pathlib.Path, lone_periods: int):
+    """Each variant: lone drift and slip per edge at 90 degrees, gliders and collision record of the glide starts."""
+    starts = valid_starts(presets.params(), 90.0, GLIDE["n"], GLIDE["r_range"], GLIDE["seed"])
+    for name in names:
+        done = json.loads(out.read_text()) if out.exists() else {}
+        row = done.get("diagnosis", {}).get(name, {})
+        params, edit = variant(name, name if "+" in name else None)
+        if "lone90" not in row:
+            t = time.perf_counter()
+            row["lone90"] = {**mujoco_variant_lone(params, edit, 90.0, lone_periods), "periods": lone_periods,
+                             "wall_s": time.perf_counter() - t}
+        if "glide" not in row:
+            row["glide"] = mujoco_variant_pairs(params, edit, starts)
+        g, lo = row["glide"], row["lone90"]
+        c = g["collisions"]
+        print(f"{name}: slip/edge {lo['slip_per_edge_W']:.2e} W, drift {lo['drift_W_per_cycle']:.1e} W/cycle; "
+              f"gliders {g['gliders']}/{g['starts']}, net speed {g.get('net_speed_W_per_period', float('nan')):.4f}, "
+              f"impulse_r/period {c['impulse_r_per_period_Ns']:.2e} N s, |impulse_r| {c['abs_impulse_r_per_period_Ns']:.2e}, "
+              f"attractive {c['attractive_fraction']:.2f} ({g['wall_s']:.0f} s)", flush=True)
+        done = json.loads(out.read_text()) if out.exists() else {}
+        done.setdefault("diagnosis", {})[name] = row
+        tmp = out.with_name(out.name + f".{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(done, indent=1, default=float))
+        tmp.replace(out)
+
+
+def _save(rows: dict, path: pathlib.Path):
+    """Merge the pair rows into the JSON as it is now (another part may have
+    written it while this one ran) and replace it atomically."""
+    done = json.loads(path.read_text()) if path.exists() else {"model": presets.DEFAULT}
+    for label, entries in rows.items():
+        done.setdefault("pairs", {}).setdefault(label, {}).update(entries)
+    done["glide_design"], done["pb_design"] = GLIDE, PB
+    tmp = path.with_name(path.name + f".{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(done, indent=1, default=float))
+    tmp.replace(path)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--periods", type=int, default=12)
+    ap.add_argument("part", nargs="?", default="lone", choices=("lone", "pairs", "pb", "diagnose"),
+                    help="lone: one robot in every engine and numerics; pairs: gliders and their collision "
+                         "record from random 90-degree starts; pb: P_b at 30/50/70/90 degrees; diagnose: "
+                         "MuJoCo's modelling choices switched one at a time (--variants)")
+    ap.add_argument("--variants", default=",".join(VARIANTS),
+                    help="diagnose: comma-separated names of VARIANTS (join names with '+' to combine them)")
+    ap.add_argument("--engine", default="mujoco", choices=("mujoco", "dart"), help="pairs, pb: the engine")
+    ap.add_argument("--workers", type=int, default=2, help="DART's Dask worker processes")
+    ap.add_argument("--periods", type=int, default=12, help="lone: periods per robot")
     ap.add_argument("--out", type=pathlib.Path, default=OUT)
     args = ap.parse_args()
+    if args.part == "lone":
+        return lone(args)
+    if args.part == "diagnose":
+        return diagnose(args.variants.split(","), args.out, args.periods)
+    rows = {}
+    if args.part == "pairs":
+        pairs_part(args.engine, args.workers, rows)
+    else:
+        pb_part(args.engine, args.workers, rows, save=lambda: _save(rows, args.out))
+    _save(rows, args.out)
+
+
+def lone(args):
     from smarticle_mjx.engine.dart import DartNumerics
     params = presets.params()
     done = json.loads(args.out.read_text()) if args.out.exists() else {"model": presets.DEFAULT, "lone": {}}

@@ -270,7 +270,7 @@ def relax(
     phase_jitter: float = typer.Option(0.0, help="s.d. of each robot's gait phase (periods; 0: in phase)"),
     plate: float = typer.Option(0.6, help="side of the square plate (m); robots past its edge are recorded"),
     quiet_periods: int = typer.Option(10, help="stop a trial after this many periods without contact (0: never)"),
-    backend: str = typer.Option("native", help="native, mjx or warp (dart: not yet)"),
+    backend: str = typer.Option("native", help="native, mjx, warp or dart (the DART twin; needs the dart extra)"),
     batch_size: int = typer.Option(4, help="trials simulated together"),
     out: pathlib.Path = typer.Option(pathlib.Path("relax.h5"), help="output store (.h5)"),
     resume: bool = typer.Option(False, help="continue an interrupted run into the same store"),

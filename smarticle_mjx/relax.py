@@ -74,6 +74,8 @@ class RelaxConfig:
     chunk_periods: int = 5
     quiet_periods: int = 10  # stop a trial after this many periods without any contact (0: never)
     model: str = presets.DEFAULT
+    # backend "dart": (time step s, collision detector, LCP solver); None: the DART twin's defaults
+    dart_numerics: tuple[float, str, str] | None = None
 
     def gait_spec(self) -> GaitSpec:
         return GaitSpec(amplitude_deg=self.amplitude_deg, chirality=self.chirality, kind=self.gait,
@@ -104,12 +106,23 @@ class RelaxConfig:
         from .engine import BACKENDS
         if self.backend not in BACKENDS:
             raise ValueError(f"unknown backend {self.backend!r}; choose one of {', '.join(BACKENDS)}")
-        if self.backend == "dart":  # its store would not record the twin's numerics yet
-            raise ValueError("the relaxation experiment does not run on the dart backend yet; use smx scan")
+        from .engine.dart import check_study
+        check_study(self.backend, self.dart_numerics)
         self.gait_spec().validate(params.robot.servo_speed, params.robot.arm_limit_deg)
 
+    def backend_options(self) -> dict:
+        """Keyword arguments of ``make_backend`` beyond the scene (the dart backend's numerics)."""
+        from .engine.dart import numerics_of
+        return {"numerics": numerics_of(self.dart_numerics)} if self.backend == "dart" else {}
+
     def to_json(self) -> dict:
-        return dataclasses.asdict(self)
+        d = dataclasses.asdict(self)
+        if self.backend == "dart":  # the twin's numerics, resolved, so the store says what ran
+            n = self.backend_options()["numerics"]
+            d["dart_numerics"] = [n.timestep, n.detector, n.lcp]
+        else:
+            del d["dart_numerics"]  # other backends' stores keep their earlier configuration
+        return d
 
 
 def packing(n: int, robot: RobotParams, alpha: tuple[float, float], gap: float) -> np.ndarray:
@@ -199,8 +212,10 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
     config.validate(params)
     starts, phase = start_poses(config, params)
     g = config.gait_spec()
-    nsteps = steps_per_period(g.period(), params.timestep)
-    runs = {RUN: {"amplitude_deg": float(config.amplitude_deg), "period_s": nsteps * params.timestep,
+    # the engine's own step (the DART twin steps at its numerics' step, not the scene's)
+    dt = config.backend_options()["numerics"].timestep if config.backend == "dart" else params.timestep
+    nsteps = steps_per_period(g.period(), dt)
+    runs = {RUN: {"amplitude_deg": float(config.amplitude_deg), "period_s": nsteps * dt,
                   "chirality": g.chirality, "gait": g.kind, "periods": config.periods,
                   "n_configs": config.trials, "n_robots": config.n_robots, "rows": "trials"}}
     full = {"model": model, "relax": config.to_json(), "scene": _params_json(params)}
@@ -220,7 +235,7 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
             idx = np.array(todo)
             scene = Scene.build(params, config.n_robots)
             backend = make_backend(config.backend, scene, **({"nthread": nthread} if config.backend == "native"
-                                                               else {}))
+                                                               else config.backend_options()))
             lanes = Lanes(starts[idx], np.full(len(idx), g.amplitude), np.full(len(idx), g.chirality_sign, np.int32),
                           np.full(len(idx), g.kind_code, np.int32), phase[idx], g.period())
 

@@ -91,13 +91,8 @@ class ScanConfig:
         from .engine import BACKENDS
         if self.backend not in BACKENDS:
             raise ValueError(f"--backend must be {', '.join(BACKENDS[:-1])} or {BACKENDS[-1]}, got {self.backend!r}")
-        if self.backend == "dart":
-            from .engine import dart
-            if not dart.available():
-                raise ValueError(dart.MISSING)
-            self.dart().validate()
-        elif self.dart_numerics is not None:
-            raise ValueError("dart numerics are for --backend dart")
+        from .engine.dart import check_study
+        check_study(self.backend, self.dart_numerics)
         if self.backend == "warp":
             from .engine import mjwarp
             if not mjwarp.available():
@@ -111,11 +106,8 @@ class ScanConfig:
 
     def dart(self):
         """The DART twin's numerics (backend "dart")."""
-        from .engine.dart import DartNumerics
-        if self.dart_numerics is None:
-            return DartNumerics()
-        timestep, detector, lcp = self.dart_numerics
-        return DartNumerics(timestep=float(timestep), detector=str(detector), lcp=str(lcp))
+        from .engine.dart import numerics_of
+        return numerics_of(self.dart_numerics)
 
     def backend_options(self) -> dict:
         """Keyword arguments of ``make_backend`` beyond the scene (the dart backend's numerics)."""

@@ -358,11 +358,29 @@ def test_the_dart_collision_record_is_the_native_record_s_layout_and_its_touches
         assert (t["impulse_r"][touched, 0, 0] < 0).all(), (k, t["impulse_r"][:, 0, 0])
 
 
-def test_smx_relax_refuses_the_dart_backend_in_one_line(tmp_path):
-    """Until a relaxation store records the twin's numerics, smx relax refuses it."""
+@needs_dart
+def test_smx_relax_runs_on_the_dart_backend_and_the_store_records_its_numerics(tmp_path):
+    """The relaxation experiment on the twin: three robots packed in phase
+    touch in their first period, and the store names the engine, its
+    numerics and a step count at DART's step. Numerics on another backend
+    are refused in one line."""
+    import json
+
+    import h5py
     from typer.testing import CliRunner
     from smarticle_mjx.cli import app
-    r = CliRunner().invoke(app, ["relax", "--backend", "dart", "--trials", "1", "--periods", "1", "--quiet",
-                                 "--out", str(tmp_path / "r.h5")])
-    assert r.exit_code == 2 and "does not run on the dart backend yet" in r.output
-    assert len(r.output.strip().splitlines()) == 1 and not list(tmp_path.iterdir())
+    from smarticle_mjx.relax import RelaxConfig
+    from smarticle_mjx.store import Store
+    out = tmp_path / "r.h5"
+    r = CliRunner().invoke(app, ["relax", "--backend", "dart", "--robots", "3", "--trials", "1", "--periods", "1",
+                                 "--amplitude", "45", "--quiet", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "8,000 steps" in r.output  # one 0.8 s period at DART's 0.1 ms step
+    with h5py.File(out) as f:
+        cfg = json.loads(f.attrs["config"])["relax"]
+    assert cfg["backend"] == "dart" and cfg["dart_numerics"] == [1e-4, "fcl-mesh", "dantzig"]
+    d = Store(out).run("trials", fields=("periods_run", "touched"))
+    assert d["periods_run"][0] == 1 and d["touched"][0, 0].any()
+    with pytest.raises(ValueError, match="dart numerics are for --backend dart"):
+        RelaxConfig(dart_numerics=(1e-4, "fcl", "dantzig")).validate(P)
+    assert "dart_numerics" not in RelaxConfig().to_json()  # native relaxation stores are unchanged

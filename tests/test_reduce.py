@@ -294,3 +294,36 @@ def test_reducer_commands_refuse_bad_input(tmp_path, cmd):
     r = CliRunner().invoke(app, [cmd, str(bad), "--out", str(f)])
     assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1
     assert f.read_text() == "keep me"
+
+
+def test_glide_summary_of_built_tracks():
+    """Two pairs bound in every period that move straight at 0.01 W per
+    period, one along x and one along y, are gliders: net speed 0.01
+    W/period, direction persistence and straightness 1, ballistic (centred)
+    MSD, beta 2; C1 (anti-aligned) gliders that keep the sign of
+    phi - 180 deg. A pair that lets go for one period after the burn-in and
+    one that never touches are not gliders."""
+    from smarticle_mjx.reduce.gliders import glide_summary
+    K, burn = 40, 10
+    com = np.zeros((4, K, 2))
+    com[0, :, 0] = 0.01 * np.arange(K)
+    com[3, :, 1] = 0.01 * np.arange(K)
+    com[1, :, 1] = 0.02 * np.arange(K)
+    rel = np.zeros((4, K, 3))
+    rel[..., 0], rel[..., 2] = 1.3, np.pi + 0.1
+    touched = np.ones((4, K), bool)
+    touched[1, 25] = False
+    touched[2] = False
+    s = glide_summary(com, rel, touched, burn)
+    assert s["gliders"] == 2 and s["bound_end"] == 3
+    assert s["net_speed_W_per_period"] == pytest.approx(0.01, rel=1e-9)
+    assert s["persistence"] == pytest.approx(1.0) and s["straightness20"] == pytest.approx(1.0)
+    assert s["beta"] == pytest.approx(2.0, abs=1e-6)
+    assert s["C2_fraction"] == 0 and s["C1_gliders"] == 2 and s["C1_sign_held_frac"] == 1.0
+    assert s["sign_flips_per_period"] == 0
+    assert s["C1_phi_dev_deg"] == pytest.approx(np.degrees(0.1))
+    # the same pairs stepping back and forth do not travel and are not ballistic
+    com[0, :, 0] = 0.01 * (np.arange(K) % 2)
+    com[3, :, 1] = 0.01 * (np.arange(K) % 2)
+    s = glide_summary(com, rel, touched, burn)
+    assert s["net_speed_W_per_period"] < 0.001 and s["beta"] < 0.5

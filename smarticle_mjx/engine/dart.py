@@ -66,6 +66,24 @@ class DartNumerics:
             raise ValueError(f"DART LCP solver must be one of {', '.join(LCP_SOLVERS)}, got {self.lcp!r}")
 
 
+def numerics_of(spec) -> DartNumerics:
+    """The numerics a study names as (time step s, collision detector, LCP solver); None: the defaults."""
+    if spec is None:
+        return DartNumerics()
+    timestep, detector, lcp = spec
+    return DartNumerics(timestep=float(timestep), detector=str(detector), lcp=str(lcp))
+
+
+def check_study(backend: str, spec) -> None:
+    """A study's backend and DART numerics agree, and DART is installed when it runs on it (ValueError)."""
+    if backend == "dart":
+        if not available():
+            raise ValueError(MISSING)
+        numerics_of(spec).validate()
+    elif spec is not None:
+        raise ValueError("dart numerics are for --backend dart")
+
+
 def _box_inertia(mass: float, sx: float, sy: float, sz: float) -> tuple[float, float, float]:
     """Principal moments of a uniform solid box of full sides sx, sy, sz."""
     return (mass * (sy ** 2 + sz ** 2) / 12, mass * (sx ** 2 + sz ** 2) / 12, mass * (sx ** 2 + sy ** 2) / 12)

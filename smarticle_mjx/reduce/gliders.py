@@ -16,6 +16,7 @@ import warnings
 import numpy as np
 
 from . import binding
+from . import transport as _transport
 
 NONE, C1, C2 = 0, 1, 2
 NAMES = {NONE: "none", C1: "C1", C2: "C2"}
@@ -261,5 +262,60 @@ def repeatability(rel_tracks) -> dict:
         out["r"].append(tr[:, 0].std())
         for k, name in ((1, "theta"), (2, "phi")):
             R = np.abs(np.exp(1j * tr[:, k]).mean())
-            out[name].append(np.sqrt(-2 * np.log(max(R, 1e-12))))
+            out[name].append(np.sqrt(-2 * np.log(min(max(R, 1e-12), 1.0))))  # R rounds above 1 for a constant angle
     return {k: float(np.median(v)) if v else np.nan for k, v in out.items()}
+
+
+def glide_summary(com, rel, touched, burn_in: int) -> dict:
+    """The glider quantities of pairs' per-period tracks, as docs/fidelity.md
+    and docs/twin.md report them.
+
+    A glider here is a pair bound (touching) in every period after
+    ``burn_in``; its quantities are taken over those periods.
+
+    Args:
+      com: [M, K, 2] the pair's centre at each period end (W).
+      rel: [M, K, 3] (|r| in W, theta, phi) at each period end.
+      touched: [M, K] bool, the pair touched in that period.
+      burn_in: periods skipped before a pair must stay bound.
+
+    Returns:
+      gliders and pairs bound at the end; for the gliders: net speed and
+      mean step (W/period), direction persistence, median change of
+      direction (deg), straightness over 20 periods, beta over delays 5-15
+      (centred MSD, bootstrap sd), sign persistence of phi - 180 deg,
+      repeatability of (|r|, phi), the C2 (aligned) fraction of samples,
+      and for C1 gliders their median |phi - 180 deg|.
+    """
+    periods = touched.shape[1]
+    glide = touched[:, burn_in:].all(1)
+    g_com, g_rel = com[glide, burn_in:], rel[glide, burn_in:]
+    out = {"gliders": int(glide.sum()), "bound_end": int(touched[:, -1].sum())}
+    if glide.sum() == 0:
+        return out
+    ns = _transport.net_speed(g_com)
+    beta = _transport.msd_exponent(g_com, lag_range=(5, min(15, periods - burn_in - 2)), centered=True)
+    sp = sign_persistence(g_rel, hold=min(50, periods - burn_in))
+    aligned = np.cos(g_rel[..., 2]) > 0
+    c1 = ~aligned.any(1)
+    out.update({
+        "net_speed_W_per_period": float(np.nanmean(ns)),
+        "mean_step_W_per_period": float(np.nanmean(_transport.step_lengths(g_com))),
+        "persistence": _transport.direction_persistence(g_com),
+        "median_turn_deg": float(np.degrees(_transport.median_direction_change(g_com))),
+        "straightness20": _transport.straightness(g_com, 20),
+        "beta": beta.beta, "beta_err": beta.err, "beta_lags": list(beta.lag_range),
+        "sign_flips_per_period": sp["flips_per_period"], "sign_mean_run": sp["mean_run"],
+        "sign_held_frac": sp["held"], "sign_hold_periods": min(50, periods - burn_in),
+        "repeat": repeatability(g_rel),
+        "C2_fraction": float(aligned.mean()),
+        "C1_gliders": int(c1.sum()),
+        "steady_r_W": float(np.nanmean(g_rel[..., 0])),
+    })
+    if c1.any():
+        dev = np.degrees(np.abs(np.angle(np.exp(1j * (g_rel[c1, :, 2] - np.pi)))))
+        out["C1_phi_dev_deg"] = float(np.median(dev))  # symmetry breaking: 0 for a symmetric C1
+        spc = sign_persistence(g_rel[c1], hold=min(50, periods - burn_in))
+        out["C1_sign_held_frac"] = spc["held"]
+        out["C1_straightness20"] = _transport.straightness(g_com[c1], 20)
+    return out
