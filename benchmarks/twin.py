@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import os
 import pathlib
 import time
@@ -71,6 +72,7 @@ def dart_row(params, gait: GaitSpec, periods: int, numerics) -> dict:
 
 STORES = OUT.parent / "twin_runs"  # the scans' stores (not in the repository; resumable)
 GLIDE = {"n": 32, "periods": 60, "burn_in": 10, "r_range": (0.8, 2.0), "seed": 1, "bins": 16}
+RELAX = {"trials": 10, "periods": 60, "min_periods": 30, "seed": 0}
 PB = {"n": 64, "periods": 30, "r_range": (0.5, 2.5), "seed": 1, "amplitudes": (30.0, 50.0, 70.0, 90.0)}
 
 
@@ -191,6 +193,44 @@ def pb_part(engine: str, workers: int, rows: dict, label: str | None = None, mod
                                             "lane_periods": int(tr["periods_run"].sum())}
         if save:
             save()
+
+
+def _relax_stage(engine: str, first: int, trials: int) -> str:
+    from smarticle_mjx.relax import RelaxConfig, run_relax
+    STORES.mkdir(parents=True, exist_ok=True)
+    out = STORES / f"{engine}_relax_{RELAX['trials']}x{RELAX['periods']}_t{first}.h5"
+    cfg = RelaxConfig(trials=trials, first_trial=first, periods=RELAX["periods"], seed=RELAX["seed"],
+                      backend="dart" if engine == "dart" else "native", batch_size=1 if engine == "dart" else 4)
+    run_relax(cfg, out, mode="resume" if out.exists() else "new")
+    return str(out)
+
+
+def relax_part(engine: str, workers: int, rows: dict):
+    """The relaxation experiment (7 robots, compressed and in phase) on
+    ``RELAX['trials']`` trials; DART's trials split into one stage per worker
+    process. Gliders here are pairs bound and apart for >= RELAX['min_periods']
+    periods (the paper keeps gliders that survive 30 cycles; the lab's 100
+    do not fit in these trials)."""
+    from concurrent.futures import ProcessPoolExecutor
+    from smarticle_mjx.reduce import relaxation
+    from smarticle_mjx.store import read_relax
+    name = f"relax_{RELAX['trials']}x{RELAX['periods']}_s{RELAX['seed']}"
+    if name in rows.get(engine, {}):
+        return
+    k = workers if engine == "dart" else 1
+    cuts = np.linspace(0, RELAX["trials"], k + 1).round().astype(int)
+    t = time.perf_counter()
+    with ProcessPoolExecutor(k) as pool:
+        paths = list(pool.map(_relax_stage, [engine] * k, cuts[:-1].tolist(), np.diff(cuts).tolist()))
+    a = relaxation.analyse(read_relax(paths), min_periods=RELAX["min_periods"])
+    rows.setdefault(engine, {})[name] = {
+        "trials": a["valid"], "periods": RELAX["periods"], "min_periods": RELAX["min_periods"],
+        "emerged": a["emerged"], "fraction": a["fraction"], "interval": a["interval"],
+        "relaxation_periods": a["relaxation_periods"], "distance_W": a["distance"],
+        "glider_lifetime": a["glider_lifetime"], "stopped_early": a["stopped_early"],
+        "per_trial": [{k2: r[k2] for k2 in ("trial", "gliders", "relaxation_periods", "periods_run")}
+                      for r in a["per_trial"]],
+        "wall_s": time.perf_counter() - t}
 
 
 def _set_opt(**fields):
@@ -315,13 +355,102 @@ def diagnose(names, out: pathlib.Path, lone_periods: int):
         tmp.replace(out)
 
 
+def _f(v, spec=".2f"):
+    return "—" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, spec)
+
+
+def _glide_cells(g: dict) -> list[str]:
+    c = g.get("collisions", {})
+    iv = g.get("net_speed_interval")
+    return [f"{g.get('gliders', '—')} / {g.get('starts', '—')} ({g.get('periods', '—')})",
+            _f(g.get("net_speed_W_per_period"), ".4f") + (f" [{_f(iv[0], '.4f')}, {_f(iv[1], '.4f')}]" if iv else ""),
+            _f(g.get("persistence")), _f(g.get("straightness20")),
+            f"{_f(g.get('beta'))} ± {_f(g.get('beta_err'))}",
+            f"{_f(g.get('sign_flips_per_period'), '.3f')} · {_f(g.get('sign_held_frac'))}",
+            _f(g.get("C2_fraction")),
+            _f(c.get("impulse_r_per_period_Ns"), ".2e"), _f(c.get("abs_impulse_r_per_period_Ns"), ".2e"),
+            _f(c.get("attractive_fraction")), _f(c.get("contact_steps_per_period"), ".0f")]
+
+
+GLIDE_ROWS = ["gliders / starts (periods)", "net speed (W/period) [95 % bootstrap]", "direction persistence",
+              "straightness over 20 periods", "β (lags 5–15) ± bootstrap sd",
+              "sign flips of φ−180° per period · gliders holding it ≥ 50 periods", "C2 fraction of glider samples",
+              "impulse along r per touching period (N s)", "Σ\|impulse along r\| by kind per touching period (N s)",
+              "touching periods with an attractive kind", "contact steps per touching period"]
+
+
+def tables(done: dict) -> str:
+    """docs/twin.md's tables from the JSON (glider rows recomputed from the stores when they are here)."""
+    from smarticle_mjx.reduce import gliders
+    lone, pairs = done.get("lone", {}), done.get("pairs", {})
+    params = presets.params()
+    gname = f"glide_{GLIDE['n']}x{GLIDE['periods']}_s{GLIDE['seed']}"
+    rname = f"relax_{RELAX['trials']}x{RELAX['periods']}_s{RELAX['seed']}"
+    cols = {"dart": ("DART twin (fcl-mesh, 0.1 ms)", "dart fcl-mesh 0.1 ms"),
+            "mujoco": (f"MuJoCo `{done.get('model', presets.DEFAULT)}` ({params.timestep * 1e3:g} ms)",
+                       f"mujoco {params.timestep * 1e3:g} ms")}
+    rows = {"lone drift 90° (W/cycle)": ["1.5e-3 (lab)"], "lone drift 10° (W/cycle)": ["larger than at 90° (SI)"],
+            "slip of the body per arm move, 90° (W)": ["—"]}
+    paper = ["—", "≈ 0.03 (lab: 2.9 W over ≥ 100 periods)", "nearly ballistic", "—", "≈ 1.8", "consistent sign",
+             "two clusters (C1, C2)", "< 0 (repulsive)", "—", "attractive collisions bind (Fig. 4)", "—"]
+    for q, ref in zip(GLIDE_ROWS, paper):
+        rows[q] = [ref]
+    for a in PB["amplitudes"]:
+        rows[f"P_b bound at the end, {a:g}° [95 % exact] (starts)"] = ["dip at 40–60° (Fig. 3B)"]
+    rows[f"relaxation: trials with a pair bound and apart ≥ {RELAX['min_periods']} periods [95 %]"] = \
+        ["77/151 pairs glide ≥ 100 periods (lab)"]
+    rows["relaxation time (periods, median [IQR]; trial length caps it)"] = ["≈ 30 (lab)"]
+    rows["cost: lane-periods simulated per wall s of the study"] = ["—"]
+    for key, (_, lone_key) in cols.items():
+        e = pairs.get(key, {})
+        l90, l10 = lone.get(f"{lone_key}, 90 deg", {}), lone.get(f"{lone_key}, 10 deg", {})
+        rows["lone drift 90° (W/cycle)"].append(_f(l90.get("drift_W_per_cycle"), ".1e"))
+        rows["lone drift 10° (W/cycle)"].append(_f(l10.get("drift_W_per_cycle"), ".1e"))
+        rows["slip of the body per arm move, 90° (W)"].append(_f(l90.get("slip_per_edge_W"), ".1e"))
+        g = dict(e.get(gname, {}))
+        path = STORES / f"{key}_{gname}.h5"
+        if g and path.exists():  # recompute from the store (the JSON may predate a new quantity)
+            tr = store_tracks(path, params.robot.body_length)
+            g.update(gliders.glide_summary(tr["com"], tr["rel"], tr["touched"], GLIDE["burn_in"]))
+        for q, cell in zip(GLIDE_ROWS, _glide_cells(g)):
+            rows[q].append(cell)
+        for a in PB["amplitudes"]:
+            v = e.get(f"pb{a:g}_{PB['n']}x{PB['periods']}_s{PB['seed']}")
+            rows[f"P_b bound at the end, {a:g}° [95 % exact] (starts)"].append(
+                "—" if v is None else f"{v['end'][0]:.2f} [{v['end'][1]:.2f}, {v['end'][2]:.2f}] ({v['n']})")
+        r = e.get(rname)
+        rows[f"relaxation: trials with a pair bound and apart ≥ {RELAX['min_periods']} periods [95 %]"].append(
+            "—" if r is None else f"{r['emerged']}/{r['trials']} [{r['interval'][0]:.2f}, {r['interval'][1]:.2f}]")
+        rows["relaxation time (periods, median [IQR]; trial length caps it)"].append(
+            "—" if r is None else f"{r['relaxation_periods']['median']:.0f} [{r['relaxation_periods']['q25']:.0f}, "
+                                  f"{r['relaxation_periods']['q75']:.0f}] of {r['periods']}")
+        rows["cost: lane-periods simulated per wall s of the study"].append(
+            _f(g["lane_periods"] / g["wall_s"], ".2f") if g.get("wall_s") else "—")
+    head = "| quantity | paper / lab | " + " | ".join(c[0] for c in cols.values()) + " |"
+    out = [head, "|" + " --- |" * (2 + len(cols))] + [f"| {q} | " + " | ".join(v) + " |" for q, v in rows.items()]
+    diag = done.get("diagnosis", {})
+    if diag:
+        out += ["", "| MuJoCo variant (one choice switched) | slip per arm move 90° (W) | lone drift 90° (W/cycle) | "
+                + " | ".join(GLIDE_ROWS[:3]) + " | β | impulse along r per touching period (N s) | "
+                "Σ\|impulse along r\| (N s) | attractive periods |", "|" + " --- |" * 10]
+        tw = pairs.get("dart", {}).get(gname, {})
+        l90 = lone.get("dart fcl-mesh 0.1 ms, 90 deg", {})
+        for name, row in [("**DART twin**", {"lone90": l90, "glide": tw})] + list(diag.items()):
+            lo, g = row.get("lone90", {}), row.get("glide", {})
+            c = _glide_cells(g)
+            out.append(f"| {name} | {_f(lo.get('slip_per_edge_W'), '.1e')} | {_f(lo.get('drift_W_per_cycle'), '.1e')} | "
+                       f"{c[0]} | {_f(g.get('net_speed_W_per_period'), '.4f')} | {c[2]} | {_f(g.get('beta'))} | "
+                       f"{c[7]} | {c[8]} | {c[9]} |")
+    return "\n".join(out)
+
+
 def _save(rows: dict, path: pathlib.Path):
     """Merge the pair rows into the JSON as it is now (another part may have
     written it while this one ran) and replace it atomically."""
     done = json.loads(path.read_text()) if path.exists() else {"model": presets.DEFAULT}
     for label, entries in rows.items():
         done.setdefault("pairs", {}).setdefault(label, {}).update(entries)
-    done["glide_design"], done["pb_design"] = GLIDE, PB
+    done["glide_design"], done["pb_design"], done["relax_design"] = GLIDE, PB, RELAX
     tmp = path.with_name(path.name + f".{os.getpid()}.tmp")
     tmp.write_text(json.dumps(done, indent=1, default=float))
     tmp.replace(path)
@@ -329,7 +458,7 @@ def _save(rows: dict, path: pathlib.Path):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("part", nargs="?", default="lone", choices=("lone", "pairs", "pb", "diagnose"),
+    ap.add_argument("part", nargs="?", default="lone", choices=("lone", "pairs", "pb", "relax", "diagnose", "table"),
                     help="lone: one robot in every engine and numerics; pairs: gliders and their collision "
                          "record from random 90-degree starts; pb: P_b at 30/50/70/90 degrees; diagnose: "
                          "MuJoCo's modelling choices switched one at a time (--variants)")
@@ -342,11 +471,15 @@ def main():
     args = ap.parse_args()
     if args.part == "lone":
         return lone(args)
+    if args.part == "table":
+        return print(tables(json.loads(args.out.read_text())))
     if args.part == "diagnose":
         return diagnose(args.variants.split(","), args.out, args.periods)
     rows = {}
     if args.part == "pairs":
         pairs_part(args.engine, args.workers, rows)
+    elif args.part == "relax":
+        relax_part(args.engine, args.workers, rows)
     else:
         pb_part(args.engine, args.workers, rows, save=lambda: _save(rows, args.out))
     _save(rows, args.out)

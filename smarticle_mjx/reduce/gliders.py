@@ -280,8 +280,8 @@ def glide_summary(com, rel, touched, burn_in: int) -> dict:
       burn_in: periods skipped before a pair must stay bound.
 
     Returns:
-      gliders and pairs bound at the end; for the gliders: net speed and
-      mean step (W/period), direction persistence, median change of
+      gliders and pairs bound at the end; for the gliders: net speed (with a
+      95 % bootstrap interval over gliders) and mean step (W/period), direction persistence, median change of
       direction (deg), straightness over 20 periods, beta over delays 5-15
       (centred MSD, bootstrap sd), sign persistence of phi - 180 deg,
       repeatability of (|r|, phi), the C2 (aligned) fraction of samples,
@@ -298,8 +298,10 @@ def glide_summary(com, rel, touched, burn_in: int) -> dict:
     sp = sign_persistence(g_rel, hold=min(50, periods - burn_in))
     aligned = np.cos(g_rel[..., 2]) > 0
     c1 = ~aligned.any(1)
+    _, ns_lo, ns_hi, _ = _transport.bootstrap_interval(ns)
     out.update({
         "net_speed_W_per_period": float(np.nanmean(ns)),
+        "net_speed_interval": [float(ns_lo), float(ns_hi)],  # 95 % bootstrap over gliders (NaN below 3)
         "mean_step_W_per_period": float(np.nanmean(_transport.step_lengths(g_com))),
         "persistence": _transport.direction_persistence(g_com),
         "median_turn_deg": float(np.degrees(_transport.median_direction_change(g_com))),
