@@ -91,7 +91,7 @@ def valid_starts(params, amplitude: float, n: int, r_range, seed: int) -> np.nda
 
 
 def scan_store(engine: str, name: str, starts: np.ndarray, amplitude: float, periods: int, collisions: bool,
-               workers: int, model: str | None = None) -> pathlib.Path:
+               workers: int, model: str | None = None, params=None, dart_numerics=None) -> pathlib.Path:
     """Run (or resume) one explicit-start scan into ``twin_runs/<name>.h5``:
     DART through the Dask executor on ``workers`` processes, MuJoCo here."""
     from smarticle_mjx.scan import ScanConfig, run_scan
@@ -100,13 +100,13 @@ def scan_store(engine: str, name: str, starts: np.ndarray, amplitude: float, per
     cfg = ScanConfig(configs="explicit", initial=tuple(tuple(float(v) for v in row) for row in starts),
                      amplitudes_deg=(amplitude,), periods=periods, backend="dart" if engine == "dart" else "native",
                      model=model or presets.DEFAULT, collisions=collisions, collision_bins=GLIDE["bins"],
-                     batch_size=2 if engine == "dart" else 64)
+                     batch_size=2 if engine == "dart" else 64, dart_numerics=dart_numerics)
     executor = None
     if engine == "dart":
         from smarticle_mjx.executors import DaskExecutor
         executor = DaskExecutor(workers=workers, shard_size=2)
     t = time.perf_counter()
-    summary = run_scan(cfg, out, mode="resume" if out.exists() else "new", executor=executor,
+    summary = run_scan(cfg, out, mode="resume" if out.exists() else "new", executor=executor, params=params,
                        on_progress=lambda p: print(f"  {out.name}: {p['done']}/{p['total']} "
                                                    f"({time.perf_counter() - t:.0f} s)", flush=True))
     print(f"{out.name}: {summary.get('wall_s', 0):.0f} s", flush=True)
@@ -153,18 +153,21 @@ def collision_level(coll: dict, touched: np.ndarray) -> dict:
             "attractive_fraction": float((by > 0).any(-1).mean()) if on.any() else None}
 
 
-def pairs_part(engine: str, workers: int, rows: dict, label: str | None = None, params=None, model=None):
-    """Gliders from ``GLIDE['n']`` random 90-degree starts and their collision record."""
+def pairs_part(engine: str, workers: int, rows: dict, servo: str = "constraint"):
+    """Gliders from ``GLIDE['n']`` random 90-degree starts and their collision record.
+    ``servo`` "pd": DART runs the default's PD + lag law as joint forces, without armature."""
     from smarticle_mjx.reduce import gliders
-    params = params or presets.params(model)
-    label = label or engine
+    params, numerics, label = presets.params(), None, engine
+    if servo == "pd":
+        params = params.replace(robot=dataclasses.replace(params.robot, servo_armature=0.0))
+        numerics, label = (1e-4, "fcl-mesh", "dantzig", "pd"), f"{engine} pd"
     name = f"glide_{GLIDE['n']}x{GLIDE['periods']}_s{GLIDE['seed']}"
     if name in rows.get(label, {}):
         return
     starts = valid_starts(params, 90.0, GLIDE["n"], GLIDE["r_range"], GLIDE["seed"])
     t = time.perf_counter()
     path = scan_store(engine, f"{label.replace(' ', '_')}_{name}", starts, 90.0, GLIDE["periods"], True, workers,
-                      model=model)
+                      params=params if servo == "pd" else None, dart_numerics=numerics)
     tr = store_tracks(path, params.robot.body_length)
     summary = gliders.glide_summary(tr["com"], tr["rel"], tr["touched"], GLIDE["burn_in"])
     summary.update({"starts": GLIDE["n"], "periods": GLIDE["periods"], "burn_in": GLIDE["burn_in"],
@@ -249,6 +252,10 @@ VARIANTS = {
     # DART's SERVO law as a stiff velocity loop (the `dart` servo of presets.py) within the default's torque
     "velocity servo": ({}, {"servo_kv": 0.003, "servo_kp": 0.003 / 1.6, "servo_armature": 0.0,
                             "servo_timeconst": 0.0}, None),
+    # a blocked arm pushes at the torque bound, as DART's SERVO constraint does: a position loop that
+    # saturates 0.078 N m at 1 degree of error (the `stiff` servo of presets.py at the default's bound)
+    "stiff servo": ({}, {"servo_kp": 0.078 / math.radians(1.0), "servo_kv": None, "servo_armature": 0.0,
+                         "servo_timeconst": 0.0}, None),
     "pyramidal cone": ({}, {}, _set_opt(cone=0)),  # the default is elliptic
     "impratio 10": ({}, {}, _set_opt(impratio=10.0)),
     "noslip 10": ({}, {}, _set_opt(noslip_iterations=10)),
@@ -379,9 +386,25 @@ GLIDE_ROWS = ["gliders / starts (periods)", "net speed (W/period) [95 % bootstra
               "touching periods with an attractive kind", "contact steps per touching period"]
 
 
-def tables(done: dict) -> str:
-    """docs/twin.md's tables from the JSON (glider rows recomputed from the stores when they are here)."""
+def refresh(path: pathlib.Path) -> dict:
+    """Recompute the glider rows of the JSON from their stores where these are
+    here (a row written before the summary gained a quantity gets it) and save."""
     from smarticle_mjx.reduce import gliders
+    done = json.loads(path.read_text())
+    gname = f"glide_{GLIDE['n']}x{GLIDE['periods']}_s{GLIDE['seed']}"
+    rows = {}
+    for key, e in done.get("pairs", {}).items():
+        store = STORES / f"{key.replace(' ', '_')}_{gname}.h5"
+        if gname in e and store.exists():
+            tr = store_tracks(store, presets.params(done.get("model")).robot.body_length)
+            rows[key] = {gname: {**e[gname], **gliders.glide_summary(tr["com"], tr["rel"], tr["touched"],
+                                                                      GLIDE["burn_in"])}}
+    _save(rows, path)
+    return json.loads(path.read_text())
+
+
+def tables(done: dict) -> str:
+    """docs/twin.md's tables from the JSON."""
     lone, pairs = done.get("lone", {}), done.get("pairs", {})
     params = presets.params()
     gname = f"glide_{GLIDE['n']}x{GLIDE['periods']}_s{GLIDE['seed']}"
@@ -407,11 +430,7 @@ def tables(done: dict) -> str:
         rows["lone drift 90° (W/cycle)"].append(_f(l90.get("drift_W_per_cycle"), ".1e"))
         rows["lone drift 10° (W/cycle)"].append(_f(l10.get("drift_W_per_cycle"), ".1e"))
         rows["slip of the body per arm move, 90° (W)"].append(_f(l90.get("slip_per_edge_W"), ".1e"))
-        g = dict(e.get(gname, {}))
-        path = STORES / f"{key}_{gname}.h5"
-        if g and path.exists():  # recompute from the store (the JSON may predate a new quantity)
-            tr = store_tracks(path, params.robot.body_length)
-            g.update(gliders.glide_summary(tr["com"], tr["rel"], tr["touched"], GLIDE["burn_in"]))
+        g = e.get(gname, {})
         for q, cell in zip(GLIDE_ROWS, _glide_cells(g)):
             rows[q].append(cell)
         for a in PB["amplitudes"]:
@@ -466,18 +485,21 @@ def main():
                     help="diagnose: comma-separated names of VARIANTS (join names with '+' to combine them)")
     ap.add_argument("--engine", default="mujoco", choices=("mujoco", "dart"), help="pairs, pb: the engine")
     ap.add_argument("--workers", type=int, default=2, help="DART's Dask worker processes")
+    ap.add_argument("--servo", default="constraint", choices=("constraint", "pd"),
+                    help="pairs, DART: its SERVO constraint, or the default model's PD + lag law as joint forces "
+                         "(armature 0, which DART cannot model)")
     ap.add_argument("--periods", type=int, default=12, help="lone: periods per robot")
     ap.add_argument("--out", type=pathlib.Path, default=OUT)
     args = ap.parse_args()
     if args.part == "lone":
         return lone(args)
     if args.part == "table":
-        return print(tables(json.loads(args.out.read_text())))
+        return print(tables(refresh(args.out)))
     if args.part == "diagnose":
         return diagnose(args.variants.split(","), args.out, args.periods)
     rows = {}
     if args.part == "pairs":
-        pairs_part(args.engine, args.workers, rows)
+        pairs_part(args.engine, args.workers, rows, servo=args.servo)
     elif args.part == "relax":
         relax_part(args.engine, args.workers, rows)
     else:

@@ -74,8 +74,8 @@ class RelaxConfig:
     chunk_periods: int = 5
     quiet_periods: int = 10  # stop a trial after this many periods without any contact (0: never)
     model: str = presets.DEFAULT
-    # backend "dart": (time step s, collision detector, LCP solver); None: the DART twin's defaults
-    dart_numerics: tuple[float, str, str] | None = None
+    # backend "dart": (time step s, collision detector, LCP solver[, servo]); None: the DART twin's defaults
+    dart_numerics: tuple | None = None
 
     def gait_spec(self) -> GaitSpec:
         return GaitSpec(amplitude_deg=self.amplitude_deg, chirality=self.chirality, kind=self.gait,
@@ -119,7 +119,7 @@ class RelaxConfig:
         d = dataclasses.asdict(self)
         if self.backend == "dart":  # the twin's numerics, resolved, so the store says what ran
             n = self.backend_options()["numerics"]
-            d["dart_numerics"] = [n.timestep, n.detector, n.lcp]
+            d["dart_numerics"] = n.record()
         else:
             del d["dart_numerics"]  # other backends' stores keep their earlier configuration
         return d

@@ -53,8 +53,8 @@ class ScanConfig:
     collisions: bool = False  # keep the per-period collision record (native and dart backends)
     collision_bins: int = 16  # its bins per gait period
     initial: tuple[tuple[float, float, float], ...] | None = None  # configs = "explicit"
-    # backend "dart": (time step s, collision detector, LCP solver); None: the DART twin's defaults
-    dart_numerics: tuple[float, str, str] | None = None
+    # backend "dart": (time step s, collision detector, LCP solver[, servo]); None: the DART twin's defaults
+    dart_numerics: tuple | None = None
 
     def scene_params(self) -> SceneParams:
         """The preset's parameters (ValueError naming the known presets if unknown)."""
@@ -135,7 +135,7 @@ class ScanConfig:
             d["initial"] = [[float(x) for x in c] for c in self.initial]
         if self.backend == "dart":  # the twin's numerics, resolved, so the store says what ran
             n = self.dart()
-            d["dart_numerics"] = [n.timestep, n.detector, n.lcp]
+            d["dart_numerics"] = n.record()
         else:
             del d["dart_numerics"]  # other backends' stores keep their earlier configuration
         return d

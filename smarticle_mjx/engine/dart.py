@@ -42,6 +42,7 @@ from ..scene import SceneParams
 MISSING = "the dart backend needs DART's Python package: pip install -e '.[dart]'"
 DETECTORS = ("fcl-mesh", "fcl", "ode", "bullet", "dart")
 LCP_SOLVERS = ("dantzig", "pgs")
+SERVOS = ("constraint", "pd")
 PLATE_THICKNESS = 0.02  # m; the plate is a static box whose top face is z = 0
 
 
@@ -51,11 +52,21 @@ def available() -> bool:
 
 @dataclasses.dataclass(frozen=True)
 class DartNumerics:
-    """How DART integrates: its step, collision detector and LCP solver."""
+    """How DART runs the robots: its step, collision detector and LCP solver,
+    and how the servo is realised: ``"constraint"``, DART's SERVO actuator (a
+    velocity command held within the torque bound), or ``"pd"``, the preset's
+    own PD + feed-forward + lag law applied as joint forces (the law of the
+    MJCF's actuators; DART has no joint armature, so it needs a model with
+    ``servo_armature`` 0)."""
 
     timestep: float = 1e-4
     detector: str = "fcl-mesh"
     lcp: str = "dantzig"
+    servo: str = "constraint"
+
+    def record(self) -> list:
+        """As a store records it: [time step, detector, LCP solver], and the servo unless it is DART's own."""
+        return [self.timestep, self.detector, self.lcp] + ([self.servo] if self.servo != "constraint" else [])
 
     def validate(self) -> None:
         if not self.timestep > 0:
@@ -64,14 +75,19 @@ class DartNumerics:
             raise ValueError(f"DART collision detector must be one of {', '.join(DETECTORS)}, got {self.detector!r}")
         if self.lcp not in LCP_SOLVERS:
             raise ValueError(f"DART LCP solver must be one of {', '.join(LCP_SOLVERS)}, got {self.lcp!r}")
+        if self.servo not in SERVOS:
+            raise ValueError(f"DART servo must be one of {', '.join(SERVOS)}, got {self.servo!r}")
 
 
 def numerics_of(spec) -> DartNumerics:
-    """The numerics a study names as (time step s, collision detector, LCP solver); None: the defaults."""
+    """The numerics a study names as (time step s, collision detector, LCP solver[, servo]); None: the defaults."""
     if spec is None:
         return DartNumerics()
-    timestep, detector, lcp = spec
-    return DartNumerics(timestep=float(timestep), detector=str(detector), lcp=str(lcp))
+    if len(spec) not in (3, 4):
+        raise ValueError(f"dart numerics are (time step, detector, LCP solver[, servo]), got {list(spec)}")
+    timestep, detector, lcp, *servo = spec
+    return DartNumerics(timestep=float(timestep), detector=str(detector), lcp=str(lcp),
+                        servo=str(servo[0]) if servo else "constraint")
 
 
 def check_study(backend: str, spec) -> None:
@@ -127,7 +143,11 @@ class DartScene:
         import dartpy as dart
         numerics.validate()
         params.validate()
+        if numerics.servo == "pd" and params.robot.servo_armature > 0:
+            raise ValueError("DART has no joint armature: its pd servo needs a model with servo_armature 0, "
+                             f"got {params.robot.servo_armature:g} kg m^2")
         self.params, self.numerics = params, numerics
+        self._act = None  # the pd servo's filtered (setpoint, rate) per robot and arm
         D = dart.dynamics
         self.world = world = dart.simulation.World()
         world.setGravity(np.asarray(params.gravity, float) if plate else np.zeros(3))
@@ -176,7 +196,9 @@ class DartScene:
                     _contact_shape(arm, D.CapsuleShape(r, tip), params.robot_friction, f"r{i}_arm{k + 1}",
                                    at=(sign * tip / 2, 0, 0),
                                    rotation=y90)
-                joint.setActuatorType(D.ActuatorType.SERVO)
+                joint.setActuatorType(D.ActuatorType.SERVO if numerics.servo == "constraint"
+                                      else D.ActuatorType.FORCE)
+                joint.setDampingCoefficient(0, rp.joint_damping)
                 joint.setForceLowerLimit(0, -rp.servo_torque)
                 joint.setForceUpperLimit(0, rp.servo_torque)
                 joint.setPositionLowerLimit(0, -lim)
@@ -241,14 +263,38 @@ class DartScene:
 
     # ------------------------------------------------------------------ servo
     def command(self, setpoints: np.ndarray, rates: np.ndarray) -> None:
-        """SERVO commands of every arm: the setpoint's rate plus the trim
-        ``servo_kp / servo_kv`` x (setpoint - angle), in rad/s; [N, 2] each."""
+        """Command every arm for the next step with its setpoint and the
+        setpoint's rate ([N, 2] each, rad and rad/s).
+
+        ``constraint`` servo: a SERVO velocity command, the rate plus the trim
+        ``servo_kp / servo_kv`` x (setpoint - angle). ``pd`` servo: the joint
+        torque clip(kp (s - q) + kv (v - qdot), +-servo_torque), where (s, v)
+        pass through the MJCF's exact first-order filter of time constant
+        ``servo_timeconst`` (started at the first command, and, as MuJoCo's
+        actuator activation, applied to this step before the filter takes in
+        this step's command)."""
+        if self.numerics.servo == "pd":
+            return self._pd(np.asarray(setpoints, float), np.asarray(rates, float))
         rp = self.params.robot
         trim = rp.servo_kp / rp.kv if rp.kv else 0.0
         for (_, _, joints, _), sp, rate in zip(self.robots, np.asarray(setpoints), np.asarray(rates)):
             for k in range(2):
                 # in float64 whatever the controls' dtype (float32 from the gait function)
                 joints[k].setCommand(0, float(rate[k]) + trim * (float(sp[k]) - joints[k].getPosition(0)))
+
+    def _pd(self, sp: np.ndarray, rate: np.ndarray) -> None:
+        rp = self.params.robot
+        u = np.stack([sp, rate], -1)  # [N, 2 arms, (setpoint, rate)]
+        if self._act is None:
+            self._act = u.copy()
+        act = self._act
+        for (_, _, joints, _), a in zip(self.robots, act):
+            for k in range(2):
+                j = joints[k]
+                tau = rp.servo_kp * (a[k, 0] - j.getPosition(0)) + rp.kv * (a[k, 1] - j.getVelocity(0))
+                j.setCommand(0, min(max(tau, -rp.servo_torque), rp.servo_torque))
+        tau_f = rp.servo_timeconst
+        self._act = u if tau_f <= 0 else act + (u - act) * -math.expm1(-self.numerics.timestep / tau_f)
 
     def hold(self) -> None:
         """Command every arm to stay where it is (the servo at rest)."""
