@@ -172,8 +172,9 @@ class DaskExecutor:
         uses this many cores. LocalCluster workers get one Dask thread each.
       shard_size: configurations per shard (a few minutes of work each:
         the default 64 is ~2 minutes of a 75-period scan on one core).
-      dashboard: LocalCluster: serve Dask's dashboard (off: it is an open
-        HTTP port).
+      dashboard: LocalCluster: serve Dask's dashboard on 127.0.0.1:8787 (off:
+        no dashboard pages; the scheduler's HTTP server, which Dask always
+        starts, listens on a free loopback port).
       security: a ``distributed.Security`` for TLS to a shared scheduler.
     """
 
@@ -225,8 +226,11 @@ class DaskExecutor:
             import os
             n = self.workers or max(1, (os.cpu_count() or 1) // self.threads_per_worker)
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, resources={"shard": 1},
-                                   host="127.0.0.1", dashboard_address="127.0.0.1:8787" if self.dashboard else None,
-                                   silence_logs=50)
+                                   host="127.0.0.1", silence_logs=50,
+                                   # off: Dask still runs its scheduler's HTTP server (health, metrics); on a free
+                                   # loopback port, so that clusters side by side do not contend for 8787
+                                   dashboard_address="127.0.0.1:8787" if self.dashboard else "127.0.0.1:0",
+                                   scheduler_kwargs={} if self.dashboard else {"dashboard": False})
             return cluster, Client(cluster)
         try:  # waits Dask's connect timeout (distributed.comm.timeouts.connect, 30 s unless configured)
             return None, Client(self.scheduler, security=self.security)
