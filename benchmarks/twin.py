@@ -153,14 +153,19 @@ def collision_level(coll: dict, touched: np.ndarray) -> dict:
             "attractive_fraction": float((by > 0).any(-1).mean()) if on.any() else None}
 
 
-def pairs_part(engine: str, workers: int, rows: dict, servo: str = "constraint"):
+def pairs_part(engine: str, workers: int, rows: dict, servo: str = "constraint", detector: str = "fcl-mesh",
+               step: float = 1e-4):
     """Gliders from ``GLIDE['n']`` random 90-degree starts and their collision record.
-    ``servo`` "pd": DART runs the default's PD + lag law as joint forces, without armature."""
+    DART: ``servo`` "pd" runs the default's PD + lag law as joint forces, without
+    armature; ``detector`` and ``step`` other than the defaults test the twin's numerics."""
     from smarticle_mjx.reduce import gliders
     params, numerics, label = presets.params(), None, engine
+    if engine == "dart" and (servo, detector, step) != ("constraint", "fcl-mesh", 1e-4):
+        numerics = (step, detector, "dantzig") + ((servo,) if servo != "constraint" else ())
+        label = " ".join([engine] + (["pd"] if servo == "pd" else []) + ([detector] if detector != "fcl-mesh" else [])
+                         + ([f"{step * 1e3:g}ms"] if step != 1e-4 else []))
     if servo == "pd":
         params = params.replace(robot=dataclasses.replace(params.robot, servo_armature=0.0))
-        numerics, label = (1e-4, "fcl-mesh", "dantzig", "pd"), f"{engine} pd"
     name = f"glide_{GLIDE['n']}x{GLIDE['periods']}_s{GLIDE['seed']}"
     if name in rows.get(label, {}):
         return
@@ -410,8 +415,11 @@ def tables(done: dict) -> str:
     gname = f"glide_{GLIDE['n']}x{GLIDE['periods']}_s{GLIDE['seed']}"
     rname = f"relax_{RELAX['trials']}x{RELAX['periods']}_s{RELAX['seed']}"
     cols = {"dart": ("DART twin (fcl-mesh, 0.1 ms)", "dart fcl-mesh 0.1 ms"),
+            "dart fcl": ("DART, FCL primitives", "dart fcl 0.1 ms"),
+            "dart pd": ("DART, the default's PD + lag servo, no armature", "dart pd fcl-mesh 0.1 ms"),
             "mujoco": (f"MuJoCo `{done.get('model', presets.DEFAULT)}` ({params.timestep * 1e3:g} ms)",
                        f"mujoco {params.timestep * 1e3:g} ms")}
+    cols = {k: v for k, v in cols.items() if k in pairs}
     rows = {"lone drift 90° (W/cycle)": ["1.5e-3 (lab)"], "lone drift 10° (W/cycle)": ["larger than at 90° (SI)"],
             "slip of the body per arm move, 90° (W)": ["—"]}
     paper = ["—", "≈ 0.03 (lab: 2.9 W over ≥ 100 periods)", "nearly ballistic", "—", "≈ 1.8", "consistent sign",
@@ -449,12 +457,16 @@ def tables(done: dict) -> str:
     out = [head, "|" + " --- |" * (2 + len(cols))] + [f"| {q} | " + " | ".join(v) + " |" for q, v in rows.items()]
     diag = done.get("diagnosis", {})
     if diag:
-        out += ["", "| MuJoCo variant (one choice switched) | slip per arm move 90° (W) | lone drift 90° (W/cycle) | "
-                + " | ".join(GLIDE_ROWS[:3]) + " | β | impulse along r per touching period (N s) | "
+        out += ["", "| engine, variant | slip per arm move 90° (W) | lone drift 90° (W/cycle) | "
+                "gliders / starts (periods) | net speed (W/period) | direction persistence | β | impulse along r per touching period (N s) | "
                 "Σ\|impulse along r\| (N s) | attractive periods |", "|" + " --- |" * 10]
-        tw = pairs.get("dart", {}).get(gname, {})
-        l90 = lone.get("dart fcl-mesh 0.1 ms, 90 deg", {})
-        for name, row in [("**DART twin**", {"lone90": l90, "glide": tw})] + list(diag.items()):
+        twins = [("**DART twin**", {"lone90": lone.get("dart fcl-mesh 0.1 ms, 90 deg", {}),
+                                    "glide": pairs.get("dart", {}).get(gname, {})})]
+        if "dart pd" in pairs:
+            twins.append(("**DART, PD + lag servo, armature 0**",
+                          {"lone90": lone.get("dart pd fcl-mesh 0.1 ms, 90 deg", {}),
+                           "glide": pairs["dart pd"].get(gname, {})}))
+        for name, row in twins + [(f"MuJoCo: {k}", v) for k, v in diag.items()]:
             lo, g = row.get("lone90", {}), row.get("glide", {})
             c = _glide_cells(g)
             out.append(f"| {name} | {_f(lo.get('slip_per_edge_W'), '.1e')} | {_f(lo.get('drift_W_per_cycle'), '.1e')} | "
@@ -488,18 +500,29 @@ def main():
     ap.add_argument("--servo", default="constraint", choices=("constraint", "pd"),
                     help="pairs, DART: its SERVO constraint, or the default model's PD + lag law as joint forces "
                          "(armature 0, which DART cannot model)")
+    ap.add_argument("--detector", default="fcl-mesh", help="pairs, DART: collision detector (sensitivity)")
+    ap.add_argument("--step", type=float, default=1e-4, help="pairs, DART: time step in s (sensitivity)")
     ap.add_argument("--periods", type=int, default=12, help="lone: periods per robot")
     ap.add_argument("--out", type=pathlib.Path, default=OUT)
+    ap.add_argument("--doc", type=pathlib.Path, default=None, help="table: write the tables into this page")
     args = ap.parse_args()
     if args.part == "lone":
         return lone(args)
     if args.part == "table":
-        return print(tables(refresh(args.out)))
+        text = tables(refresh(args.out))
+        if args.doc:  # replace the tables between the page's markers
+            page = args.doc.read_text()
+            for k, t in zip(("cross", "diagnosis"), text.split("\n\n")):
+                a, b = f"<!-- twin.py table: {k} -->\n", f"\n<!-- end of table: {k} -->"
+                i, j = page.index(a) + len(a), page.index(b)
+                page = page[:i] + t.strip() + page[j:]
+            args.doc.write_text(page)
+        return print(text)
     if args.part == "diagnose":
         return diagnose(args.variants.split(","), args.out, args.periods)
     rows = {}
     if args.part == "pairs":
-        pairs_part(args.engine, args.workers, rows, servo=args.servo)
+        pairs_part(args.engine, args.workers, rows, servo=args.servo, detector=args.detector, step=args.step)
     elif args.part == "relax":
         relax_part(args.engine, args.workers, rows)
     else:
@@ -518,6 +541,9 @@ def lone(args):
     for det, dt in (("fcl-mesh", 1e-4), ("fcl-mesh", 5e-5), ("fcl", 1e-4), ("ode", 1e-4), ("bullet", 1e-4)):
         runs[f"dart {det} {dt * 1e3:g} ms"] = (lambda d, s: lambda g: dart_row(params, g, args.periods,
                                                                                DartNumerics(timestep=s, detector=d)))(det, dt)
+    # the default's own PD + lag servo as joint forces in DART (armature 0, which DART cannot model)
+    no_arm = params.replace(robot=dataclasses.replace(params.robot, servo_armature=0.0))
+    runs["dart pd fcl-mesh 0.1 ms"] = lambda g: dart_row(no_arm, g, args.periods, DartNumerics(servo="pd"))
     for name, run in runs.items():
         for amp in (90.0, 10.0):
             key = f"{name}, {amp:g} deg"

@@ -99,7 +99,29 @@ def _agreement() -> list[tuple[str, str]]:
                           f"{100 * labels['agree_hi']:.1f} %)")]
 
 
-HEADLINES = {"full scan": _full_scan, "early exit": _early_exit, "claims": _claims,
+def _twin() -> list[tuple[str, str]]:
+    """The cross-engine study: glider net speeds in the table and the prose, P_b and the lone slips."""
+    d = _json("twin.json")
+    out = []
+    glide = {k: e["glide_32x60_s1"] for k, e in d["pairs"].items() if "glide_32x60_s1" in e}
+    for key, g in glide.items():
+        lo, hi = g["net_speed_interval"]
+        out.append(("docs/twin.md", f"{g['net_speed_W_per_period']:.4f} [{lo:.4f}, {hi:.4f}]"))
+    for key, name in (("dart", "DART's gliders"), ("mujoco", "MuJoCo's")):
+        g = glide[key]
+        lo, hi = g["net_speed_interval"]
+        out.append(("docs/twin.md", f"{g['net_speed_W_per_period']:.4f} W per period" if key == "dart" else
+                    f"{name} {g['net_speed_W_per_period']:.4f} ({lo:.4f}–{hi:.4f}, {g['gliders']} gliders)"))
+    for key, e in d["pairs"].items():
+        for name, v in e.items():
+            if name.startswith("pb"):
+                out.append(("docs/twin.md", f"{v['end'][0]:.2f} [{v['end'][1]:.2f}, {v['end'][2]:.2f}] ({v['n']})"))
+    for key in ("dart fcl-mesh 0.1 ms, 90 deg", "mujoco 0.5 ms, 90 deg"):
+        out.append(("docs/twin.md", f"{d['lone'][key]['slip_per_edge_W']:.1e}"))
+    return out
+
+
+HEADLINES = {"twin": _twin, "full scan": _full_scan, "early exit": _early_exit, "claims": _claims,
              "relaxation and lone robot": _relax_and_lone, "glider step": _glider_step, "engine": _engine,
              "backend agreement": _agreement}
 
