@@ -277,10 +277,11 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
     config.validate(params)
     params.validate()
     cfg = config.initial_configs()
+    dt = config.dart().timestep if config.backend == "dart" else params.timestep  # the engine's own step
     runs = {}
     for a in config.amplitudes_deg:
         g = config.gait_spec(a)
-        period = steps_per_period(g.period(), params.timestep) * params.timestep
+        period = steps_per_period(g.period(), dt) * dt
         runs[run_name(a)] = {"amplitude_deg": float(a), "period_s": period, "chirality": g.chirality,
                              "gait": g.kind, "periods": config.periods, "n_configs": len(cfg)}
     full = {"model": model, "scan": config.to_json(), "scene": _params_json(params)}
@@ -288,8 +289,7 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
         full["executor"] = executor.describe()
     t0 = time.perf_counter()
     summary = {"configs": len(cfg), "runs": {}, "steps": 0}
-    nsteps = {name: steps_per_period(config.gait_spec(a["amplitude_deg"]).period(), params.timestep)
-              for name, a in runs.items()}
+    nsteps = {name: steps_per_period(config.gait_spec(a["amplitude_deg"]).period(), dt) for name, a in runs.items()}
     with Writer(out, full, runs, mode=mode) as w:
         done = {name: len(cfg) - sum(b - a for a, b in w.missing(name, len(cfg))) for name in runs}
 

@@ -232,9 +232,12 @@ def test_a_dart_scan_on_dask_writes_the_local_store(tmp_path):
     from smarticle_mjx.scan import ScanConfig, run_scan
     cfg = ScanConfig(n=4, r_range_W=(0.8, 1.4), amplitudes_deg=(45.0,), periods=1, seed=2, backend="dart",
                      batch_size=2)
-    run_scan(cfg, tmp_path / "local.h5")
-    run_scan(cfg, tmp_path / "dask.h5", executor=DaskExecutor(workers=1, shard_size=2))
+    local = run_scan(cfg, tmp_path / "local.h5")
+    dask = run_scan(cfg, tmp_path / "dask.h5", executor=DaskExecutor(workers=1, shard_size=2))
     assert_same_store(tmp_path / "local.h5", tmp_path / "dask.h5")
+    # steps are DART's: a 0.8 s period is 8000 steps of 0.1 ms (1600 of the scene's 0.5 ms)
+    valid = sum(r["valid"] for r in local["runs"].values())
+    assert local["steps"] == dask["steps"] == valid * 8000
 
 
 def _head_on(v: float = 0.1):
