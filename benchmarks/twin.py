@@ -415,6 +415,7 @@ def tables(done: dict) -> str:
     gname = f"glide_{GLIDE['n']}x{GLIDE['periods']}_s{GLIDE['seed']}"
     rname = f"relax_{RELAX['trials']}x{RELAX['periods']}_s{RELAX['seed']}"
     cols = {"dart": ("DART twin (fcl-mesh, 0.1 ms)", "dart fcl-mesh 0.1 ms"),
+            "dart 0.05ms": ("DART, fcl-mesh, 0.05 ms", "dart fcl-mesh 0.05 ms"),
             "dart fcl": ("DART, FCL primitives", "dart fcl 0.1 ms"),
             "dart pd": ("DART, the default's PD + lag servo, no armature", "dart pd fcl-mesh 0.1 ms"),
             "mujoco": (f"MuJoCo `{done.get('model', presets.DEFAULT)}` ({params.timestep * 1e3:g} ms)",
