@@ -253,8 +253,7 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
                           chunk_periods=config.chunk_periods, rule=RetireRule(quiet_periods=config.quiet_periods),
                           on_lanes=on_lanes)
             finally:
-                if hasattr(backend, "close"):
-                    backend.close()
+                backend.close()
         w.finalize()
     summary["wall_s"] = time.perf_counter() - t0
     summary["steps_per_s"] = summary["steps"] / max(summary["wall_s"], 1e-9)

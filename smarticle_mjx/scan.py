@@ -361,8 +361,7 @@ def _run_here(config, params, runs, cfg, w, flush_rows, summary, nsteps, done, p
                 summary["backend_s"] = summary.get("backend_s", 0.0) + ran["backend_seconds"]
                 flush(force=True)
     finally:
-        if hasattr(backend, "close"):
-            backend.close()
+        backend.close()
 
 
 def config_from_json(d: dict) -> ScanConfig:

@@ -316,3 +316,26 @@ def test_lane_controls_are_each_lanes_own_gait_and_compile_once_per_shape():
     assert core._controls._cache_size() == compiled
     assert outs[1].shape[0] == 17 and np.array_equal(outs[1][:5], outs[0])
     assert np.array_equal(outs[1][0], outs[1][16])  # one gait, one set of controls
+
+
+def test_every_backend_offers_the_written_interface(scene):
+    """Each backend the package builds (those importable here) is an
+    engine.core.Backend with a batching policy the batch runner knows, and
+    a context manager that releases it: the native backend's thread pool is
+    gone after the block."""
+    from smarticle_mjx.engine import BACKENDS
+    from smarticle_mjx.engine.core import BATCHING, Backend
+    built = 0
+    for name in BACKENDS:
+        try:
+            be = make_backend(name, scene)
+        except (ValueError, ImportError, RuntimeError):  # an optional extra that is not installed, or no device
+            continue
+        with be as entered:
+            assert entered is be and isinstance(be, Backend), name
+            assert be.name == name and be.batching in BATCHING and be.scene is scene
+        built += 1
+    assert built >= 2  # native and mjx are always here
+    with make_backend("native", scene, nthread=2) as native:
+        assert native.pool is not None
+    assert native.pool is None

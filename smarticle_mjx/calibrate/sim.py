@@ -80,6 +80,5 @@ def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int
                 q = np.concatenate([poses[j][None], q], 0)
                 out[k] = _interp_track(t_sim, q, tr.t - t0s[j])
         finally:
-            if hasattr(be, "close"):
-                be.close()
+            be.close()
     return out  # type: ignore[return-value]

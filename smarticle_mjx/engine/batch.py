@@ -173,12 +173,8 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
     if b == 0:
         return dict(lanes=m, lane_periods=0, full_lane_periods=0, backend_seconds=0.0)
 
-    # native, dart: idle slots cost real work, run only the occupied ones. warp: the
-    # same, in power-of-two sub-batches (each size allocates device buffers
-    # and captures a graph once). mjx: idle slots keep running a finished
-    # lane, so the batch shape, and so the compiled function, stays the same.
-    shrink = getattr(backend, "name", "")
-    shrink = shrink if shrink in ("native", "warp", "dart") else None
+    # the backend's batching policy (engine.core.BATCHING)
+    shrink = backend.batching if backend.batching != "fixed" else None
     slot_lane = np.array(queue[:b])
     qpos = b
     slot_lanes = lanes.take(slot_lane)
@@ -198,7 +194,7 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
         t = time.perf_counter()
         if shrink and not active.all():
             idx = np.flatnonzero(active)
-            if shrink == "warp":
+            if shrink == "pow2":
                 idx = _pad_to_bucket(idx, b)
             sub_state, sub_rec, _ = backend.advance(_take_state(state, idx), slot_lanes.take(idx), n_adv,
                                                     record=record)

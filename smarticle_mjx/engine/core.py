@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+from typing import Protocol, runtime_checkable
 
 import jax
 import mujoco
@@ -374,3 +375,50 @@ def blank_collisions(b: int, k: int, p: int, bins: int) -> dict:
     return {"steps": np.zeros((b, k, p, n, bins), np.int32),
             "impulse": np.zeros((b, k, p, n, bins, 2), np.float32),
             "impulse_r": np.zeros((b, k, p, n, bins), np.float32)}
+
+
+# How the batch runner (batch.run_lanes) advances a batch whose slots are not all
+# occupied: "occupied" runs only the occupied slots (idle ones would cost real
+# work: native, dart); "pow2" runs them padded to a power of two (each size
+# allocates device buffers and captures a graph once: warp); "fixed" keeps
+# every slot running (a finished lane keeps going, so the batch shape, and the
+# compiled function, stays the same: mjx).
+BATCHING = ("occupied", "pow2", "fixed")
+
+
+@runtime_checkable
+class Backend(Protocol):
+    """What every engine backend offers the batch runner, scans and relaxations.
+
+    ``advance`` runs whole gait periods of every lane from ``state`` and
+    returns the new state, their :class:`PeriodRecords` and, when the record
+    asks for one, a full-rate track (else None). A backend is a context
+    manager: leaving the block releases its threads or device buffers.
+    """
+
+    name: str
+    scene: Scene
+    batching: str
+
+    def initial_state(self, lanes: Lanes): ...
+
+    def advance(self, state, lanes: Lanes, n_periods: int, *, t0: float = 0.0, record: Record | None = None): ...
+
+    def close(self) -> None: ...
+
+    def __enter__(self): ...
+
+    def __exit__(self, *exc) -> None: ...
+
+
+class BackendBase:
+    """Shared by the backends: nothing to release by default, and the context manager."""
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -37,6 +37,7 @@ from typing import Sequence
 import numpy as np
 
 from ..gait import GaitSpec
+from .core import BackendBase
 from ..scene import SceneParams
 
 MISSING = "the dart backend needs DART's Python package: pip install -e '.[dart]'"
@@ -361,7 +362,7 @@ class DartScene:
         return np.stack(out)
 
 
-class DartBackend:
+class DartBackend(BackendBase):
     """The engine interface on DART: lanes in, per-period records out.
 
     Each lane is its own DART world (a :class:`DartScene`); the state is an
@@ -387,6 +388,7 @@ class DartBackend:
     """
 
     name = "dart"
+    batching = "occupied"  # see engine.core.BATCHING
 
     def __init__(self, scene, numerics: DartNumerics = DartNumerics(), penetration_limit: float = 0.002):
         if not available():

@@ -28,7 +28,7 @@ import time
 import mujoco
 import numpy as np
 
-from .core import (Lanes, PeriodRecords, Record, Scene, Status, distinct_gaits, lane_controls, on_step_grid,
+from .core import (BackendBase, Lanes, PeriodRecords, Record, Scene, Status, distinct_gaits, lane_controls, on_step_grid,
                    steps_per_period)
 
 MISSING = "the warp backend needs MuJoCo Warp: pip install -e '.[gpu]'"
@@ -135,7 +135,7 @@ class _Batch:
     graph: object = None
 
 
-class WarpBackend:
+class WarpBackend(BackendBase):
     """Batched MuJoCo Warp rollouts on one Warp device (default: the first GPU, else the CPU).
 
     Args:
@@ -149,6 +149,7 @@ class WarpBackend:
     """
 
     name = "warp"
+    batching = "pow2"  # see engine.core.BATCHING
 
     def __init__(self, scene: Scene, device: str | None = None, penetration_limit: float = 0.002,
                  deterministic: bool = False, graph: bool = True):

@@ -24,7 +24,7 @@ from mujoco import mjx
 
 from .. import gait as gait_mod
 from . import mjx_collision
-from .core import Lanes, PeriodRecords, Record, Scene, Status, on_step_grid, steps_per_period
+from .core import BackendBase, Lanes, PeriodRecords, Record, Scene, Status, on_step_grid, steps_per_period
 
 
 def _strip_sensors(xml: str) -> str:
@@ -65,10 +65,11 @@ MATMUL_PRECISION = "highest"
 # integrators MJX (JAX) implements in mjx.step
 MJX_INTEGRATORS = ("Euler", "RK4", "implicitfast")
 
-class MjxBackend:
+class MjxBackend(BackendBase):
     """Batched MJX rollouts; runs on whatever device JAX chose (CPU or GPU)."""
 
     name = "mjx"
+    batching = "fixed"  # see engine.core.BATCHING
 
     def __init__(self, scene: Scene, penetration_limit: float = 0.002, ls_iterations: int = LS_ITERATIONS):
         self.scene = scene

@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
-from .core import (COLLISION_WIDTH, CONTACT_KINDS, SENSOR_WIDTH, Lanes, PeriodRecords, Record, Scene, Status,
+from .core import (BackendBase, COLLISION_WIDTH, CONTACT_KINDS, SENSOR_WIDTH, Lanes, PeriodRecords, Record, Scene, Status,
                    blank_collisions, lane_controls, on_step_grid, steps_per_period)
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
@@ -27,10 +27,11 @@ def state_offsets(model: mujoco.MjModel) -> tuple[int, int]:
     return t, t + nq
 
 
-class NativeBackend:
+class NativeBackend(BackendBase):
     """Batched native MuJoCo rollouts on ``nthread`` threads (default: all cores)."""
 
     name = "native"
+    batching = "occupied"  # see engine.core.BATCHING
 
     def __init__(self, scene: Scene, nthread: int | None = None, memory_budget: float = 256e6,
                  penetration_limit: float = 0.002):

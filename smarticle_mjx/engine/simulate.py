@@ -86,8 +86,7 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
         state = be.initial_state(lanes)
         _, rec, track = be.advance(state, lanes, periods, record=record)
     finally:
-        if hasattr(be, "close"):
-            be.close()
+        be.close()
     all_poses = np.concatenate([poses[None], rec.poses[0]], 0)
     res = SimResult(lanes.period, all_poses, rec.touched[0], rec.min_dist[0], scene.layout.pairs,
                     int(Status(int(rec.status[0]))), params.robot.body_length)
