@@ -49,7 +49,8 @@ def simulate(
     gait: str = typer.Option("square", help="square or diagonal (time-symmetric)"),
     period: Optional[float] = typer.Option(None, help="gait period in s (default: 1.6 s x amplitude / 90)"),
     periods: int = typer.Option(10, help="number of gait periods"),
-    track_stride: int = typer.Option(20, help="write every this many time steps"),
+    track_stride: int = typer.Option(20, help="write every this many time steps (of the backend's step)"),
+    backend: str = typer.Option("native", help="native, or dart (the DART twin at 0.1 ms steps; needs the dart extra)"),
     out: pathlib.Path = typer.Option(pathlib.Path("track.csv"), help="output .csv (+ .json sidecar) or .h5"),
     overwrite: bool = typer.Option(False, help="replace an existing output file"),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
@@ -65,6 +66,13 @@ def simulate(
         g.validate(params.robot.servo_speed, params.robot.arm_limit_deg)
         if periods < 1 or track_stride < 1:
             raise UserError("--periods and --track-stride must be positive")
+        if backend not in ("native", "dart"):
+            raise UserError(f"--backend must be native or dart (the backends that record tracks), got {backend!r}")
+        dt = params.timestep
+        if backend == "dart":
+            from .engine import dart
+            dart.check_study("dart", None)
+            dt = dart.DartNumerics().timestep
         if out.exists() and not overwrite:
             raise UserError(f"{out} exists; pass --overwrite to replace it")
         tracks.check_output(out)  # before simulating, not after
@@ -77,9 +85,8 @@ def simulate(
             poses = configs.pair_poses(r, math.radians(th), math.radians(ph), a0[0], a0[1], params.robot)
         else:
             poses = [(x, y, h, a0[0], a0[1]) for x, y, h, _, _ in scene_mod.standard_poses(scene, params.robot)]
-        res = run(params, poses, g, periods, track_stride=track_stride)
-        meta = tracks.sidecar(len(poses), g, params.plate_friction, 1.0 / (track_stride * params.timestep),
-                              model=preset.name)
+        res = run(params, poses, g, periods, track_stride=track_stride, backend=backend)
+        meta = tracks.sidecar(len(poses), g, params.plate_friction, 1.0 / (track_stride * dt), model=preset.name)
         t = [0.0, *res.track_t]
         track = [res.poses[0], *res.track]
         written = tracks.write_track(out, t, track, meta,

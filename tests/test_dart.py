@@ -390,6 +390,32 @@ def test_the_same_pd_servo_law_moves_the_arms_alike_in_dart_and_mujoco():
 
 
 @needs_dart
+def test_smx_simulate_writes_a_dart_track_at_dart_s_step(tmp_path):
+    """``smx simulate --backend dart`` writes the measured-data track format:
+    frames every 100 steps of DART's 0.1 ms (100 frames per s in the
+    sidecar), the track's last frame is the period-end pose the per-period
+    record holds, and its arms reach the gait's 45-degree corners."""
+    import json
+    from typer.testing import CliRunner
+    from smarticle_mjx.cli import app
+    from smarticle_mjx.engine.simulate import simulate
+    out = tmp_path / "t.csv"
+    r = CliRunner().invoke(app, ["simulate", "--scene", "single", "--backend", "dart", "--periods", "1",
+                                 "--amplitude", "45", "--track-stride", "100", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["frame_rate_hz"] == pytest.approx(100.0)  # 100 steps of 0.1 ms a frame (native: of 0.5 ms)
+    g = GaitSpec(45.0)
+    a0 = g.setpoints(0.0, P.robot.servo_speed)
+    res = simulate(P, [(0, 0, 0, a0[0], a0[1])], g, 1, track_stride=100, backend="dart")
+    assert len(res.track_t) == 80 and np.allclose(np.diff(res.track_t), 0.01)
+    np.testing.assert_allclose(res.track[-1], res.poses[-1], atol=1e-12)
+    assert np.degrees(np.abs(res.track[:, 0, 3:5]).max()) > 44.5
+    bad = CliRunner().invoke(app, ["simulate", "--backend", "mjx", "--out", str(tmp_path / "m.csv")])
+    assert bad.exit_code == 2 and "native or dart" in bad.output
+
+
+@needs_dart
 def test_smx_relax_runs_on_the_dart_backend_and_the_store_records_its_numerics(tmp_path):
     """The relaxation experiment on the twin: three robots packed in phase
     touch in their first period, and the store names the engine, its

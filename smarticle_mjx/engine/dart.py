@@ -374,7 +374,8 @@ class DartBackend(BackendBase):
     for non-finite states and penetration beyond ``penetration_limit``.
     The collision record (``Record.collisions``) is that of the native
     backend, from DART's contact forces (normal and friction, N) times the
-    step. Not recorded here: full-rate tracks.
+    step. Full-rate tracks (``Record.track_stride``) are the planar poses
+    every ``track_stride`` steps, as MuJoCo qpos (bodies resting on the plate).
 
     With DART's default detector (``fcl-mesh``: boxes as meshes) the contact
     depths FCL reports are not geometric: 24 mm for arm-body contacts that
@@ -433,8 +434,6 @@ class DartBackend(BackendBase):
         times the step) and its component along r = c_j - c_i, with the body
         centres taken after the step (they move ~1e-6 of |r| in one step)."""
         from .core import PeriodRecords, Status, blank_collisions, lane_controls, on_step_grid, steps_per_period
-        if record is not None and record.track_stride:
-            raise ValueError("full-rate tracks are recorded by the native backend only")
         if lanes.robot_period is not None:
             raise ValueError("the dart backend runs robots that share one gait period")
         dt = self.numerics.timestep
@@ -450,6 +449,8 @@ class DartBackend(BackendBase):
         coll = blank_collisions(b, n_periods, p, bins) if bins else None
         bin_of = np.minimum((np.arange(nstep) * max(bins, 1)) // nstep, max(bins, 1) - 1)
         pairs = self.scene.layout.pairs
+        stride = record.track_stride if record is not None else None
+        tq = np.empty((b, n_periods, nstep // stride if stride else 0, n, 5))
         for lane in range(b):
             sc = state[lane]
             bodies = [r[1] for r in sc.robots]
@@ -459,6 +460,8 @@ class DartBackend(BackendBase):
                 for s in range(nstep):
                     sc.command(u[lane, s, :, :2], u[lane, s, :, 2:])
                     sc.world.step()
+                    if stride and (s + 1) % stride == 0:
+                        tq[lane, k, (s + 1) // stride - 1] = sc.poses()
                     if self._contacts(sc, touched[lane, k], depth, kinds, forces) and bins:
                         centres = np.array([np.asarray(bd.getWorldTransform().translation())[:2] for bd in bodies])
                         g = bin_of[s]
@@ -477,4 +480,8 @@ class DartBackend(BackendBase):
                     status[lane] |= int(Status.NONFINITE)
                 if self._depth_measured and (min_dist[lane, k] < -self.penetration_limit).any():
                     status[lane] |= int(Status.PENETRATION)
-        return state, PeriodRecords(poses, touched, min_dist, status, coll), None
+        track = None
+        if stride:  # as the native backend samples it: after every stride-th step of each period
+            t = t0 + np.arange(n_periods)[:, None] * nstep * dt + dt * (stride * np.arange(1, nstep // stride + 1))
+            track = {"t": t.ravel(), "qpos": self.scene.qpos_from_poses(tq.reshape(b, -1, n, 5))}
+        return state, PeriodRecords(poses, touched, min_dist, status, coll), track

@@ -59,7 +59,7 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
       phase: optional [N] phase offsets (fractions of a period).
       track_stride: record the full-rate track every this many steps
         (shorthand for ``record=Record(track_stride=...)``).
-      backend: "native" (default) or "mjx".
+      backend: "native" (default), "mjx", "warp" or "dart" (full-rate tracks: native and dart).
       record: what to record beyond per-period poses and touches.
 
     Raises:
