@@ -69,7 +69,7 @@ def return_maps(track_dir: pathlib.Path, models, out_dir: pathlib.Path, burn_in:
     glider sits at the origin; one that keeps a broken symmetry sits in the
     first or third quadrant; one that swaps the lead every period sits in the
     second and fourth. Returns, per preset, the fraction of steps in each."""
-    plt = plots._mpl()
+    plt = plots.pyplot()
     models = [m for m in models if list(track_dir.glob(f"{m}_glide_*.npz"))]
     cols = min(4, len(models))
     rows = -(-len(models) // cols)

@@ -155,12 +155,12 @@ def warp_deepest(model, qpos: np.ndarray, pairs) -> np.ndarray:
 def warp_census(args, tol, shallow) -> list[dict]:
     """MuJoCo Warp's deepest contacts against MuJoCo C (and the exact capsule-box distance)."""
     from smarticle_mjx import presets
-    from smarticle_mjx.engine.mjx import _strip_sensors
+    from smarticle_mjx.engine.mjx import strip_sensors
     import mujoco
     rows = []
     for name in args.warp_models.split(","):
         scene = Scene.build(presets.params(name), 2)
-        model = mujoco.MjModel.from_xml_string(_strip_sensors(scene.xml))
+        model = mujoco.MjModel.from_xml_string(strip_sensors(scene.xml))
         pairs = cross_pairs(model)
         kinds = sorted({k for _, _, k in pairs})
         qpos = scene.qpos_from_poses(random_poses(scene, args.poses, np.random.default_rng(args.seed)))
@@ -231,9 +231,9 @@ def main():
                                                           shallow_mm=args.shallow_mm, rows=rows), indent=2))
         return
     scene = Scene.build(SceneParams(), 2)
-    from smarticle_mjx.engine.mjx import _strip_sensors
+    from smarticle_mjx.engine.mjx import strip_sensors
     import mujoco
-    model = mujoco.MjModel.from_xml_string(_strip_sensors(scene.xml))
+    model = mujoco.MjModel.from_xml_string(strip_sensors(scene.xml))
     pairs = cross_pairs(model)
     kinds = sorted({k for _, _, k in pairs})
     poses = random_poses(scene, args.poses, np.random.default_rng(args.seed))

@@ -20,7 +20,7 @@ from mujoco import mjx
 
 from smarticle_mjx import scene as S
 from smarticle_mjx.engine import mjx_collision
-from smarticle_mjx.engine.mjx import _strip_sensors
+from smarticle_mjx.engine.mjx import strip_sensors
 
 VARIANTS = {
     "full model": lambda x: x,
@@ -58,7 +58,7 @@ def main():
     ap.add_argument("--steps", type=int, default=100)
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "mjx_costs.json"))
     args = ap.parse_args()
-    base = _strip_sensors(S.build_mjcf(S.SceneParams(), S.standard_poses("pair")))
+    base = strip_sensors(S.build_mjcf(S.SceneParams(), S.standard_poses("pair")))
     rows = {}
     print(f"MJX on {jax.devices()[0].device_kind}, pair scene, batch {args.batch}, {args.steps} steps")
     for name, edit in VARIANTS.items():

@@ -13,7 +13,7 @@ from .store import Store
 COLOURS = {binding.ATTRACTED: "#d62728", binding.REPELLED: "#17becf", binding.INVALID: "#ffffff"}
 
 
-def _mpl():
+def pyplot():
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -26,7 +26,7 @@ def phase_diagram(store_path, out_dir, run: str | None = None, formats=("png", "
 
     Returns the files written.
     """
-    plt = _mpl()
+    plt = pyplot()
     st = Store(store_path)
     run = run or st.runs[0]
     d = st.run(run, fields=("config", "valid", "touched"))
@@ -67,7 +67,7 @@ KIND_COLOURS = {"C1": "#1f77b4", "C2": "#ff7f0e"}
 
 
 def _save(fig, out_dir, stem, formats=("png",), dpi=130) -> list[pathlib.Path]:
-    plt = _mpl()
+    plt = pyplot()
     out_dir = pathlib.Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
@@ -85,7 +85,7 @@ def pb_curve(amplitudes, end, throughout, out_dir, stem="pb", formats=("png", "s
 
     ``end`` and ``throughout``: [A, 3] rows (p, lo, hi).
     """
-    plt = _mpl()
+    plt = pyplot()
     a = np.asarray(amplitudes, float)
     fig, ax = plt.subplots(figsize=(4.8, 3.6))
     for rows, colour, label in ((end, "#1f77b4", "bound at the end"), (throughout, "#d62728", "bound throughout")):
@@ -100,7 +100,7 @@ def pb_curve(amplitudes, end, throughout, out_dir, stem="pb", formats=("png", "s
 
 def msd_curves(curves: dict, out_dir, stem="msd", formats=("png",)):
     """MSD vs delay (log-log) per amplitude; ``curves[label] = (lags, msd)`` in periods, W^2."""
-    plt = _mpl()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(4.8, 3.6))
     for label, (lags, m) in curves.items():
         ok = np.isfinite(m) & (m > 0)
@@ -115,7 +115,7 @@ def relative_coordinates(rel, kinds, clusters, out_dir, stem, title="", formats=
     """Histograms of per-period |r|, theta, phi of bound pairs, C1 and C2 stacked,
     and the (theta, phi) plane with the cluster centres."""
     from .reduce import gliders as GL
-    plt = _mpl()
+    plt = pyplot()
     rel, kinds = np.asarray(rel, float), np.asarray(kinds)
     fig, axes = plt.subplots(1, 4, figsize=(15, 3.4))
     bins = (np.linspace(np.nanmin(rel[:, 0]) if len(rel) else 0, np.nanmax(rel[:, 0]) if len(rel) else 1, 31),
@@ -143,7 +143,7 @@ def relative_coordinates(rel, kinds, clusters, out_dir, stem, title="", formats=
 def lifetimes(runs: dict, periods: int, out_dir, stem, title="", formats=("png",)):
     """Lifetime distributions of bound runs by glider type (censored runs hatched)."""
     from .reduce import gliders as GL
-    plt = _mpl()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(4.8, 3.6))
     bins = np.linspace(0.5, periods + 0.5, min(periods, 25) + 1)
     for k, name in ((GL.C1, "C1"), (GL.C2, "C2")):
@@ -159,7 +159,7 @@ def lifetimes(runs: dict, periods: int, out_dir, stem, title="", formats=("png",
 def versus_amplitude(amplitudes, panels: dict, out_dir, stem="vs_amplitude", formats=("png",)):
     """One panel per quantity vs alpha_max; ``panels[ylabel] = (values, errors)``;
     errors per point are a symmetric half-width or a (below, above) pair, or None."""
-    plt = _mpl()
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.4), squeeze=False)
     for ax, (yl, (v, e)) in zip(axes[0], panels.items()):
         if e is not None:
@@ -172,7 +172,7 @@ def versus_amplitude(amplitudes, panels: dict, out_dir, stem="vs_amplitude", for
 
 def tracks(xy_list, labels, out_dir, stem, title="", formats=("png",)):
     """Tracks (x, y in W) side by side on equal axes."""
-    plt = _mpl()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(4.8, 4.4))
     for xy, lab in zip(xy_list, labels):
         xy = np.asarray(xy, float)
@@ -196,7 +196,7 @@ def collision_sequence(coll: dict, lane: int, periods, out_dir, stem, title="", 
       lane: which lane; periods: which periods (one panel each).
     """
     from .reduce import collisions as RC
-    plt = _mpl()
+    plt = pyplot()
     periods = list(np.atleast_1d(periods))
     steps = np.asarray(coll["steps"])[lane, :, 0]  # pair 0: [K, kinds, bins]
     imp = np.asarray(coll["impulse_r"], float)[lane, :, 0] * 1e3  # mN s
@@ -230,7 +230,7 @@ def relaxation_trial(xy, episodes, plate_half_W, out_dir, stem, title="", format
       episodes: the trial's episodes (``reduce.relaxation.trial_episodes``).
       plate_half_W: half the plate's side in W (drawn if finite).
     """
-    plt = _mpl()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(4.8, 4.6))
     xy = np.asarray(xy, float)
     for i in range(xy.shape[1]):
@@ -267,7 +267,7 @@ def lifetime_contour(episodes, fit, min_periods, out_dir, stem="lifetime_contour
     """Contour length vs lifetime of every bound-and-apart episode (the
     paper's SI figure), coloured by type, with the fitted line; and the
     lifetimes of C1 and C2 episodes (censored ones hatched)."""
-    plt = _mpl()
+    plt = pyplot()
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(8.6, 3.6))
     for kind in ("C1", "C2"):
         ee = [e for e in episodes if e["kind"] == kind]

@@ -205,7 +205,7 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
     Returns:
       summary: trials, trials stopped early, steps, wall time.
     """
-    from .scan import _params_json
+    from .scan import params_json
     model = config.model if params is None else "custom"
     params = config.scene_params() if params is None else params
     params.validate()
@@ -218,7 +218,7 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
     runs = {RUN: {"amplitude_deg": float(config.amplitude_deg), "period_s": nsteps * dt,
                   "chirality": g.chirality, "gait": g.kind, "periods": config.periods,
                   "n_configs": config.trials, "n_robots": config.n_robots, "rows": "trials"}}
-    full = {"model": model, "relax": config.to_json(), "scene": _params_json(params)}
+    full = {"model": model, "relax": config.to_json(), "scene": params_json(params)}
     t0 = time.perf_counter()
     summary = {"trials": config.trials, "steps": 0}
     with Writer(out, full, runs, mode=mode, fields=RELAX_FIELDS) as w:

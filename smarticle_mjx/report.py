@@ -340,7 +340,7 @@ def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0) -> d
     return a
 
 
-def _trial_figure(data: dict, a: dict, out: pathlib.Path) -> list[str]:
+def trial_figure(data: dict, a: dict, out: pathlib.Path) -> list[str]:
     """Tracks of the trial with the longest glider (else the first trial)."""
     from .reduce import relaxation as RX
     W = float(data["body_length"])
@@ -368,7 +368,7 @@ def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     a = relax_summary(data, min_periods, apart_W)
-    figs = _trial_figure(data, a, out)
+    figs = trial_figure(data, a, out)
     figs += [p.name for p in plots.lifetime_contour(a["episodes"], a["fit"], min_periods, out)]
     episodes = [{k: v for k, v in e.items() if k != "track"} for e in a["episodes"]]
     per_trial = [{**r, "glider": None if r["glider"] is None else

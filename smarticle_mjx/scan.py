@@ -284,7 +284,7 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
         period = steps_per_period(g.period(), dt) * dt
         runs[run_name(a)] = {"amplitude_deg": float(a), "period_s": period, "chirality": g.chirality,
                              "gait": g.kind, "periods": config.periods, "n_configs": len(cfg)}
-    full = {"model": model, "scan": config.to_json(), "scene": _params_json(params)}
+    full = {"model": model, "scan": config.to_json(), "scene": params_json(params)}
     if executor is not None:
         full["executor"] = executor.describe()
     t0 = time.perf_counter()
@@ -428,6 +428,6 @@ def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 
     return t, track, res, params, inputs.gait, rows
 
 
-def _params_json(params: SceneParams) -> dict:
+def params_json(params: SceneParams) -> dict:
     # through JSON: tuples become lists, as a resumed store's saved copy has them
     return json.loads(json.dumps(dataclasses.asdict(params)))

@@ -48,9 +48,12 @@ import shutil
 import h5py
 import numpy as np
 
+from .labels import BAD_STATUS as _BAD_STATUS
+from .labels import CONTACT_KINDS, STATUS_MEANINGS
+
 # Status bits (engine.Status) that make a lane's records untrustworthy: non-finite
 # state, penetration, buffer overflow. Readers count them without importing the engine.
-BAD_STATUS = 2 | 4 | 16
+BAD_STATUS = int(_BAD_STATUS)
 
 SCHEMA_VERSION = 2  # 2: dimension scales, units and long names (xarray-ready); 1 is still read
 READABLE_SCHEMAS = (1, 2)
@@ -109,7 +112,7 @@ def _plain(x):
     raise TypeError(f"a store's configuration holds {type(x).__name__}, which JSON cannot store")
 
 
-def _journal(path: pathlib.Path) -> pathlib.Path:
+def journal_path(path: pathlib.Path) -> pathlib.Path:
     return path.with_name(path.name + ".parts")
 
 
@@ -134,7 +137,7 @@ class Writer:
         self.config = json.loads(json.dumps(config, default=_plain))  # normalised
         self.runs = runs
         self.mode = mode
-        self.parts = _journal(self.path)
+        self.parts = journal_path(self.path)
         self._lock = None
         self._done: dict[str, int] = {}
         self._created = False  # this writer made the journal (new or overwrite)
@@ -411,8 +414,7 @@ COMPONENTS = {  # dimension: (labels, units per label or None)
     "com_var": (("x", "y", "heading"), ("m", "m", "rad")),
     "xy": (("x", "y"), None),
 }
-STATUS_BITS = ((1, "invalid_start"), (2, "non_finite"), (4, "penetration"), (8, "retired_early"),
-               (16, "buffer_overflow"))
+STATUS_BITS = tuple((int(bit), meaning) for bit, meaning in STATUS_MEANINGS.items())
 
 
 def _label_run(g) -> None:
@@ -428,7 +430,7 @@ def _label_run(g) -> None:
             labels, units = COMPONENTS[d]
             ds = g.create_dataset(d, data=np.array(labels[:n], dtype=h5py.string_dtype()))
         elif d == "contact_kind":
-            kinds = [f"{a}-{b}" for a in ("body", "arm1", "arm2") for b in ("body", "arm1", "arm2")]
+            kinds = list(CONTACT_KINDS)
             ds = g.create_dataset(d, data=np.array(kinds[:n], dtype=h5py.string_dtype()))
         else:
             ds = g.create_dataset(d, data=np.arange(1, n + 1) if d == "period" else np.arange(n))
@@ -479,7 +481,7 @@ class Store:
     def __init__(self, path):
         self.path = pathlib.Path(path)
         if not self.path.exists():
-            if _journal(self.path).exists():
+            if journal_path(self.path).exists():
                 raise StoreError(f"{self.path} is unfinished; complete it with --resume")
             raise StoreError(f"no store at {self.path}")
         try:

@@ -32,9 +32,9 @@ from . import __version__, plots, presets
 from .configs import TWO_PI
 from .reduce import binding, gliders as GL, transport
 from .report import amplitude_panels, analyse_run, describe_configs, json_default
-from .scan import ScanConfig, _params_json, load_study, run_scan
+from .scan import ScanConfig, params_json, load_study, run_scan
 from .scene import SceneParams
-from .store import Store, _journal
+from .store import Store, journal_path
 
 SWEEPS = pathlib.Path(__file__).resolve().parents[1] / "sweeps"
 REPO = SWEEPS.parent
@@ -191,7 +191,7 @@ def _normalised(config: dict, want: dict, params: SceneParams) -> dict:
     have["scan"] = {**want["scan"], **have.get("scan", {}), "model": have["model"]}
     if "initial" not in want["scan"]:
         have["scan"].pop("initial", None)
-    defaults = _params_json(params.__class__())
+    defaults = params_json(params.__class__())
     have["scene"] = {**defaults, **have.get("scene", {}),
                      "robot": {**defaults["robot"], **have.get("scene", {}).get("robot", {})}}
     return have
@@ -200,7 +200,7 @@ def _normalised(config: dict, want: dict, params: SceneParams) -> dict:
 def _wanted(cfg: ScanConfig) -> tuple[SceneParams, dict]:
     """The scene parameters of scan ``cfg`` and the configuration its store must hold."""
     params = cfg.scene_params()
-    return params, {"model": cfg.model, "scan": cfg.to_json(), "scene": _params_json(params)}
+    return params, {"model": cfg.model, "scan": cfg.to_json(), "scene": params_json(params)}
 
 
 def stale_reason(cfg: ScanConfig, path: pathlib.Path) -> str | None:
@@ -236,7 +236,7 @@ def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict
     rerun."""
     params, want = _wanted(cfg)
     package = f"smarticle-mjx {__version__}"
-    journal = _journal(path)
+    journal = journal_path(path)
 
     if path.exists():
         why = stale_reason(cfg, path)
@@ -314,9 +314,9 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
     paths = []
     for stage in range(rs.stages):
         cfg = rs.stage_config(stage, model)
-        want = json.loads(json.dumps({"model": model, "relax": cfg.to_json(), "scene": _params_json(params)}))
+        want = json.loads(json.dumps({"model": model, "relax": cfg.to_json(), "scene": params_json(params)}))
         path = relax_stage_path(data, stem, stage)
-        journal = _journal(path)
+        journal = journal_path(path)
         if path.exists():
             st = Store(path)
             if st.attrs.get("package") == package and st.config == want:
@@ -568,12 +568,12 @@ def _relax_rows(paths, figures: pathlib.Path, extra: dict, made: list) -> list[d
     if not paths:
         return [_missing(c, p, "relax") for c, p in RELAX_CLAIMS]
     from scipy.stats import fisher_exact
-    from .report import _trial_figure, relax_summary
+    from .report import trial_figure, relax_summary
     from .store import read_relax
     data = read_relax(paths)
     a = relax_summary(data)
     extra["relax"] = {k: v for k, v in a.items() if k not in ("episodes", "per_trial")}
-    made += _trial_figure(data, a, figures)
+    made += trial_figure(data, a, figures)
     made += [p.name for p in plots.lifetime_contour(a["episodes"], a["fit"], a["min_periods"], figures)]
     k, n, lab = a["emerged"], a["valid"], a["lab"]
     p_fisher = float(fisher_exact([[k, n - k], [lab["emerged"], lab["trials"] - lab["emerged"]]])[1]) if n else \

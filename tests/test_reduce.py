@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 from smarticle_mjx.cli import app
 from smarticle_mjx.reduce import binding, gliders as GL, transport
 from smarticle_mjx.report import ReportOptions, analyse_run
-from smarticle_mjx.scan import ScanConfig, _params_json, run_name
+from smarticle_mjx.scan import ScanConfig, params_json, run_name
 from smarticle_mjx.scene import SceneParams
 from smarticle_mjx.store import Store, Writer
 
@@ -238,7 +238,7 @@ def synthetic_store(tmp_path):
     runs = {run_name(a): {"amplitude_deg": a, "period_s": 1.6 * a / 90, "chirality": "ccw", "gait": "square",
                           "periods": K, "n_configs": M} for a in cfg.amplitudes_deg}
     rng = np.random.default_rng(3)
-    with Writer(path, {"scan": cfg.to_json(), "scene": _params_json(SceneParams())}, runs) as w:
+    with Writer(path, {"scan": cfg.to_json(), "scene": params_json(SceneParams())}, runs) as w:
         for i, run in enumerate(runs):
             w.append(run, 0, _synthetic_rows(rng, v=0.05 * (i + 1)))
         w.finalize()

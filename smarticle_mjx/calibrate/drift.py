@@ -36,11 +36,11 @@ MIN_SPREAD_DEG = 60.0  # headings of a group must span at least this
 P_DRIFT = 1e-3  # significance that makes drift a finding
 
 
-def _group_key(g) -> tuple:
+def group_key(g) -> tuple:
     return (round(float(g.amplitude_deg), 6), g.chirality, g.kind, round(float(g.period()), 6))
 
 
-def _robot_alone(pose: np.ndarray, i: int, body_length: float) -> bool:
+def robot_alone(pose: np.ndarray, i: int, body_length: float) -> bool:
     n = pose.shape[1]
     for j in range(n):
         if j != i:
@@ -56,7 +56,7 @@ def cycles(t, pose, period, body_length) -> list[tuple[int, np.ndarray, np.ndarr
     out = []
     periods = np.broadcast_to(np.asarray(period, float), (pose.shape[1],))
     for i in range(pose.shape[1]):
-        if not _robot_alone(pose, i, body_length):
+        if not robot_alone(pose, i, body_length):
             continue
         _, pc = cycle_poses(t, pose[:, i], periods[i])
         if len(pc) >= 2:
@@ -147,7 +147,7 @@ def group_drift(trials, tracks=None) -> dict:
     for k, tr in enumerate(trials):
         pose = tr.pose if tracks is None else masked(tracks[k], tr)[0]
         for i, h, d in cycles(tr.t, pose, tr.periods, tr.params.robot.body_length):
-            g = groups.setdefault(_group_key(tr.gaits[i]), ([], []))
+            g = groups.setdefault(group_key(tr.gaits[i]), ([], []))
             g[0].append(h)
             g[1].append(d)
     out = {}

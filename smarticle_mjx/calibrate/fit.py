@@ -118,7 +118,7 @@ class Problem:
 
 # ------------------------------------------------------------------ parameter transforms
 
-def _to_u(p, x):
+def value_to_unit(p, x):
     if p.square:
         return (x ** 2 - p.lo ** 2) / (p.hi ** 2 - p.lo ** 2)
     if p.log:
@@ -126,7 +126,7 @@ def _to_u(p, x):
     return (x - p.lo) / (p.hi - p.lo)
 
 
-def _from_u(p, u):
+def unit_to_value(p, u):
     u = min(max(u, 0.0), 1.0)
     if p.square:
         return math.sqrt(p.lo ** 2 + u * (p.hi ** 2 - p.lo ** 2))
@@ -140,7 +140,7 @@ def _values(effects: list[Effect], u) -> dict:
     for e in effects:
         out[e.name] = {}
         for p in e.params:
-            out[e.name][p.name] = _from_u(p, u[k])
+            out[e.name][p.name] = unit_to_value(p, u[k])
             k += 1
     return out
 
@@ -185,7 +185,7 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
     fixed = dict(fixed or {})
     params = [(e, p) for e in effects for p in e.params]
     new = len(params) - len(effects[-1].params)
-    u0 = np.array([min(max(_to_u(p, (start or {}).get(e.name, {}).get(p.name, p.null)), 0.0), 1.0)
+    u0 = np.array([min(max(value_to_unit(p, (start or {}).get(e.name, {}).get(p.name, p.null)), 0.0), 1.0)
                    for e, p in params])
 
     def fun(u):
@@ -236,7 +236,7 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
     interval: dict = {}
     for j, (e, p) in enumerate(params):
         hw = half.get(j, 0.0)
-        interval.setdefault(e.name, {})[p.name] = (_from_u(p, u[j] - hw), _from_u(p, u[j] + hw))
+        interval.setdefault(e.name, {})[p.name] = (unit_to_value(p, u[j] - hw), unit_to_value(p, u[j] + hw))
     vals = {**fixed, **_values(effects, u)}
     return Fit([e.name for e in effects], vals, interval, c0, n, c0 / max(n, 1),
                test.error(EffectSet.of(vals)))
@@ -279,7 +279,7 @@ def signatures(train: Problem, base: dict, candidates: list[Effect], points: int
             axes = [(np.arange(g) + 0.5) / g for _ in e.params]
         best, best_v = c0, e.null()
         for point in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(e.params), -1).T:
-            v = {p.name: _from_u(p, x) for p, x in zip(e.params, point)}
+            v = {p.name: unit_to_value(p, x) for p, x in zip(e.params, point)}
             r = train.vector(EffectSet.of({**base, e.name: v}))
             c = float(r @ r)
             if c < best:

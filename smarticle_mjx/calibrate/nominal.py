@@ -133,12 +133,12 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     """
     from scipy.optimize import least_squares
     from .effects import EffectSet
-    from .fit import _from_u, _to_u
+    from .fit import unit_to_value, value_to_unit
     ref = problem.trials[0].params
     start = start or {}
     eparams = tuple(effect.params) if effect is not None else ()
     u0 = np.array([min(max(p.to_u(ref, start.get(p.name, p.preset(ref))), 0.0), 1.0) for p in params]
-                  + [min(max(_to_u(q, (effect_start or {}).get(q.name, q.probe)), 0.0), 1.0) for q in eparams])
+                  + [min(max(value_to_unit(q, (effect_start or {}).get(q.name, q.probe)), 0.0), 1.0) for q in eparams])
     calls = {"n": 0}
     kn = len(params)
 
@@ -148,7 +148,7 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     def effects(u):
         if effect is None:
             return EffectSet()
-        return EffectSet.of({effect.name: {q.name: _from_u(q, x) for q, x in zip(eparams, u[kn:])}})
+        return EffectSet.of({effect.name: {q.name: unit_to_value(q, x) for q, x in zip(eparams, u[kn:])}})
 
     def vec(u):
         return problem.vector_with(values(u), effects(u))
@@ -205,7 +205,7 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
             cc[np.ix_(free, free)] = np.clip(cov / np.outer(s_f, s_f), -1.0, 1.0)
 
     def conv(j, x):
-        return params[j].from_u(ref, x) if j < kn else _from_u(eparams[j - kn], x)
+        return params[j].from_u(ref, x) if j < kn else unit_to_value(eparams[j - kn], x)
 
     interval = {}
     for j, (nm, x, s_) in enumerate(zip(names, u, sd)):

@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 
-from .drift import _group_key, _robot_alone, group_drift
+from .drift import group_key, robot_alone, group_drift
 from .residuals import cycle_poses, masked
 
 _GRID = 4096  # samples per period of the commanded (instant) gait, for its switch times
@@ -107,12 +107,12 @@ def _mean_se(x) -> dict:
 
 
 def _key_label(key) -> str:
-    """A gait group's row label, from its key (drift._group_key)."""
+    """A gait group's row label, from its key (drift.group_key)."""
     return f"{key[0]:g}° {key[1]} {key[2]}, T = {key[3]:.4g} s"
 
 
 def _gait_label(g) -> str:
-    return _key_label(_group_key(g))
+    return _key_label(group_key(g))
 
 
 def observables(trials, tracks=None) -> dict:
@@ -135,7 +135,7 @@ def observables(trials, tracks=None) -> dict:
     for k, tr in enumerate(trials):
         pose, arms = (tr.pose, tr.arms) if tracks is None else masked(tracks[k], tr)
         for i, g in enumerate(tr.gaits):  # lone robots' rotation per cycle
-            if _robot_alone(pose, i, tr.params.robot.body_length):
+            if robot_alone(pose, i, tr.params.robot.body_length):
                 _, pc = cycle_poses(tr.t, pose[:, i], tr.periods[i])
                 if len(pc) >= 2:
                     rot.setdefault(g, []).append(np.degrees(np.diff(pc[:, 2])))

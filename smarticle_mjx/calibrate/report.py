@@ -7,7 +7,7 @@ import pathlib
 
 import numpy as np
 
-from ..plots import _mpl
+from ..plots import pyplot
 from ..report import json_default
 from .data import Trial
 from .effects import BY_NAME, EffectSet
@@ -24,7 +24,7 @@ def _num(x, spec=".3g"):
 
 
 def _figures(result, heldout: list[Trial], tracks_before, tracks_after, out: pathlib.Path) -> list[str]:
-    plt = _mpl()
+    plt = pyplot()
     names = []
     # residual by block, before and after
     b, a = result["before"]["where_heldout"], result["after"]["where_heldout"]

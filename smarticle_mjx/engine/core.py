@@ -10,7 +10,6 @@ a full-rate track is asked for.
 from __future__ import annotations
 
 import dataclasses
-import enum
 from typing import Protocol, runtime_checkable
 
 import jax
@@ -18,18 +17,8 @@ import mujoco
 import numpy as np
 
 from .. import gait as gait_mod
+from ..labels import CONTACT_KINDS, PARTS, Status  # noqa: F401 (the engine's names for them)
 from ..scene import SceneLayout, SceneParams, build_mjcf, compile_model
-
-
-class Status(enum.IntFlag):
-    """Per-lane status bits; a lane may carry several. ``OK`` is 0."""
-
-    OK = 0
-    INVALID = 1  # initial configuration overlaps: never simulated
-    NONFINITE = 2  # NaN/inf appeared in the state
-    PENETRATION = 4  # robots interpenetrated deeper than the bound
-    RETIRED = 8  # stopped early: outcome decided (engine.batch)
-    OVERFLOW = 16  # contact/constraint buffers overflowed (warp backend): records not trustworthy
 
 
 # contact sensor output per pair: number of contacts, deepest distance
@@ -38,8 +27,6 @@ SENSOR_WIDTH = 2
 # Collision record: the nine geom-pair kinds between robots i < j, in this
 # order (robot i's part first). Each has a contact sensor reporting the
 # number of contacts and the net contact force on robot i's part (world frame).
-PARTS = ("body", "arm1", "arm2")
-CONTACT_KINDS = tuple(f"{a}-{b}" for a in PARTS for b in PARTS)
 COLLISION_WIDTH = 4  # found, force x, y, z
 
 

@@ -27,7 +27,7 @@ from . import mjx_collision
 from .core import BackendBase, Lanes, PeriodRecords, Record, Scene, Status, on_step_grid, steps_per_period
 
 
-def _strip_sensors(xml: str) -> str:
+def strip_sensors(xml: str) -> str:
     a, b = xml.index("<sensor>"), xml.index("</sensor>") + len("</sensor>")
     return xml[:a] + xml[b:]
 
@@ -78,7 +78,7 @@ class MjxBackend(BackendBase):
         if scene.params.integrator not in MJX_INTEGRATORS:
             raise ValueError(f"the mjx backend integrates with {', '.join(MJX_INTEGRATORS)}, not "
                              f"{scene.params.integrator!r}; use the native or warp backend")
-        self.model = mujoco.MjModel.from_xml_string(_strip_sensors(scene.xml))
+        self.model = mujoco.MjModel.from_xml_string(strip_sensors(scene.xml))
         if ls_iterations < 1:
             raise ValueError(f"ls_iterations must be >= 1, got {ls_iterations}")
         self.model.opt.ls_iterations = min(int(ls_iterations), scene.params.ls_iterations)

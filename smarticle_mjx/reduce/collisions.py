@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-PARTS = ("body", "arm1", "arm2")
-KINDS = tuple(f"{a}-{b}" for a in PARTS for b in PARTS)  # the engine's CONTACT_KINDS, in its order
+from ..labels import CONTACT_KINDS as KINDS, PARTS  # noqa: F401 (the record's kinds, in its order)
 
 
 def period_totals(coll: dict) -> dict:

@@ -36,6 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import configs as C
+from ..labels import BAD_STATUS
 from . import binding
 
 C1, C2 = "C1", "C2"
@@ -158,7 +159,7 @@ def analyse(data: dict, min_periods: int = 100, apart_W: float = 2.0, min_episod
         raise ValueError("min_periods and min_episode must be >= 1 and apart_W > 0")
     W = float(data["body_length"])
     periods = int(data["periods"])
-    ok_status = (np.asarray(data["status"]) & (2 | 4 | 16)) == 0
+    ok_status = (np.asarray(data["status"]) & int(BAD_STATUS)) == 0
     valid = np.asarray(data["valid"], bool) & ok_status
     episodes, per_trial, relax_t = [], [], []
     for t in np.flatnonzero(valid):
