@@ -112,17 +112,12 @@ class RelaxConfig:
 
     def backend_options(self) -> dict:
         """Keyword arguments of ``make_backend`` beyond the scene (the dart backend's numerics)."""
-        from .engine.dart import numerics_of
-        return {"numerics": numerics_of(self.dart_numerics)} if self.backend == "dart" else {}
+        from .engine.dart import study_options
+        return study_options(self.backend, self.dart_numerics)
 
     def to_json(self) -> dict:
-        d = dataclasses.asdict(self)
-        if self.backend == "dart":  # the twin's numerics, resolved, so the store says what ran
-            n = self.backend_options()["numerics"]
-            d["dart_numerics"] = n.record()
-        else:
-            del d["dart_numerics"]  # other backends' stores keep their earlier configuration
-        return d
+        from .engine.dart import study_json
+        return study_json(dataclasses.asdict(self), self.backend)
 
 
 def packing(n: int, robot: RobotParams, alpha: tuple[float, float], gap: float) -> np.ndarray:
@@ -212,8 +207,8 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
     config.validate(params)
     starts, phase = start_poses(config, params)
     g = config.gait_spec()
-    # the engine's own step (the DART twin steps at its numerics' step, not the scene's)
-    dt = config.backend_options()["numerics"].timestep if config.backend == "dart" else params.timestep
+    from .engine.dart import study_timestep
+    dt = study_timestep(config.backend, config.dart_numerics, params.timestep)  # the engine's own step
     nsteps = steps_per_period(g.period(), dt)
     runs = {RUN: {"amplitude_deg": float(config.amplitude_deg), "period_s": nsteps * dt,
                   "chirality": g.chirality, "gait": g.kind, "periods": config.periods,

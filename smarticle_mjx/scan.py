@@ -104,14 +104,10 @@ class ScanConfig:
         if self.collision_bins < 1:
             raise ValueError(f"--collision-bins must be positive, got {self.collision_bins}")
 
-    def dart(self):
-        """The DART twin's numerics (backend "dart")."""
-        from .engine.dart import numerics_of
-        return numerics_of(self.dart_numerics)
-
     def backend_options(self) -> dict:
         """Keyword arguments of ``make_backend`` beyond the scene (the dart backend's numerics)."""
-        return {"numerics": self.dart()} if self.backend == "dart" else {}
+        from .engine.dart import study_options
+        return study_options(self.backend, self.dart_numerics)
 
     def gait_spec(self, amplitude_deg: float) -> GaitSpec:
         return GaitSpec(amplitude_deg=float(amplitude_deg), chirality=self.chirality, kind=self.gait,
@@ -133,12 +129,8 @@ class ScanConfig:
             del d["initial"]  # stores of random and polar scans keep their earlier configuration
         else:
             d["initial"] = [[float(x) for x in c] for c in self.initial]
-        if self.backend == "dart":  # the twin's numerics, resolved, so the store says what ran
-            n = self.dart()
-            d["dart_numerics"] = n.record()
-        else:
-            del d["dart_numerics"]  # other backends' stores keep their earlier configuration
-        return d
+        from .engine.dart import study_json
+        return study_json(d, self.backend)
 
 
 def run_name(amplitude_deg: float) -> str:
@@ -277,7 +269,8 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
     config.validate(params)
     params.validate()
     cfg = config.initial_configs()
-    dt = config.dart().timestep if config.backend == "dart" else params.timestep  # the engine's own step
+    from .engine.dart import study_timestep
+    dt = study_timestep(config.backend, config.dart_numerics, params.timestep)  # the engine's own step
     runs = {}
     for a in config.amplitudes_deg:
         g = config.gait_spec(a)

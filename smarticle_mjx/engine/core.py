@@ -356,6 +356,11 @@ class PeriodRecords:
     collisions: dict | None = None
 
 
+def collision_bin_of(nstep: int, bins: int) -> np.ndarray:
+    """[nstep] the collision record's phase bin of every step of a period."""
+    return np.minimum((np.arange(nstep) * bins) // nstep, bins - 1)
+
+
 def blank_collisions(b: int, k: int, p: int, bins: int) -> dict:
     """A collision record of ``b`` lanes and ``k`` periods with nothing in it."""
     n = len(CONTACT_KINDS)

@@ -2,9 +2,9 @@
 the paper's own runs used (implicit LCP contacts, 0.1 ms steps, SERVO joints).
 
 This module builds the same ``SceneParams`` as DART skeletons and steps them
-with the gait; it is the first piece of the twin backend (docs/twin.md when
-it exists). What it builds, piece by piece as :mod:`smarticle_mjx.scene`
-builds it for MuJoCo:
+with the gait behind the engine interface (:class:`DartBackend`; docs/twin.md).
+What it builds, piece by piece as :mod:`smarticle_mjx.scene` builds it for
+MuJoCo:
 
 * the plate: a static box whose top face is z = 0;
 * each robot: a free body (box ``body_length`` x ``body_thickness`` x
@@ -19,7 +19,8 @@ builds it for MuJoCo:
 * the servo: DART's SERVO actuator, a velocity constraint whose force is
   bounded by ``servo_torque``, commanded with the gait's rate plus a trim
   ``servo_kp / servo_kv`` times the angle error (the `dart` preset's law);
-  hinge stops at ``arm_limit_deg`` enforced as hard limits.
+  or, with ``DartNumerics(servo="pd")``, the preset's own PD + lag law as
+  joint forces; hinge stops at ``arm_limit_deg`` enforced as hard limits.
 
 Numerics are the caller's: time step (default 0.1 ms, the paper's SI),
 collision detector (``fcl-mesh``, DART's default, which treats boxes as
@@ -37,7 +38,8 @@ from typing import Sequence
 import numpy as np
 
 from ..gait import GaitSpec
-from .core import BackendBase
+from .core import (BackendBase, PeriodRecords, Status, blank_collisions, collision_bin_of, lane_controls,
+                   on_step_grid, steps_per_period)
 from ..scene import SceneParams
 
 MISSING = "the dart backend needs DART's Python package: pip install -e '.[dart]'"
@@ -101,6 +103,26 @@ def check_study(backend: str, spec) -> None:
         raise ValueError("dart numerics are for --backend dart")
 
 
+def study_options(backend: str, spec) -> dict:
+    """Keyword arguments of ``make_backend`` beyond the scene for a study on ``backend`` (DART's numerics)."""
+    return {"numerics": numerics_of(spec)} if backend == "dart" else {}
+
+
+def study_timestep(backend: str, spec, scene_timestep: float) -> float:
+    """The step the study's engine takes: DART's numerics' on the twin, the scene's on MuJoCo."""
+    return numerics_of(spec).timestep if backend == "dart" else scene_timestep
+
+
+def study_json(d: dict, backend: str) -> dict:
+    """A study's stored settings ``d`` (its ``dart_numerics`` as given): on the twin the
+    numerics resolved, so the store says what ran; other backends' stores keep
+    the settings they had before the twin existed (no such key)."""
+    spec = d.pop("dart_numerics")
+    if backend == "dart":
+        d["dart_numerics"] = numerics_of(spec).record()
+    return d
+
+
 def _box_inertia(mass: float, sx: float, sy: float, sz: float) -> tuple[float, float, float]:
     """Principal moments of a uniform solid box of full sides sx, sy, sz."""
     return (mass * (sy ** 2 + sz ** 2) / 12, mass * (sx ** 2 + sz ** 2) / 12, mass * (sx ** 2 + sy ** 2) / 12)
@@ -131,7 +153,7 @@ class DartScene:
     Args:
       params: the scene (robot geometry, masses, servo, friction).
       poses: [N, 5] (x, y, heading, alpha1, alpha2) per robot; bodies rest on the plate.
-      numerics: DART's step, collision detector and LCP solver.
+      numerics: DART's step, collision detector, LCP solver and servo.
       plate: False builds the robots in free space, without gravity (for
         checks of conservation laws); poses then give their heights as on
         the plate.
@@ -345,7 +367,7 @@ class DartScene:
         from .. import gait as G
         dt = self.numerics.timestep
         T = gait.period()
-        nstep = max(1, int(round(T / dt)))
+        nstep = steps_per_period(T, dt)
         ctrl = np.asarray(G.setpoints_and_rates(dt * np.arange(nstep), gait.amplitude, T,
                                                 self.params.robot.servo_speed, gait.chirality_sign,
                                                 gait.kind_code, 0.0), float)
@@ -385,7 +407,7 @@ class DartBackend(BackendBase):
 
     Args:
       scene: the engine's Scene (its parameters and robot pairs; the MJCF is not used).
-      numerics: DART's step, collision detector and LCP solver.
+      numerics: DART's step, collision detector, LCP solver and servo.
     """
 
     name = "dart"
@@ -400,10 +422,6 @@ class DartBackend(BackendBase):
         self.penetration_limit = penetration_limit
         self._pair = {tuple(p): k for k, p in enumerate(scene.layout.pairs.tolist())}
         self._depth_measured = numerics.detector != "fcl-mesh"
-
-    def describe(self) -> dict:
-        """The engine and its settings, for a store's configuration."""
-        return {"engine": "dart", **dataclasses.asdict(self.numerics)}
 
     def initial_state(self, lanes) -> np.ndarray:
         out = np.empty(lanes.size, dtype=object)
@@ -433,7 +451,6 @@ class DartBackend(BackendBase):
         contact impulse on robot i (DART's contact force, normal and friction,
         times the step) and its component along r = c_j - c_i, with the body
         centres taken after the step (they move ~1e-6 of |r| in one step)."""
-        from .core import PeriodRecords, Status, blank_collisions, lane_controls, on_step_grid, steps_per_period
         if lanes.robot_period is not None:
             raise ValueError("the dart backend runs robots that share one gait period")
         dt = self.numerics.timestep
@@ -447,7 +464,7 @@ class DartBackend(BackendBase):
         status = np.zeros(b, np.int32)
         bins = record.collision_bins if record is not None and record.collisions else 0
         coll = blank_collisions(b, n_periods, p, bins) if bins else None
-        bin_of = np.minimum((np.arange(nstep) * max(bins, 1)) // nstep, max(bins, 1) - 1)
+        bin_of = collision_bin_of(nstep, bins) if bins else None
         pairs = self.scene.layout.pairs
         stride = record.track_stride if record is not None else None
         tq = np.empty((b, n_periods, nstep // stride if stride else 0, n, 5))

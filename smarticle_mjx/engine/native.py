@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
-from .core import (BackendBase, COLLISION_WIDTH, CONTACT_KINDS, SENSOR_WIDTH, Lanes, PeriodRecords, Record, Scene, Status,
+from .core import (BackendBase, collision_bin_of, COLLISION_WIDTH, CONTACT_KINDS, SENSOR_WIDTH, Lanes, PeriodRecords, Record, Scene, Status,
                    blank_collisions, lane_controls, on_step_grid, steps_per_period)
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
@@ -149,7 +149,7 @@ class NativeBackend(BackendBase):
         qa = slice(self.qpos_at, self.qpos_at + m.nq)
         q = np.concatenate([init[:, None, qa], states[:, :-1, qa]], 1)
         dt = m.opt.timestep
-        bin_of = np.minimum((np.arange(nstep) * bins) // nstep, bins - 1)
+        bin_of = collision_bin_of(nstep, bins)
         for p, (i, j) in enumerate(lay.pairs):
             ci, cj = q[..., lay.free_qpos[i]:lay.free_qpos[i] + 2], q[..., lay.free_qpos[j]:lay.free_qpos[j] + 2]
             rvec = cj - ci
