@@ -360,11 +360,7 @@ def diagnose(names, out: pathlib.Path, lone_periods: int):
               f"gliders {g['gliders']}/{g['starts']}, net speed {g.get('net_speed_W_per_period', float('nan')):.4f}, "
               f"impulse_r/period {c['impulse_r_per_period_Ns']:.2e} N s, |impulse_r| {c['abs_impulse_r_per_period_Ns']:.2e}, "
               f"attractive {c['attractive_fraction']:.2f} ({g['wall_s']:.0f} s)", flush=True)
-        done = json.loads(out.read_text()) if out.exists() else {}
-        done.setdefault("diagnosis", {})[name] = row
-        tmp = out.with_name(out.name + f".{os.getpid()}.tmp")
-        tmp.write_text(json.dumps(done, indent=1, default=float))
-        tmp.replace(out)
+        _update(out, lambda done: done.setdefault("diagnosis", {}).__setitem__(name, row))
 
 
 def _f(v, spec=".2f"):
@@ -476,16 +472,23 @@ def tables(done: dict) -> str:
     return "\n".join(out)
 
 
-def _save(rows: dict, path: pathlib.Path):
-    """Merge the pair rows into the JSON as it is now (another part may have
-    written it while this one ran) and replace it atomically."""
+def _update(path: pathlib.Path, change) -> None:
+    """Apply ``change(data)`` to the JSON as it is now (another part may have
+    written it while this one ran) and replace the file atomically."""
     done = json.loads(path.read_text()) if path.exists() else {"model": presets.DEFAULT}
-    for label, entries in rows.items():
-        done.setdefault("pairs", {}).setdefault(label, {}).update(entries)
-    done["glide_design"], done["pb_design"], done["relax_design"] = GLIDE, PB, RELAX
+    change(done)
     tmp = path.with_name(path.name + f".{os.getpid()}.tmp")
     tmp.write_text(json.dumps(done, indent=1, default=float))
     tmp.replace(path)
+
+
+def _save(rows: dict, path: pathlib.Path):
+    """Merge the pair rows into the JSON."""
+    def merge(done):
+        for label, entries in rows.items():
+            done.setdefault("pairs", {}).setdefault(label, {}).update(entries)
+        done["glide_design"], done["pb_design"], done["relax_design"] = GLIDE, PB, RELAX
+    _update(path, merge)
 
 
 def main():
@@ -534,8 +537,8 @@ def main():
 def lone(args):
     from smarticle_mjx.engine.dart import DartNumerics
     params = presets.params()
-    done = json.loads(args.out.read_text()) if args.out.exists() else {"model": presets.DEFAULT, "lone": {}}
-    rows = done["lone"]
+    done = json.loads(args.out.read_text()) if args.out.exists() else {}
+    rows = done.get("lone", {})
     runs = {f"mujoco {params.timestep * 1e3:g} ms": lambda g: mujoco_row(params, g, args.periods),
             f"mujoco {params.timestep / 4 * 1e3:g} ms": lambda g: mujoco_row(params.replace(timestep=params.timestep / 4),
                                                                               g, args.periods)}
@@ -555,8 +558,7 @@ def lone(args):
             r = rows[key]
             print(f"{key}: drift {r['drift_W_per_cycle']:.2e} W/cycle, slip per edge {r['slip_per_edge_W']:.2e} W "
                   f"(max {r['slip_per_edge_max_W']:.2e}), {r['wall_s']:.0f} s", flush=True)
-            done["periods"] = args.periods
-            args.out.write_text(json.dumps(done, indent=1))
+            _update(args.out, lambda d: (d.setdefault("lone", {}).update({key: r}), d.update(periods=args.periods)))
 
 
 if __name__ == "__main__":

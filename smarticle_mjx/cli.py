@@ -68,11 +68,9 @@ def simulate(
             raise UserError("--periods and --track-stride must be positive")
         if backend not in ("native", "dart"):
             raise UserError(f"--backend must be native or dart (the backends that record tracks), got {backend!r}")
-        dt = params.timestep
-        if backend == "dart":
-            from .engine import dart
-            dart.check_study("dart", None)
-            dt = dart.DartNumerics().timestep
+        from .engine.dart import check_study, study_timestep
+        check_study(backend, None)  # dart: installed
+        dt = study_timestep(backend, None, params.timestep)
         if out.exists() and not overwrite:
             raise UserError(f"{out} exists; pass --overwrite to replace it")
         tracks.check_output(out)  # before simulating, not after
