@@ -343,6 +343,9 @@ def mujoco_variant_pairs(params, edit, starts: np.ndarray) -> dict:
 
 def diagnose(names, out: pathlib.Path, lone_periods: int):
     """Each variant: lone drift and slip per edge at 90 degrees, gliders and collision record of the glide starts."""
+    unknown = sorted({v for name in names for v in name.split("+")} - set(VARIANTS))
+    if unknown:
+        raise SystemExit(f"unknown variants {unknown}; known: {', '.join(VARIANTS)}")
     starts = valid_starts(presets.params(), 90.0, GLIDE["n"], GLIDE["r_range"], GLIDE["seed"])
     for name in names:
         done = json.loads(out.read_text()) if out.exists() else {}
