@@ -267,6 +267,18 @@ VARIANTS = {
     "contacts 1 ms": ({"contact_timeconst": 1e-3}, {}, None),  # 2 steps of 0.5 ms, the stiffest stable
     "step 0.125 ms": ({"timestep": 1.25e-4}, {}, None),
     "step 0.1 ms with contacts 0.2 ms": ({"timestep": 1e-4, "contact_timeconst": 2e-4}, {}, None),
+    # Fidelity part 4 (docs/model.md): the representation the diagnosis names, built into the scene.
+    # Each actuator clipped at the stall torque, so the implicit step stops linearising a clipped damping
+    "actuator clip": ({}, {"servo_clip": "actuator"}, None),
+    # DART's SERVO law as MuJoCo can now hold it: a velocity loop stiff enough to act as a constraint
+    # (0.078 N m at 0.5 rad/s of speed error), clipped per actuator, slow trim, no armature (DART has none)
+    "DART law": ({}, {"servo_kv": 0.078 / 0.5, "servo_kp": 0.078 / 0.5 / 1.6, "servo_armature": 0.0,
+                      "servo_timeconst": 0.0, "servo_clip": "actuator"}, None),
+    # a hobby servo's position loop: saturates the stall torque at 1 degree of error, clipped per
+    # actuator, keeping the gearbox's reflected inertia and the 10 ms command lag of the default
+    "hobby servo": ({}, {"servo_kp": 0.078 / math.radians(1.0), "servo_kv": None, "servo_clip": "actuator"}, None),
+    # gear backlash: the arm swings +-1.5 deg about the driven hinge (the middle of the 1-2 deg prior)
+    "backlash 1.5 deg": ({}, {"backlash_deg": 1.5}, None),
 }
 
 

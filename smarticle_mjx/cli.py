@@ -24,6 +24,8 @@ def _fail(msg: str) -> None:
 
 
 _MODEL_HELP = "model preset (smx models --list; default: the default preset, docs/model.md)"
+_IMPERFECTIONS_HELP = ("the robots' imperfections, drawn per robot from the seed (smx models --list; "
+                       "default none: ideal robots)")
 
 
 def _preset(name: Optional[str]):
@@ -108,10 +110,16 @@ def models(
     from .scene import reference_models
 
     if list_:
+        from . import imperfections
         for p in presets.PRESETS.values():
             typer.echo(f"{p.name}{' (default)' if p.name == presets.DEFAULT else ''}: {p.summary}")
             for field, source in p.sources:
                 typer.echo(f"    {field}: {source}")
+        typer.echo("\nimperfections (--imperfections NAME):")
+        for s in imperfections.SETS.values():
+            typer.echo(f"{s.name}: {s.summary}")
+            for prior, source in s.sources:
+                typer.echo(f"    {prior}: {source}")
         return
     try:
         preset = _preset(model)
@@ -229,6 +237,7 @@ def scan(
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
     collisions: bool = typer.Option(False, help="store the per-period collision record (native and dart backends)"),
     collision_bins: int = typer.Option(16, help="collision record: bins per gait period"),
+    imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP),
     executor: str = typer.Option("local", help=_EXECUTOR_HELP),
     scheduler: Optional[str] = typer.Option(None, help="dask: address of a running scheduler (tcp://host:8786)"),
     workers: Optional[int] = typer.Option(None, help="dask, local cluster: worker processes (default: one per core)"),
@@ -254,7 +263,7 @@ def scan(
     cfg = ScanConfig(configs=configs, n=n, r_range_W=(r_min, r_max), radius_W=radius, positions=positions,
                      orientations=orientations, amplitudes_deg=(amplitude,), periods=periods, chirality=chirality,
                      gait=gait, period_s=period, backend=backend, seed=seed, batch_size=batch_size, model=name,
-                     collisions=collisions, collision_bins=collision_bins)
+                     collisions=collisions, collision_bins=collision_bins, imperfections=imperfections)
     _scan_common(cfg, out, resume, overwrite, quiet, flush_rows, executor=ex)
 
 
@@ -282,6 +291,7 @@ def relax(
     overwrite: bool = typer.Option(False, help="replace an existing store"),
     quiet: bool = typer.Option(False, help="no progress bar"),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
+    imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP),
 ):
     """The relaxation experiment: N robots start compressed and in phase; do gliders emerge? (smx report reads it)"""
     from .relax import RelaxConfig, run_relax
@@ -294,7 +304,7 @@ def relax(
                           amplitude_deg=amplitude, chirality=chirality, gait=gait, period_s=period, seed=seed,
                           gap_mm=gap_mm, jitter_mm=jitter_mm, jitter_deg=jitter_deg, phase_jitter=phase_jitter,
                           plate_m=plate, quiet_periods=quiet_periods, backend=backend, batch_size=batch_size,
-                          model=name)
+                          model=name, imperfections=imperfections)
         mode = "resume" if resume else "overwrite" if overwrite else "new"
         bar, progress = _progress(quiet)
         with bar:
@@ -321,6 +331,8 @@ def sweep_amplitude(
     quiet: bool = typer.Option(False, help="no progress bar"),
     flush_rows: int = typer.Option(64, help="journal finished configurations in blocks of this many"),
     model: Optional[str] = typer.Option(None, help="model preset (default: the study file's, else the default preset)"),
+    imperfections: Optional[str] = typer.Option(None, help="the robots' imperfections (default: the study "
+                                                "file's, else none)"),
     executor: str = typer.Option("local", help=_EXECUTOR_HELP),
     scheduler: Optional[str] = typer.Option(None, help="dask: address of a running scheduler (tcp://host:8786)"),
     workers: Optional[int] = typer.Option(None, help="dask, local cluster: worker processes (default: one per core)"),
@@ -341,7 +353,7 @@ def sweep_amplitude(
     try:
         cfg = load_study(study) if study is not None else ScanConfig()
         changes = {k: v for k, v in dict(configs=configs, n=n, periods=periods, backend=backend, seed=seed,
-                                         model=model).items() if v is not None}
+                                         model=model, imperfections=imperfections).items() if v is not None}
         if amplitudes is not None:
             changes["amplitudes_deg"] = parse_amplitudes(amplitudes)
         elif study is None:

@@ -41,7 +41,7 @@ def move_time(amplitude, speed, kind):
     return 2.0 * amplitude / speed
 
 
-def setpoints(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0):
+def setpoints(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0, ratio1=1.0, ratio2=1.0):
     """Arm setpoints (alpha1, alpha2) at time ``t``.
 
     Args:
@@ -53,6 +53,11 @@ def setpoints(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0
       kind: ``SQUARE`` (0) or ``DIAGONAL`` (1).
       phase: offset as a fraction of the period (robot lags by ``phase * T``
         when negative, leads when positive).
+      ratio1, ratio2: each arm's servo speed as a multiple of ``speed`` (a
+        robot whose two servos differ); an arm moves at its own speed and
+        starts each move at the quarter's start, so a ratio changes only
+        that arm's timing. A move must fit in its quarter (half period,
+        diagonal), which :func:`check_fit` tests.
 
     Returns:
       Array [..., 2] of setpoints in rad, broadcast over all arguments.
@@ -61,34 +66,49 @@ def setpoints(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0
     a = jnp.asarray(amplitude, dtype=float)
     T = jnp.asarray(period, dtype=float)
     u = jnp.mod(t / T + phase, 1.0)  # gait phase in [0, 1)
-    tm = move_time(a, speed, kind)
+    tm1 = move_time(a, speed * jnp.asarray(ratio1, dtype=float), kind)
+    tm2 = move_time(a, speed * jnp.asarray(ratio2, dtype=float), kind)
 
     # square: quarter q in 0..3, time since quarter start
     q = jnp.floor(u * 4.0)
     tq = (u - q / 4.0) * T
-    s = jnp.clip(tq / tm, 0.0, 1.0)  # progress of the moving arm
     # arm that moves in quarter q: CCW moves arm1 on even quarters
     ccw = jnp.asarray(chirality) > 0
     arm1_moves_even = ccw
+    s_f = jnp.clip(tq / jnp.where(arm1_moves_even, tm1, tm2), 0.0, 1.0)  # progress of the "first" arm's move
+    s_s = jnp.clip(tq / jnp.where(arm1_moves_even, tm2, tm1), 0.0, 1.0)  # and of the "second"'s
     # value of arm "first" (moves on even quarters) and "second" (odd)
     # first: +a -> -a in q0, stays -a in q1, -a -> +a in q2, stays +a in q3
-    first = jnp.select([q == 0, q == 1, q == 2], [a * (1 - 2 * s), -a, -a * (1 - 2 * s)], a)
+    first = jnp.select([q == 0, q == 1, q == 2], [a * (1 - 2 * s_f), -a, -a * (1 - 2 * s_f)], a)
     # second: +a in q0, +a -> -a in q1, -a in q2, -a -> +a in q3
-    second = jnp.select([q == 0, q == 1, q == 2], [a, a * (1 - 2 * s), -a], -a * (1 - 2 * s))
+    second = jnp.select([q == 0, q == 1, q == 2], [a, a * (1 - 2 * s_s), -a], -a * (1 - 2 * s_s))
     sq1 = jnp.where(arm1_moves_even, first, second)
     sq2 = jnp.where(arm1_moves_even, second, first)
 
     # diagonal: half h in 0..1, both arms +a -> -a then -a -> +a
     h = jnp.floor(u * 2.0)
     th = (u - h / 2.0) * T
-    sd = jnp.clip(th / tm, 0.0, 1.0)
-    dg = jnp.where(h == 0, a * (1 - 2 * sd), -a * (1 - 2 * sd))
+    sd1, sd2 = (jnp.clip(th / tm, 0.0, 1.0) for tm in (tm1, tm2))
+    dg1, dg2 = (jnp.where(h == 0, a * (1 - 2 * sd), -a * (1 - 2 * sd)) for sd in (sd1, sd2))
 
     diag = jnp.asarray(kind) == DIAGONAL
-    return jnp.stack([jnp.where(diag, dg, sq1), jnp.where(diag, dg, sq2)], -1)
+    return jnp.stack([jnp.where(diag, dg1, sq1), jnp.where(diag, dg2, sq2)], -1)
 
 
-def setpoints_and_rates(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0):
+def check_fit(amplitude, period, speed, kind, ratios) -> None:
+    """ValueError unless every arm's move, at ``speed`` times its ratio, fits in
+    its quarter (square) or half (diagonal) period; arrays broadcast."""
+    edges = np.where(np.asarray(kind) == DIAGONAL, 2, 4)
+    slowest = np.min(np.asarray(ratios, float), axis=-1) if np.ndim(ratios) else float(ratios)
+    need = 2.0 * np.asarray(amplitude, float) / (speed * slowest)
+    room = np.asarray(period, float) / edges
+    if np.any(need > room * (1 + 1e-9)):
+        worst = float(np.max(need / room))
+        raise ValueError(f"an arm's servo is too slow for its gait: its move takes {worst:.3g} of the time "
+                         "the gait allows (raise the period or the arm's speed ratio)")
+
+
+def setpoints_and_rates(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0, ratio1=1.0, ratio2=1.0):
     """Setpoints and their time derivatives, [..., 4] = (a1, a2, da1/dt, da2/dt).
 
     The rates are the exact derivative of :func:`setpoints` (forward-mode
@@ -96,7 +116,7 @@ def setpoints_and_rates(t, amplitude, period, speed, chirality=CCW, kind=SQUARE,
     uses them as velocity feed-forward.
     """
     t = jnp.asarray(t, dtype=float)
-    f = lambda tt: setpoints(tt, amplitude, period, speed, chirality, kind, phase)  # noqa: E731
+    f = lambda tt: setpoints(tt, amplitude, period, speed, chirality, kind, phase, ratio1, ratio2)  # noqa: E731
     sp, rate = jax.jvp(f, (t,), (jnp.ones_like(t),))
     return jnp.concatenate([sp, rate], -1)
 

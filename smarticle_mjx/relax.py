@@ -41,7 +41,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import configs as C, presets
+from . import configs as C, imperfections, presets
 from .engine import Lanes, Scene, make_backend, steps_per_period
 from .engine.batch import RetireRule, run_lanes
 from .gait import GaitSpec
@@ -76,6 +76,12 @@ class RelaxConfig:
     model: str = presets.DEFAULT
     # backend "dart": (time step s, collision detector, LCP solver[, servo]); None: the DART twin's defaults
     dart_numerics: tuple | None = None
+    # the robots' imperfections (smarticle_mjx/imperfections.py): the same robots in every
+    # trial (drawn from ``seed``), their phase jitter drawn per trial
+    imperfections: str = "none"
+
+    def robots(self) -> imperfections.Draw:
+        return imperfections.draw(self.imperfections, self.n_robots, self.seed)
 
     def gait_spec(self) -> GaitSpec:
         return GaitSpec(amplitude_deg=self.amplitude_deg, chirality=self.chirality, kind=self.gait,
@@ -85,6 +91,7 @@ class RelaxConfig:
         return presets.params(self.model)
 
     def validate(self, params: SceneParams) -> None:
+        imperfections.get(self.imperfections)
         if self.n_robots < 2:
             raise ValueError(f"a relaxation needs at least 2 robots, got {self.n_robots}")
         if self.n_robots > 30:
@@ -117,7 +124,10 @@ class RelaxConfig:
 
     def to_json(self) -> dict:
         from .engine.dart import study_json
-        return study_json(dataclasses.asdict(self), self.backend)
+        d = dataclasses.asdict(self)
+        if self.imperfections == "none":
+            del d["imperfections"]  # stores of ideal robots keep their earlier configuration
+        return study_json(d, self.backend)
 
 
 def packing(n: int, robot: RobotParams, alpha: tuple[float, float], gap: float) -> np.ndarray:
@@ -205,6 +215,8 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
     params = config.scene_params() if params is None else params
     params.validate()
     config.validate(params)
+    robots = config.robots()
+    params = robots.scene(params)  # the drawn robots' backlash and centres of mass, recorded with the scene
     starts, phase = start_poses(config, params)
     g = config.gait_spec()
     from .engine.dart import study_timestep
@@ -214,6 +226,8 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
                   "chirality": g.chirality, "gait": g.kind, "periods": config.periods,
                   "n_configs": config.trials, "n_robots": config.n_robots, "rows": "trials"}}
     full = {"model": model, "relax": config.to_json(), "scene": params_json(params)}
+    if not robots.set.ideal:
+        full["imperfections"] = robots.to_json()
     t0 = time.perf_counter()
     summary = {"trials": config.trials, "steps": 0}
     with Writer(out, full, runs, mode=mode, fields=RELAX_FIELDS) as w:
@@ -233,6 +247,7 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
                                                                else config.backend_options()))
             lanes = Lanes(starts[idx], np.full(len(idx), g.amplitude), np.full(len(idx), g.chirality_sign, np.int32),
                           np.full(len(idx), g.kind_code, np.int32), phase[idx], g.period())
+            lanes = robots.lanes(lanes, config.first_trial + idx)
 
             def on_lanes(res):
                 nonlocal done

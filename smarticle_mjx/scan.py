@@ -13,7 +13,7 @@ from typing import Callable
 import numpy as np
 
 from . import configs as C
-from . import presets
+from . import imperfections, presets
 from .engine import Lanes, Scene, make_backend, steps_per_period
 from .engine.batch import RetireRule, run_lanes
 from .engine.core import Record
@@ -55,12 +55,19 @@ class ScanConfig:
     initial: tuple[tuple[float, float, float], ...] | None = None  # configs = "explicit"
     # backend "dart": (time step s, collision detector, LCP solver[, servo]); None: the DART twin's defaults
     dart_numerics: tuple | None = None
+    # the robots' imperfections (smarticle_mjx/imperfections.py), drawn from ``seed``
+    imperfections: str = "none"
 
     def scene_params(self) -> SceneParams:
         """The preset's parameters (ValueError naming the known presets if unknown)."""
         return presets.params(self.model)
 
+    def robots(self) -> imperfections.Draw:
+        """The pair's imperfections, drawn from the scan's seed (ValueError for an unknown set)."""
+        return imperfections.draw(self.imperfections, 2, self.seed)
+
     def validate(self, params: SceneParams) -> None:
+        imperfections.get(self.imperfections)
         if self.configs not in ("random", "polar", "explicit"):
             raise ValueError(f"--configs must be random, polar or explicit, got {self.configs!r}")
         if self.configs == "explicit":
@@ -129,6 +136,8 @@ class ScanConfig:
             del d["initial"]  # stores of random and polar scans keep their earlier configuration
         else:
             d["initial"] = [[float(x) for x in c] for c in self.initial]
+        if self.imperfections == "none":
+            del d["imperfections"]  # nor do stores of ideal robots
         from .engine.dart import study_json
         return study_json(d, self.backend)
 
@@ -230,7 +239,7 @@ def simulate_rows(backend, config: ScanConfig, params: SceneParams, inputs: RunI
     content does not depend on which executor, shard or batch computed it.
     """
     record = Record(collisions=config.collisions, collision_bins=config.collision_bins)
-    lanes = Lanes.from_gait(inputs.poses[lo:hi], inputs.gait)
+    lanes = config.robots().lanes(Lanes.from_gait(inputs.poses[lo:hi], inputs.gait), np.arange(lo, hi))
 
     def on_lanes(res):
         idx = lo + res.index
@@ -267,6 +276,8 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
     model = config.model if params is None else "custom"
     params = config.scene_params() if params is None else params
     config.validate(params)
+    robots = config.robots()
+    params = robots.scene(params)  # the drawn robots' backlash and centres of mass, recorded with the scene
     params.validate()
     cfg = config.initial_configs()
     from .engine.dart import study_timestep
@@ -278,6 +289,8 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
         runs[run_name(a)] = {"amplitude_deg": float(a), "period_s": period, "chirality": g.chirality,
                              "gait": g.kind, "periods": config.periods, "n_configs": len(cfg)}
     full = {"model": model, "scan": config.to_json(), "scene": params_json(params)}
+    if not robots.set.ideal:
+        full["imperfections"] = robots.to_json()
     if executor is not None:
         full["executor"] = executor.describe()
     t0 = time.perf_counter()
@@ -378,10 +391,12 @@ def _config_keywords(d: dict) -> dict:
 
 def params_from_json(d: dict) -> SceneParams:
     """The SceneParams a store recorded (its ``config["scene"]``), lists back to tuples."""
-    from .scene import RobotParams
+    from .scene import RobotParams, RobotQuirk
     robot = RobotParams(**d["robot"])
-    rest = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k != "robot"}
-    return SceneParams(robot=robot, **rest)
+    rest = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k not in ("robot", "quirks")}
+    quirks = tuple(RobotQuirk(backlash_deg=None if q.get("backlash_deg") is None else tuple(q["backlash_deg"]),
+                              com_offset=tuple(q.get("com_offset", (0.0, 0.0)))) for q in d.get("quirks", ()))
+    return SceneParams(robot=robot, quirks=quirks, **rest)
 
 
 def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 40,
@@ -414,7 +429,8 @@ def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 
     inputs = RunInputs.of(config, params, float(st.run_attrs[run]["amplitude_deg"]))
     if frame_interval is not None:
         track_stride = max(1, int(round(frame_interval / params.timestep)))
-    res = simulate(params, inputs.poses[lane], inputs.gait, int(config.periods), track_stride=track_stride)
+    res = simulate(params, inputs.poses[lane], inputs.gait, int(config.periods), track_stride=track_stride,
+                   imperfections=config.robots(), row=lane)
     # the track starts after its first stride: put the start in front
     t = np.concatenate([[0.0], res.track_t])
     track = np.concatenate([inputs.poses[lane][None], res.track], 0)

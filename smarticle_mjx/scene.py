@@ -53,6 +53,35 @@ import numpy as np
 _PLATE_BIT = 1
 _ROBOT_BIT = 2
 ARM_SHAPES = ("capsule", "plate")
+SERVO_CLIPS = ("joint", "actuator")
+
+
+@dataclasses.dataclass(frozen=True)
+class RobotQuirk:
+    """How one robot of a scene departs from the preset's ideal robot
+    (drawn by ``smarticle_mjx.imperfections``; SI units).
+
+    Attributes:
+      backlash_deg: free play of arm 1 and arm 2 (half-widths, deg); None: the
+        preset's ``backlash_deg`` for both.
+      com_offset: the body's centre of mass off its geometric centre (m), in
+        the body frame (x along the body, y toward the arms' fold side).
+    """
+
+    backlash_deg: tuple[float, float] | None = None
+    com_offset: tuple[float, float] = (0.0, 0.0)
+
+    def validate(self, robot: "RobotParams") -> None:
+        if self.backlash_deg is not None:
+            if len(self.backlash_deg) != 2 or not all(0 <= b <= 10 for b in self.backlash_deg):
+                raise ValueError(f"a robot's backlash is two half-widths in [0, 10] deg, got {self.backlash_deg}")
+        dx, dy = self.com_offset
+        if not (abs(dx) < robot.body_length / 2 and abs(dy) < robot.body_thickness / 2):
+            raise ValueError(f"centre-of-mass offset {self.com_offset} m lies outside the body")
+
+    def backlash(self, robot: "RobotParams") -> tuple[float, float]:
+        b = self.backlash_deg
+        return (robot.backlash_deg, robot.backlash_deg) if b is None else (float(b[0]), float(b[1]))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,6 +112,18 @@ class RobotParams:
     # rate pass through a filter of this time constant; 0: the servo follows
     # the command at once (within its gains and torque)
     servo_timeconst: float = 0.0
+    # Where the stall torque clips: "joint" clips the hinge's total actuator
+    # torque (actuatorfrcrange); "actuator" also clips each actuator's own force
+    # (forcerange), so that MuJoCo's implicit integrator stops linearising a
+    # clipped actuator's damping (MuJoCo >= 3.5 does so only for the actuator's
+    # own range): a stiff velocity loop then pushes at the bound while blocked
+    # instead of moving as if its arm were many times heavier
+    servo_clip: str = "joint"
+    # Gear backlash: each arm swings freely +-backlash_deg about the driven
+    # hinge before it meets the gear (a second, unactuated hinge on the same
+    # axis with that range, after MuJoCo's modelling guide; its stops as stiff
+    # as the time step integrates, 2 dt); 0: no free play
+    backlash_deg: float = 0.0
 
     def validate(self) -> None:
         positive = ("body_length", "body_thickness", "body_height", "arm_length",
@@ -118,6 +159,10 @@ class RobotParams:
             raise ValueError("robot.hinge_inset must be in [0, body_length / 2)")
         if self.servo_timeconst < 0:
             raise ValueError("robot.servo_timeconst must be >= 0")
+        if self.servo_clip not in SERVO_CLIPS:
+            raise ValueError(f"robot.servo_clip must be one of {', '.join(SERVO_CLIPS)}, got {self.servo_clip!r}")
+        if not 0 <= self.backlash_deg <= 10:
+            raise ValueError(f"robot.backlash_deg must be in [0, 10], got {self.backlash_deg}")
 
     @property
     def arm_radius(self) -> float:
@@ -195,9 +240,16 @@ class SceneParams:
     plate_tilt_deg: tuple[float, float] = (0.0, 0.0)  # downhill slope along plate x and y
     plate_friction_y_ratio: float = 1.0  # mu along plate y / mu along x (a brushed plate)
     arm_plate_friction: float = 0.0  # > 0: the arms rest on the plate and slide with this mu
+    # Per-robot departures from the ideal robot, robot i taking quirks[i] (robots
+    # beyond the tuple are ideal); drawn by smarticle_mjx.imperfections
+    quirks: tuple[RobotQuirk, ...] = ()
 
     def validate(self) -> None:
         self.robot.validate()
+        for q in self.quirks:
+            if not isinstance(q, RobotQuirk):
+                raise ValueError(f"quirks must be RobotQuirk objects, got {type(q).__name__}")
+            q.validate(self.robot)
         if not self.timestep > 0:
             raise ValueError("timestep must be positive")
         if self.integrator not in INTEGRATORS:
@@ -239,6 +291,10 @@ class SceneParams:
     def replace(self, **changes) -> "SceneParams":
         return dataclasses.replace(self, **changes)
 
+    def quirk(self, i: int) -> RobotQuirk:
+        """Robot ``i``'s departures from the ideal robot (none beyond the quirks given)."""
+        return self.quirks[i] if i < len(self.quirks) else RobotQuirk()
+
 
 def _fmt(*values: float) -> str:
     return " ".join(f"{v:.9g}" for v in values)
@@ -262,25 +318,49 @@ def _robot_xml(i: int, s: SceneParams, pose: Sequence[float], plate_bits: int = 
     hx = p.hinge_x
     arm_dz = p.arm_z - hh  # arm centre line relative to the body centre
     len1, len2 = p.arm_lengths
-    lim = p.arm_limit_deg
+    lim = math.radians(p.arm_limit_deg)  # the compiler reads angles in radians
     quat = _fmt(math.cos(heading / 2), 0, 0, math.sin(heading / 2))
     rgba = "0.85 0.35 0.2 1" if i == 0 else "0.2 0.45 0.85 1"
     # hinge stops are as stiff as the contacts (MuJoCo's default limit is 20 ms soft)
+    stiff = (f'solreflimit="{_fmt(s.contact_timeconst, s.contact_dampratio)}" '
+             f'solimplimit="{_fmt(*s.contact_solimp)}"')
     joint = (f'armature="{p.servo_armature:.9g}" damping="{p.joint_damping:.9g}" ref="0" '
-             f'range="{-lim:.9g} {lim:.9g}" solreflimit="{_fmt(s.contact_timeconst, s.contact_dampratio)}" '
-             f'solimplimit="{_fmt(*s.contact_solimp)}" '
+             f'range="{-lim:.9g} {lim:.9g}" {stiff} '
              f'actuatorfrcrange="{-p.servo_torque:.9g} {p.servo_torque:.9g}"')
+    quirk = s.quirk(i)
+    play = quirk.backlash(p)
+
+    def free_play(k: int) -> str:
+        # the gear's free play: an unactuated hinge on the driven hinge's axis, no
+        # armature (the arm alone swings through it), stops as stiff as contacts
+        b = math.radians(play[k - 1])
+        if b <= 0:
+            return ""
+        axis = "0 0 -1" if k == 1 else "0 0 1"
+        # gear teeth are rigid: the stops are as stiff as the step integrates (2 dt), with the contacts' solimp
+        teeth = (f'solreflimit="{_fmt(2 * s.timestep, 1.0)}" solimplimit="{_fmt(*s.contact_solimp)}"')
+        return (f'\n        <joint name="r{i}_k{k}" type="hinge" axis="{axis}" ref="0" '
+                f'range="{-b:.9g} {b:.9g}" {teeth}/>')
+    inertial = ""
+    if quirk.com_offset != (0.0, 0.0):
+        # an explicit inertial moves the body's centre of mass, not its shape
+        m = p.body_mass
+        ixx, iyy, izz = (m / 12 * (u * u + v * v) for u, v in
+                         ((p.body_thickness, p.body_height), (p.body_length, p.body_height),
+                          (p.body_length, p.body_thickness)))
+        inertial = (f'\n      <inertial pos="{_fmt(*quirk.com_offset, 0.0)}" mass="{m:.9g}" '
+                    f'diaginertia="{_fmt(ixx, iyy, izz)}"/>')
     return f"""
     <body name="r{i}" pos="{_fmt(x, y, hh)}" quat="{quat}">
-      <freejoint name="r{i}_free"/>
+      <freejoint name="r{i}_free"/>{inertial}
       <geom name="r{i}_body" type="box" size="{_fmt(hw, hd, hh)}" mass="{p.body_mass:.9g}"
             contype="{plate_bits | _ROBOT_BIT}" conaffinity="{plate_bits | _ROBOT_BIT}" rgba="{rgba}"/>
       <body name="r{i}_arm1" pos="{_fmt(-hx, 0, arm_dz)}">
-        <joint name="r{i}_a1" type="hinge" axis="0 0 -1" {joint}/>
+        <joint name="r{i}_a1" type="hinge" axis="0 0 -1" {joint}/>{free_play(1)}
         {_arm_geom_xml(f"r{i}_arm1", p, -1, len1)}
       </body>
       <body name="r{i}_arm2" pos="{_fmt(hx, 0, arm_dz)}">
-        <joint name="r{i}_a2" type="hinge" axis="0 0 1" {joint}/>
+        <joint name="r{i}_a2" type="hinge" axis="0 0 1" {joint}/>{free_play(2)}
         {_arm_geom_xml(f"r{i}_arm2", p, 1, len2)}
       </body>
     </body>""", (a1, a2)
@@ -315,20 +395,23 @@ def _servo_xml(i: int, rp: RobotParams, lim: float) -> list[str]:
     """
     out = []
     tau = rp.servo_timeconst
+    # each actuator clipped at the stall torque as well ("actuator" clip): MuJoCo
+    # then treats a clipped actuator's force as a constant in the implicit step
+    clip = (f' forcerange="{-rp.servo_torque:.9g} {rp.servo_torque:.9g}"' if rp.servo_clip == "actuator" else "")
     for k in (1, 2):
         if tau > 0:
             out.append(f'    <general name="r{i}_p{k}" joint="r{i}_a{k}" dyntype="filterexact" dynprm="{tau:.9g}" '
                        f'gainprm="{rp.servo_kp:.9g}" biastype="affine" biasprm="0 {-rp.servo_kp:.9g} 0" '
-                       f'ctrlrange="{-lim:.9g} {lim:.9g}"/>')
+                       f'ctrlrange="{-lim:.9g} {lim:.9g}"{clip}/>')
         else:
             out.append(f'    <position name="r{i}_p{k}" joint="r{i}_a{k}" kp="{rp.servo_kp:.9g}" '
-                       f'ctrlrange="{-lim:.9g} {lim:.9g}"/>')
+                       f'ctrlrange="{-lim:.9g} {lim:.9g}"{clip}/>')
     for k in (1, 2):
         if tau > 0:
             out.append(f'    <general name="r{i}_v{k}" joint="r{i}_a{k}" dyntype="filterexact" dynprm="{tau:.9g}" '
-                       f'gainprm="{rp.kv:.9g}" biastype="affine" biasprm="0 0 {-rp.kv:.9g}"/>')
+                       f'gainprm="{rp.kv:.9g}" biastype="affine" biasprm="0 0 {-rp.kv:.9g}"{clip}/>')
         else:
-            out.append(f'    <velocity name="r{i}_v{k}" joint="r{i}_a{k}" kv="{rp.kv:.9g}"/>')
+            out.append(f'    <velocity name="r{i}_v{k}" joint="r{i}_a{k}" kv="{rp.kv:.9g}"{clip}/>')
     return out
 
 
@@ -448,6 +531,19 @@ class SceneLayout:
     arm_qvel: np.ndarray  # (N, 2)
     geom_robot: np.ndarray  # (ngeom,) robot owning each geom, -1 for world geoms
     pairs: np.ndarray  # (P, 2) robot index pairs i < j, sensor order
+    # (N, 2) qpos address of each arm's free-play (backlash) hinge, -1 where it has none;
+    # an arm's angle is its driven hinge's plus this one's
+    play_qpos: np.ndarray | None = None
+
+    def arm_angles(self, qpos: np.ndarray, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """Robot ``i``'s arm angles (alpha1, alpha2) from qpos [..., nq]: driven hinge plus free play."""
+        out = []
+        for k in (0, 1):
+            a = qpos[..., self.arm_qpos[i, k]]
+            if self.play_qpos is not None and self.play_qpos[i, k] >= 0:
+                a = a + qpos[..., self.play_qpos[i, k]]
+            out.append(a)
+        return out[0], out[1]
 
     @staticmethod
     def of(model: mujoco.MjModel) -> "SceneLayout":
@@ -456,8 +552,10 @@ class SceneLayout:
             n += 1
         if n == 0:
             raise ValueError("model has no smarticle bodies named r0, r1, ...")
-        fq, fv, aq, av = [], [], [], []
+        fq, fv, aq, av, pq = [], [], [], [], []
         for i in range(n):
+            play = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"r{i}_k{k}") for k in (1, 2)]
+            pq.append([model.jnt_qposadr[k] if k >= 0 else -1 for k in play])
             j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"r{i}_free")
             fq.append(model.jnt_qposadr[j])
             fv.append(model.jnt_dofadr[j])
@@ -470,7 +568,9 @@ class SceneLayout:
             if name.startswith("r") and "_" in name:
                 geom_robot[g] = int(name[1:name.index("_")])
         pairs = np.array([(i, j) for i in range(n) for j in range(i + 1, n)], dtype=np.int32).reshape(-1, 2)
-        return SceneLayout(n, np.array(fq), np.array(fv), np.array(aq), np.array(av), geom_robot, pairs)
+        pq = np.array(pq, dtype=np.int64)
+        return SceneLayout(n, np.array(fq), np.array(fv), np.array(aq), np.array(av), geom_robot, pairs,
+                           pq if (pq >= 0).any() else None)
 
 
 def standard_poses(kind: str, robot: RobotParams = RobotParams()) -> list[tuple[float, ...]]:

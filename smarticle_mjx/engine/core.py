@@ -128,6 +128,10 @@ class Scene:
             q[..., a + 6] = np.sin(h / 2)
             q[..., lay.arm_qpos[i, 0]] = poses[..., i, 3]
             q[..., lay.arm_qpos[i, 1]] = poses[..., i, 4]
+            if lay.play_qpos is not None:  # the free play starts centred
+                for k in (0, 1):
+                    if lay.play_qpos[i, k] >= 0:
+                        q[..., lay.play_qpos[i, k]] = 0.0
         return q
 
     def initial_act(self, lanes: "Lanes") -> np.ndarray:
@@ -137,7 +141,10 @@ class Scene:
             return np.zeros((lanes.size, 0))
         if self.model.na != self.model.nu:
             raise ValueError("scene has activations on only some actuators; engines expect all or none")
-        return lane_controls(self, lanes, np.zeros(1))[:, 0]
+        # on the step grid, as the engines advance them: a robot's own period rounded or
+        # not changes the float32 gait at t = 0 by 1e-7, which an arm rattling in its
+        # backlash amplifies into a different run
+        return lane_controls(self, on_step_grid(lanes, self.model.opt.timestep), np.zeros(1))[:, 0]
 
     def poses_from_qpos(self, qpos: np.ndarray) -> np.ndarray:
         """Planar poses [..., N, 5] (x, y, heading, alpha1, alpha2) from qpos."""
@@ -148,8 +155,7 @@ class Scene:
             a = lay.free_qpos[i]
             w, x, y, z = (qpos[..., a + 3 + k] for k in range(4))
             heading = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-            out.append(np.stack([qpos[..., a], qpos[..., a + 1], heading,
-                                 qpos[..., lay.arm_qpos[i, 0]], qpos[..., lay.arm_qpos[i, 1]]], -1))
+            out.append(np.stack([qpos[..., a], qpos[..., a + 1], heading, *lay.arm_angles(qpos, i)], -1))
         return np.stack(out, -2)
 
 
@@ -169,6 +175,8 @@ class Lanes:
       robot_period: [B, N] each robot's own gait period in s, or None (every
         robot at ``period``). Robots with other periods are not at gait
         phase 0 at the period records.
+      arm_speed: [B, N, 2] each arm's servo speed as a multiple of the
+        model's ``servo_speed``, or None (every arm at it).
     """
 
     poses: np.ndarray
@@ -178,6 +186,7 @@ class Lanes:
     phase: np.ndarray
     period: float
     robot_period: np.ndarray | None = None
+    arm_speed: np.ndarray | None = None
 
     def __post_init__(self):
         b, n = self.poses.shape[:2]
@@ -191,6 +200,11 @@ class Lanes:
                 raise ValueError(f"lanes.robot_period must have shape ({b}, {n})")
             if not (np.isfinite(self.robot_period).all() and (self.robot_period > 0).all()):
                 raise ValueError("lanes.robot_period must be positive")
+        if self.arm_speed is not None:
+            if self.arm_speed.shape != (b, n, 2):
+                raise ValueError(f"lanes.arm_speed must have shape ({b}, {n}, 2)")
+            if not (np.isfinite(self.arm_speed).all() and (self.arm_speed > 0).all()):
+                raise ValueError("lanes.arm_speed must be positive")
 
     @property
     def size(self) -> int:
@@ -199,7 +213,7 @@ class Lanes:
     @property
     def per_robot(self) -> bool:
         """Whether robots of one lane may run different gaits."""
-        return self.robot_period is not None or any(getattr(self, k).ndim == 2
+        return self.robot_period is not None or self.arm_speed is not None or any(getattr(self, k).ndim == 2
                                                     for k in ("amplitude", "chirality", "kind"))
 
     def robot_gait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -271,7 +285,14 @@ class Lanes:
 
     def take(self, idx) -> "Lanes":
         return Lanes(self.poses[idx], self.amplitude[idx], self.chirality[idx], self.kind[idx],
-                     self.phase[idx], self.period, None if self.robot_period is None else self.robot_period[idx])
+                     self.phase[idx], self.period, None if self.robot_period is None else self.robot_period[idx],
+                     None if self.arm_speed is None else self.arm_speed[idx])
+
+    def arm_ratios(self) -> np.ndarray:
+        """[B, N, 2] each arm's speed ratio (1 where the lanes give none)."""
+        if self.arm_speed is None:
+            return np.ones(self.poses.shape[:2] + (2,))
+        return self.arm_speed
 
 
 def steps_per_period(period: float, timestep: float) -> int:
@@ -303,7 +324,8 @@ def distinct_gaits(lanes: Lanes) -> tuple[np.ndarray, np.ndarray]:
     """(first, row): a lane index for each distinct gait among the lanes (amplitude,
     chirality, kind, period and phase of every robot), and each lane's gait as
     an index into ``first``."""
-    key = np.concatenate([*lanes.robot_gait(), lanes.phase], axis=1)  # [B, 5N]
+    key = np.concatenate([*lanes.robot_gait(), lanes.phase,
+                          lanes.arm_ratios().reshape(lanes.size, -1)], axis=1)  # [B, 7N]
     _, first, row = np.unique(key, axis=0, return_index=True, return_inverse=True)
     return first, np.asarray(row).reshape(-1)
 
@@ -325,7 +347,12 @@ def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
     else:
         amp, chi, kind = (x[:, None, None] for x in (u.amplitude, u.chirality, u.kind))
         period = u.period
-    sp = _controls(t[None, :, None], amp, period, scene.params.robot.servo_speed, chi, kind, u.phase[:, None, :])
+    ratios = u.arm_ratios()[:, None]  # [U, 1, N, 2]
+    speed = scene.params.robot.servo_speed
+    if u.arm_speed is not None:
+        gait_mod.check_fit(amp, period, speed, kind, ratios)
+    sp = _controls(t[None, :, None], amp, period, speed, chi, kind, u.phase[:, None, :],
+                   ratios[..., 0], ratios[..., 1])
     sp = np.asarray(sp)  # [U, T, N, 4]
     return sp.reshape(sp.shape[0], sp.shape[1], -1)[row]
 

@@ -115,6 +115,9 @@ class MjxBackend(BackendBase):
         The period is one scalar for the batch, or [B, N] when robots run
         their own gaits (then amplitude, chirality and kind are [B, N] too).
         """
+        if lanes.arm_speed is not None:
+            raise ValueError("the mjx backend runs arms at the model's servo speed; per-arm speeds "
+                             "(imperfections) run on the native, warp and dart backends")
         if lanes.per_robot:
             amp, chi, kind, period = lanes.robot_gait()
             period = jnp.asarray(period, jnp.float32)

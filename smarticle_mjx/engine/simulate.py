@@ -48,7 +48,7 @@ class SimResult:
 
 def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=None,
              track_stride: int | None = None, backend: str = "native", nthread: int | None = None,
-             record: Record | None = None) -> SimResult:
+             record: Record | None = None, imperfections=None, row: int = 0) -> SimResult:
     """Simulate N robots on the plate for ``periods`` gait periods.
 
     Args:
@@ -61,6 +61,9 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
         (shorthand for ``record=Record(track_stride=...)``).
       backend: "native" (default), "mjx", "warp" or "dart" (full-rate tracks: native and dart).
       record: what to record beyond per-period poses and touches.
+      imperfections: an ``imperfections.Draw`` of these robots (its scene
+        quirks must already be in ``params``); ``row``: the lane or trial
+        whose phase jitter applies.
 
     Raises:
       ValueError: bad parameters, or robots overlapping at the start.
@@ -79,7 +82,10 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
     if len(poses) > 1 and not configs.poses_valid(poses, params.robot):
         raise ValueError("initial poses overlap: robots would start interpenetrating")
     scene = Scene.build(params, len(poses), collisions=record.collisions)
-    lanes = on_step_grid(Lanes.from_gait(poses, gait, phase), params.timestep)
+    lanes = Lanes.from_gait(poses, gait, phase)
+    if imperfections is not None:
+        lanes = imperfections.lanes(lanes, [row])
+    lanes = on_step_grid(lanes, params.timestep)
     from . import make_backend
     be = make_backend(backend, scene, nthread=nthread)
     try:

@@ -1,0 +1,190 @@
+"""Real robots' imperfections and the scene features behind them: backlash,
+per-arm servo speeds, centre-of-mass offsets, clock drift, phase jitter, and
+the actuator-level torque clip."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import mujoco
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from smarticle_mjx import gait as G
+from smarticle_mjx import imperfections as I
+from smarticle_mjx import presets
+from smarticle_mjx.cli import app
+from smarticle_mjx.engine import Lanes, Scene
+from smarticle_mjx.engine.core import lane_controls
+from smarticle_mjx.engine.native import NativeBackend
+from smarticle_mjx.scan import ScanConfig, resimulate_lane, run_scan
+from smarticle_mjx.scene import RobotQuirk, compile_model, build_mjcf
+from smarticle_mjx.store import Store
+
+runner = CliRunner()
+
+
+def _lone(params, periods_steps: int, gait=G.GaitSpec(90.0), arm_speed=None):
+    scene = Scene.build(params, 1)
+    a0 = gait.setpoints(0.0, params.robot.servo_speed)
+    lanes = Lanes.from_gait(np.array([[[0.0, 0.0, 0.0, a0[0], a0[1]]]]), gait)
+    if arm_speed is not None:
+        lanes = dataclasses.replace(lanes, arm_speed=np.asarray(arm_speed, float).reshape(1, 1, 2))
+    be = NativeBackend(scene, nthread=1)
+    try:
+        return scene, be.step_qpos(lanes, periods_steps)[0]
+    finally:
+        be.close()
+
+
+def test_backlash_lets_each_arm_swing_to_the_stops_of_its_play_and_no_further():
+    """A servo that reverses drags its arm through the gear's free play: the
+    free-play hinge travels to one stop and then the other (±1.5°), and the
+    stops, rigid gear teeth, hold it there (within 0.2° past them)."""
+    p = presets.params()
+    p = p.replace(robot=dataclasses.replace(p.robot, backlash_deg=1.5))
+    steps = int(round(1.6 / p.timestep))
+    scene, q = _lone(p, steps)
+    lay = scene.layout
+    assert lay.play_qpos is not None and (lay.play_qpos >= 0).all()
+    for k in (0, 1):
+        play = np.degrees(q[:, lay.play_qpos[0, k]])
+        assert play.max() > 1.2 and play.min() < -1.2, (k, play.min(), play.max())
+        assert np.abs(play).max() < 1.5 + 0.2, (k, np.abs(play).max())
+    # the pose reports the arm itself: driven hinge plus play
+    poses = scene.poses_from_qpos(q)
+    np.testing.assert_allclose(poses[:, 0, 3], q[:, lay.arm_qpos[0, 0]] + q[:, lay.play_qpos[0, 0]])
+
+
+def test_a_speed_ratio_changes_one_arm_s_timing_only():
+    """A robot whose arm-2 servo runs at 0.92 of the speed: arm 1's setpoints
+    are untouched; arm 2 still travels 2a per move, but each move lasts 1/0.92
+    as long; the engines' controls carry the same."""
+    a, T, v = math.pi / 2, 1.6, 8.727
+    t = np.arange(0, T, 1e-4)
+    ideal = np.asarray(G.setpoints(t, a, T, v))
+    slow = np.asarray(G.setpoints(t, a, T, v, ratio2=0.92))
+    np.testing.assert_array_equal(ideal[:, 0], slow[:, 0])
+    for sp, want in ((ideal[:, 1], 2 * a / v), (slow[:, 1], 2 * a / (0.92 * v))):
+        moving = np.abs(np.diff(sp)) > 0
+        # arm 2 moves in two quarters (ccw: odd ones); its moving time per move
+        assert moving.sum() * 1e-4 / 2 == pytest.approx(want, rel=2e-3)
+        assert sp.max() == pytest.approx(a) and sp.min() == pytest.approx(-a)
+    scene = Scene.build(presets.params(), 1)
+    lanes = Lanes.from_gait(np.zeros((1, 1, 5)), G.GaitSpec(90.0))
+    c0 = lane_controls(scene, lanes, t[::10])
+    c1 = lane_controls(scene, dataclasses.replace(lanes, arm_speed=np.array([[[1.0, 0.92]]])), t[::10])
+    np.testing.assert_allclose(c0[..., [0, 2]], c1[..., [0, 2]], atol=2e-6)  # float32 gait
+    assert np.abs(c0[..., 1] - c1[..., 1]).max() > 0.1
+    with pytest.raises(ValueError, match="too slow for its gait"):
+        lane_controls(scene, dataclasses.replace(lanes, arm_speed=np.array([[[1.0, 0.8]]])), t[::10])
+
+
+def test_a_centre_of_mass_offset_moves_the_mass_not_the_shape():
+    """The explicit inertial puts the body's centre of mass at the offset with
+    the body's mass and a box's inertia; the collision box stays centred."""
+    p = presets.params().replace(quirks=(RobotQuirk(com_offset=(0.002, -0.001)),))
+    ideal = compile_model(build_mjcf(presets.params(), [(0, 0, 0, 0, 0), (0.3, 0, 0, 0, 0)]))
+    m = compile_model(build_mjcf(p, [(0, 0, 0, 0, 0), (0.3, 0, 0, 0, 0)]))
+    b0, b1 = (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"r{i}") for i in (0, 1))
+    np.testing.assert_allclose(m.body_ipos[b0], [0.002, -0.001, 0.0], atol=1e-12)
+    np.testing.assert_allclose(m.body_ipos[b1], ideal.body_ipos[b1], atol=1e-12)
+    assert m.body_mass[b0] == pytest.approx(ideal.body_mass[b0])
+    np.testing.assert_allclose(np.sort(m.body_inertia[b0]), np.sort(ideal.body_inertia[b0]), rtol=1e-6)
+    g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "r0_body")
+    np.testing.assert_allclose(m.geom_pos[g], ideal.geom_pos[g])
+
+
+def test_a_clipped_servo_accelerates_its_arm_at_the_stall_torque_with_either_clip():
+    """A stiff velocity loop (kv dt / I ~ 29) told to reverse both arms
+    saturates at the stall torque. Each arm's one-step change of speed must be
+    what that torque gives (the forward dynamics' acceleration): were the
+    implicit step to linearise the clipped loop's damping, the arms would move
+    as if ~30 times heavier. MuJoCo 4 keeps the clipped force constant whether
+    each actuator's own range clips (``servo_clip="actuator"``) or only the
+    joint's total (``"joint"``)."""
+    for clip in ("actuator", "joint"):
+        p = presets.params()
+        p = p.replace(robot=dataclasses.replace(p.robot, servo_kv=0.156, servo_kp=0.0975, servo_armature=0.0,
+                                                servo_timeconst=0.0, servo_clip=clip))
+        m = Scene.build(p, 1).model
+        d = mujoco.MjData(m)
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        d.ctrl[:] = [0.0, 0.0, 8.727, 8.727]  # both arms: full speed from rest
+        mujoco.mj_forward(m, d)
+        adr = [m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"r0_a{k}")] for k in (1, 2)]
+        assert np.abs(d.qfrc_actuator[adr]) == pytest.approx([0.078, 0.078])
+        forward = d.qacc[adr].copy()
+        mujoco.mj_step(m, d)
+        np.testing.assert_allclose(d.qvel[adr] / m.opt.timestep, forward, rtol=0.02)
+        assert forward.min() > 0.5 * 0.078 / (p.robot.arm_mass * p.robot.arm_length ** 2 / 3)
+
+
+def test_draws_depend_on_seed_and_robot_only_and_priors_hold():
+    a, b = I.draw("lab", 2, seed=3), I.draw("lab", 7, seed=3)
+    np.testing.assert_array_equal(a.arm_speed, b.arm_speed[:2])
+    assert a.quirks == b.quirks[:2]
+    c = I.draw("lab", 2, seed=4)
+    assert not np.array_equal(a.arm_speed, c.arm_speed)
+    big = I.draw("lab", 400, seed=0)
+    assert (big.arm_speed >= I.MIN_SPEED_RATIO).all() and (big.arm_speed <= 2 - I.MIN_SPEED_RATIO).all()
+    assert np.std(big.arm_speed) == pytest.approx(0.05, rel=0.15)
+    assert (np.abs(big.clock - 1) <= 5e-3).all()
+    plays = np.array([q.backlash_deg for q in big.quirks])
+    assert plays.min() >= 1.0 and plays.max() <= 2.0
+    none = I.draw("none", 2, seed=3)
+    assert none.set.ideal and none.scene(presets.params()) == presets.params()
+    # single-effect sets switch on one thing only
+    assert I.draw("backlash", 2, 3).arm_speed.tolist() == [[1, 1], [1, 1]]
+    assert I.draw("servo-speed", 2, 3).quirks[0].backlash_deg is None
+
+
+def test_imperfections_round_trip_through_a_store_and_reproduce_from_the_seed(tmp_path):
+    """The store records the set, its seed and every value drawn; drawing
+    again from them gives the same robots, and a lane simulated again from
+    the store (speeds, clocks, jitter, backlash, centres of mass) lands
+    where the scan put it."""
+    cfg = ScanConfig(configs="polar", positions=4, orientations=1, periods=2, imperfections="lab", seed=5,
+                     batch_size=4)
+    out = tmp_path / "s.h5"
+    run_scan(cfg, out)
+    st = Store(out)
+    rec = st.config["imperfections"]
+    assert rec["name"] == "lab" and rec["seed"] == 5
+    again = I.from_json(rec)
+    assert again.to_json() == rec == I.draw("lab", 2, 5).to_json()
+    assert [q["backlash_deg"] for q in st.config["scene"]["quirks"]] == rec["backlash_deg"]
+    rows = st.run(st.runs[0], fields=("valid", "poses"))
+    lane = int(np.flatnonzero(rows["valid"])[0])
+    _, _, res, params, _, _ = resimulate_lane(out, None, lane)
+    assert params.quirks == again.quirks
+    np.testing.assert_allclose(res.poses[1:], rows["poses"][lane], atol=1e-5)
+    # and the imperfections matter: the ideal robots end elsewhere
+    ideal = tmp_path / "i.h5"
+    run_scan(dataclasses.replace(cfg, imperfections="none"), ideal)
+    p_ideal = Store(ideal).run(st.runs[0], fields=("poses",))["poses"][lane]
+    assert np.abs(p_ideal[-1, :, :2] - rows["poses"][lane][-1, :, :2]).max() > 1e-4
+    assert "imperfections" not in Store(ideal).config
+
+
+@pytest.mark.parametrize("command", [
+    ["scan", "--configs", "polar", "--positions", "2", "--periods", "1"],
+    ["sweep-amplitude", "--amplitudes", "90", "--periods", "1"],
+    ["relax", "--trials", "1", "--periods", "1"],
+])
+def test_unknown_imperfections_are_one_line_exit_2_and_create_nothing(tmp_path, command):
+    r = runner.invoke(app, [str(c) for c in [*command, "--out", tmp_path / "x.h5", "--imperfections", "nope",
+                                             "--quiet"]])
+    assert r.exit_code == 2, r.output
+    assert "unknown imperfections 'nope'" in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_models_list_names_the_imperfection_sets_and_their_sources():
+    r = runner.invoke(app, ["models", "--list"])
+    assert r.exit_code == 0
+    for name in I.SETS:
+        assert f"\n{name}: " in r.output
+    assert "resonator" in r.output and "Backlash" in r.output
