@@ -54,11 +54,17 @@ def _save(path: pathlib.Path, data: dict):
     os.replace(tmp, path)
 
 
-def _run(params, gait: GaitSpec, poses, periods: int, quiet: int):
-    """Per-period poses [M, K, N, 5] and touches [M, K] of every lane, and the wall time."""
+def _run(params, gait: GaitSpec, poses, periods: int, quiet: int, robots=None):
+    """Per-period poses [M, K, N, 5] and touches [M, K] of every lane, and the wall time.
+
+    ``robots``: an ``imperfections.Draw`` of the scene's robots (lane i takes the phase jitter of row i)."""
+    if robots is not None:
+        params = robots.scene(params)
     scene = Scene.build(params, poses.shape[1])
     be = make_backend("native", scene)
     lanes = Lanes.from_gait(poses, gait)
+    if robots is not None:
+        lanes = robots.lanes(lanes, np.arange(len(poses)))
     m = len(poses)
     out_p = np.full((m, periods, poses.shape[1], 5), np.nan)
     out_t = np.zeros((m, periods), bool)
@@ -79,23 +85,38 @@ def _run(params, gait: GaitSpec, poses, periods: int, quiet: int):
     return out_p, out_t, wall, steps
 
 
-def lone_drift(params, amplitude: float, periods: int) -> dict:
-    """Net displacement per cycle of one robot (W), at dt and dt/4."""
+def lone_drift(params, amplitude: float, periods: int, imperfections: str | None = None, robots: int = 8,
+               seed: int = 1) -> dict:
+    """Net displacement per cycle of one robot (W), at dt and dt/4.
+
+    With ``imperfections``: ``robots`` robots drawn from that set (seed ``seed``), each alone on the
+    plate; the net drift per cycle is their mean (and every robot's value is kept)."""
     out = {}
     gait = GaitSpec(amplitude)
     a0 = gait.setpoints(0.0, params.robot.servo_speed)
     W = params.robot.body_length
+    draws = [None]
+    if imperfections:
+        from smarticle_mjx import imperfections as imp
+        d = imp.draw(imperfections, robots, seed)
+        draws = [dataclasses.replace(d, arm_speed=d.arm_speed[i:i + 1], clock=d.clock[i:i + 1],
+                                     quirks=d.quirks[i:i + 1]) for i in range(robots)]
     for label, dt in (("dt", params.timestep), ("dt/4", params.timestep / 4)):
         p = dataclasses.replace(params, timestep=dt)
         poses = np.array([[[0.0, 0.0, 0.0, a0[0], a0[1]]]])
-        tr, _, wall, _ = _run(p, gait, poses, periods, quiet=0)
-        xy = np.concatenate([poses[:, None, 0, :2], tr[:, :, 0, :2]], 1)[0]
-        steps = np.linalg.norm(np.diff(xy, axis=0), axis=1)
-        heading = np.concatenate([[0.0], tr[0, :, 0, 2]])
-        out[label] = {"net_per_cycle_W": float(np.linalg.norm(xy[-1] - xy[0]) / periods / W),
-                      "step_per_cycle_W": float(steps.mean() / W),
-                      "turn_per_cycle_deg": float(np.degrees(np.abs(transport.turning(heading)).mean())),
-                      "wall_s": wall}
+        net, step, turn, wall = [], [], [], 0.0
+        for robot in draws:
+            tr, _, w, _ = _run(p, gait, poses, periods, quiet=0, robots=robot)
+            xy = np.concatenate([poses[:, None, 0, :2], tr[:, :, 0, :2]], 1)[0]
+            heading = np.concatenate([[0.0], tr[0, :, 0, 2]])
+            net.append(float(np.linalg.norm(xy[-1] - xy[0]) / periods / W))
+            step.append(float(np.linalg.norm(np.diff(xy, axis=0), axis=1).mean() / W))
+            turn.append(float(np.degrees(np.abs(transport.turning(heading)).mean())))
+            wall += w
+        out[label] = {"net_per_cycle_W": float(np.mean(net)), "step_per_cycle_W": float(np.mean(step)),
+                      "turn_per_cycle_deg": float(np.mean(turn)), "wall_s": wall}
+        if imperfections:
+            out[label]["net_per_robot_W"] = net
     return out
 
 
@@ -105,14 +126,15 @@ def pair_starts(params, n: int, seed: int, amplitude: float, r_range=(0.8, 2.0))
     return C.sample_valid_pairs(n, np.random.default_rng(seed), r_range, a0[0], a0[1], params.robot)
 
 
-def gliding(params, n: int, periods: int, seed: int, burn_in: int, save: pathlib.Path | None = None) -> dict:
+def gliding(params, n: int, periods: int, seed: int, burn_in: int, save: pathlib.Path | None = None,
+            robots=None) -> dict:
     """Glider quantities at 90 deg from ``n`` random valid starts; the
     per-period tracks go to ``save`` (.npz) so that metrics can be recomputed
     (:func:`glide_metrics`) without simulating again."""
     W = params.robot.body_length
     gait = GaitSpec(90.0)
     poses = pair_starts(params, n, seed, 90.0)
-    tr, touched, wall, steps = _run(params, gait, poses, periods, quiet=2)
+    tr, touched, wall, steps = _run(params, gait, poses, periods, quiet=2, robots=robots)
     com = (tr[:, :, 0, :2] + tr[:, :, 1, :2]) / 2 / W
     r, th, ph = C.relative_coordinates(tr[:, :, 0], tr[:, :, 1], W)
     rel = np.stack([r, th, ph], -1)
@@ -133,9 +155,9 @@ def glide_metrics(com, rel, touched, burn_in: int) -> dict:
     return gliders.glide_summary(com, rel, touched, burn_in)
 
 
-def pb(params, amplitude: float, n: int, periods: int, seed: int) -> dict:
+def pb(params, amplitude: float, n: int, periods: int, seed: int, robots=None) -> dict:
     poses = pair_starts(params, n, seed, amplitude, r_range=(0.5, 2.5))
-    _, touched, wall, steps = _run(params, GaitSpec(amplitude), poses, periods, quiet=2)
+    _, touched, wall, steps = _run(params, GaitSpec(amplitude), poses, periods, quiet=2, robots=robots)
     p = binding.binding_probability(touched, np.ones(n, bool))
     return {"n": n, "periods": periods, "end": p["end"], "throughout": p["throughout"], "wall_s": wall}
 
@@ -156,6 +178,9 @@ def main():
     ap.add_argument("--numerics", default=None,
                     help="run the glide and P_b parts with a candidate of benchmarks/timestep_candidates.py "
                          "(its time step, integrator, solver settings); stored under the preset name + '~NAME'")
+    ap.add_argument("--imperfections", default=None,
+                    help="draw the robots' imperfections from this set (smarticle_mjx/imperfections.py, seed "
+                         "--seed); stored under the preset name + '+NAME'")
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "fidelity_screen.json")
     ap.add_argument("--tables", action="store_true", help="only print the tables of docs/fidelity.md from the JSON")
     args = ap.parse_args()
@@ -175,20 +200,25 @@ def main():
             params = dataclasses.replace(params, **CANDIDATES[args.numerics])
             params.validate()
             name = f"{name}~{args.numerics}"
+        robots = None
+        if args.imperfections:
+            from smarticle_mjx import imperfections as imp
+            robots = imp.draw(args.imperfections, 2, args.seed)
+            name = f"{name}+{args.imperfections}"
         entry = data.setdefault(name, {})
         parts = {} if args.dt_divisor > 1 or args.numerics else {
-            f"drift90_{args.drift_periods}": lambda: lone_drift(params, 90.0, args.drift_periods),
-            f"drift10_{args.drift_periods}": lambda: lone_drift(params, 10.0, args.drift_periods),
-        }
+            f"drift{a:g}_{args.drift_periods}": (lambda a=a: lone_drift(params, a, args.drift_periods,
+                                                                        args.imperfections, seed=args.seed))
+            for a in (90.0, 20.0, 10.0)}
         parts.update({
             f"glide_{args.pairs}x{args.periods}_s{args.seed}": lambda: gliding(
-                params, args.pairs, args.periods, args.seed, args.burn_in,
+                params, args.pairs, args.periods, args.seed, args.burn_in, robots=robots,
                 save=args.out.parent / "fidelity_tracks" / f"{name.replace('/', '')}_glide_{args.pairs}x{args.periods}_s{args.seed}.npz"),
         })
         if args.pb:
             for a in (30.0, 50.0, 70.0, 90.0):
                 parts[f"pb{a:g}_{args.pb}x{args.pb_periods}_s{args.seed}"] = \
-                    (lambda a=a: pb(params, a, args.pb, args.pb_periods, args.seed))
+                    (lambda a=a: pb(params, a, args.pb, args.pb_periods, args.seed, robots=robots))
         for key, fn in parts.items():
             if key in entry:
                 continue
@@ -197,6 +227,8 @@ def main():
             print(f"{name} {key}: {time.perf_counter() - t:.0f} s", flush=True)
             _save(args.out, data)
     names = args.models.split(",")
+    if args.imperfections:
+        names = [f"{n}+{args.imperfections}" for n in names]
     if args.dt_divisor > 1:
         names = [f"{n}@dt/{args.dt_divisor}" for n in names]
     if args.numerics:

@@ -35,9 +35,10 @@ from .scene import RobotQuirk, SceneParams
 _ROBOT_TAG = 0x51524B52  # "QRKR": apart from the configuration and relaxation streams
 _LANE_TAG = 0x51524B4C  # "QRKL"
 
-# the slowest arm the default period policy allows: at every amplitude the move
-# takes 0.9 of its quarter period at the nominal speed (1.6 s at 90 deg, 8.727 rad/s)
-MIN_SPEED_RATIO = 0.9
+# the slowest arm drawn: at every amplitude of the default period policy a move takes
+# 0.9 of its quarter period at the nominal speed (1.6 s at 90 deg, 8.727 rad/s), so an
+# arm at 0.92 still fits with its robot's clock 0.5 % fast and the period on the step grid
+MIN_SPEED_RATIO = 0.92
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,11 +77,11 @@ class ImperfectionSet:
                 "com_sd_m": self.com_sd_m, "clock_halfwidth": self.clock_halfwidth, "phase_sd": self.phase_sd}
 
 
-_SPEED = ("servo speed ratio per arm ~ N(1, 0.05), truncated to [0.9, 1.1]",
+_SPEED = ("servo speed ratio per arm ~ N(1, 0.05), truncated to [0.92, 1.08]",
           "chosen: public sources give no unit-to-unit spread for the lab's Power HD HD-1440A (on a 3.7 V cell "
           "against its rated 4.8 V); a 10 % difference between a robot's two servos is what a planar estimate "
-          "needs for the lab's 1.5e-3 W/cycle (shared/reference/smarticle.md); 0.9 is the slowest arm whose "
-          "move still fits its quarter period")
+          "needs for the lab's 1.5e-3 W/cycle (shared/reference/smarticle.md); 0.92 is the slowest arm whose "
+          "move still fits its quarter period with a fast clock")
 _BACKLASH = ("gear backlash per arm ~ U(1, 2) deg half-width",
              "MuJoCo's modelling guide (Backlash: a second hinge of +-1-2 deg); the play of small plastic-gear "
              "hobby servos")

@@ -102,6 +102,24 @@ _SERVO = {
         ("servo otherwise as 'pd'", "as the pd servo: stall torque from wsavoie/SmarticleSim, gains and armature "
          "chosen (docs/model.md)"),
     )),
+    # The lab's hobby servo as the twin's collision-level diagnosis names it (docs/twin.md, docs/model.md):
+    # a stiff position loop that pushes at its stall torque once an arm is ~1 deg off its command
+    # (a blocked arm pushes at the bound, as DART's SERVO does), the gearbox's reflected inertia and
+    # the 10 ms command lag kept, each actuator clipped at the stall torque, and the gear's backlash,
+    # through which the arm itself (3.19 g, no armature) strikes at each start and stop of a move.
+    "hobby": (dict(servo_kp=0.078 / math.radians(1.0), servo_kv=None, servo_timeconst=0.010,
+                   servo_clip="actuator", backlash_deg=1.5), (
+        ("servo_kp 4.47 N m/rad (the stall torque at 1 deg of error), kv critical",
+         "chosen: a hobby servo's proportional loop saturates within a degree or two; the stiff loop that "
+         "gives DART's collision impulses in MuJoCo (docs/twin.md)"),
+        ("servo_torque 0.078 N m, armature 5e-5 kg m^2, servo_timeconst 10 ms",
+         "as the lag servo: stall torque from wsavoie/SmarticleSim, lag half the 20 ms command frame "
+         "(wsavoie/ArduinoSmarticle cloudSmarticle.ino), armature chosen (docs/model.md)"),
+        ("backlash_deg 1.5 (free play of each arm)", "chosen: the middle of the 1-2 deg that MuJoCo's modelling "
+         "guide gives for gear backlash (docs/model.md)"),
+        ("servo_clip actuator", "chosen: each actuator clipped at the stall torque, so the implicit step keeps "
+         "a clipped force constant in any MuJoCo version (docs/model.md)"),
+    )),
 }
 
 
@@ -141,6 +159,8 @@ PRESETS: dict[str, Preset] = {p.name: p for p in (
     _bind("lab-stiff", "lab", "stiff", "the lab robot with a stiff position servo within DART's 0.03 N m"),
     _bind("lab-dart", "lab", "dart", "the lab robot with DART's servo (velocity command within 0.03 N m, hard stops)"),
     _bind("lab-lag", "lab", "lag", "the lab robot with a PD servo that answers its command 10 ms late (first-order lag)"),
+    _bind("lab-hobby", "lab", "hobby", "the lab robot with a hobby servo: a stiff position loop within its stall "
+          "torque, 10 ms command lag, gear backlash of 1.5 deg"),
     _bind("dart", "lab", "dart", "the paper's DART simulation as public code describes it: the lab robot, DART's "
           "servo, 0.1 ms steps and near-rigid contacts", numerics="rigid"),
 )}
