@@ -46,7 +46,7 @@ class ImperfectionSet:
     """A named set of imperfections and their priors (0 or None: that imperfection is off).
 
     Attributes:
-      speed_sd: per arm, speed ratio ~ Normal(1, speed_sd) truncated to
+      speed_sd: per arm, speed ratio ~ Normal(1, speed_sd) clipped to
         [MIN_SPEED_RATIO, 2 - MIN_SPEED_RATIO].
       backlash_deg: per arm, free play half-width ~ Uniform(lo, hi) deg.
       com_sd_m: per robot, centre-of-mass offset along and across the body ~ Normal(0, com_sd_m).
@@ -72,12 +72,22 @@ class ImperfectionSet:
     def changes_scene(self) -> bool:
         return bool(self.backlash_deg or self.com_sd_m)
 
+    def check_backend(self, backend: str) -> None:
+        """ValueError, before anything runs, where ``backend`` cannot run this set's gait
+        imperfections (the engines refuse them again when they meet them)."""
+        if backend == "mjx" and self.speed_sd:
+            raise ValueError(f"imperfections {self.name!r}: the mjx backend runs arms at the model's servo "
+                             "speed; per-arm speeds run on the native, warp and dart backends")
+        if backend == "dart" and self.clock_halfwidth:
+            raise ValueError(f"imperfections {self.name!r}: the dart backend runs robots that share one gait "
+                             "period; clock drift runs on the MuJoCo backends")
+
     def priors(self) -> dict:
         return {"speed_sd": self.speed_sd, "backlash_deg": None if self.backlash_deg is None else list(self.backlash_deg),
                 "com_sd_m": self.com_sd_m, "clock_halfwidth": self.clock_halfwidth, "phase_sd": self.phase_sd}
 
 
-_SPEED = ("servo speed ratio per arm ~ N(1, 0.05), truncated to [0.92, 1.08]",
+_SPEED = ("servo speed ratio per arm ~ N(1, 0.05), clipped to [0.92, 1.08]",
           "chosen: public sources give no unit-to-unit spread for the lab's Power HD HD-1440A (on a 3.7 V cell "
           "against its rated 4.8 V); a 10 % difference between a robot's two servos is what a planar estimate "
           "needs for the lab's 1.5e-3 W/cycle (shared/reference/smarticle.md); 0.92 is the slowest arm whose "

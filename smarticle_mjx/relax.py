@@ -91,7 +91,7 @@ class RelaxConfig:
         return presets.params(self.model)
 
     def validate(self, params: SceneParams) -> None:
-        imperfections.get(self.imperfections)
+        imperfections.get(self.imperfections).check_backend(self.backend)
         if self.n_robots < 2:
             raise ValueError(f"a relaxation needs at least 2 robots, got {self.n_robots}")
         if self.n_robots > 30:
@@ -114,7 +114,7 @@ class RelaxConfig:
         if self.backend not in BACKENDS:
             raise ValueError(f"unknown backend {self.backend!r}; choose one of {', '.join(BACKENDS)}")
         from .engine.dart import check_study
-        check_study(self.backend, self.dart_numerics)
+        check_study(self.backend, self.dart_numerics, self.robots().scene(params))
         self.gait_spec().validate(params.robot.servo_speed, params.robot.arm_limit_deg)
 
     def backend_options(self) -> dict:

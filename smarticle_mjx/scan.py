@@ -67,7 +67,7 @@ class ScanConfig:
         return imperfections.draw(self.imperfections, 2, self.seed)
 
     def validate(self, params: SceneParams) -> None:
-        imperfections.get(self.imperfections)
+        imperfections.get(self.imperfections).check_backend(self.backend)
         if self.configs not in ("random", "polar", "explicit"):
             raise ValueError(f"--configs must be random, polar or explicit, got {self.configs!r}")
         if self.configs == "explicit":
@@ -99,7 +99,7 @@ class ScanConfig:
         if self.backend not in BACKENDS:
             raise ValueError(f"--backend must be {', '.join(BACKENDS[:-1])} or {BACKENDS[-1]}, got {self.backend!r}")
         from .engine.dart import check_study
-        check_study(self.backend, self.dart_numerics)
+        check_study(self.backend, self.dart_numerics, self.robots().scene(params))
         if self.backend == "warp":
             from .engine import mjwarp
             if not mjwarp.available():

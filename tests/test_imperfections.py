@@ -188,3 +188,21 @@ def test_models_list_names_the_imperfection_sets_and_their_sources():
     for name in I.SETS:
         assert f"\n{name}: " in r.output
     assert "resonator" in r.output and "Backlash" in r.output
+
+
+def test_a_backend_that_cannot_run_the_imperfections_refuses_them_before_any_store_exists(tmp_path):
+    """MJX runs every arm at the model's servo speed: a scan asking it for per-arm speeds is
+    one line, exit 2, and creates nothing. The DART twin builds ideal rigid arms: a model
+    with backlash or per-robot quirks is refused by the same check its scenes make."""
+    r = runner.invoke(app, ["scan", "--configs", "polar", "--positions", "2", "--periods", "1", "--backend", "mjx",
+                            "--imperfections", "servo-speed", "--out", str(tmp_path / "x.h5"), "--quiet"])
+    assert r.exit_code == 2, r.output
+    assert "mjx backend runs arms at the model's servo speed" in r.output
+    assert len(r.output.strip().splitlines()) == 1 and list(tmp_path.iterdir()) == []
+    from smarticle_mjx.engine.dart import DartNumerics, check_model
+    check_model(presets.params(), DartNumerics())  # the ideal default builds
+    for params in (presets.params("lab-hobby"), I.draw("com-offset", 2, 0).scene(presets.params())):
+        with pytest.raises(ValueError, match="DART twin builds ideal robots"):
+            check_model(params, DartNumerics())
+    with pytest.raises(ValueError, match="share one gait period"):
+        I.get("clock-drift").check_backend("dart")

@@ -127,11 +127,7 @@ class Scene:
             q[..., a + 5] = 0.0
             q[..., a + 6] = np.sin(h / 2)
             q[..., lay.arm_qpos[i, 0]] = poses[..., i, 3]
-            q[..., lay.arm_qpos[i, 1]] = poses[..., i, 4]
-            if lay.play_qpos is not None:  # the free play starts centred
-                for k in (0, 1):
-                    if lay.play_qpos[i, k] >= 0:
-                        q[..., lay.play_qpos[i, k]] = 0.0
+            q[..., lay.arm_qpos[i, 1]] = poses[..., i, 4]  # free-play hinges keep qpos0: centred
         return q
 
     def initial_act(self, lanes: "Lanes") -> np.ndarray:

@@ -40,7 +40,7 @@ import numpy as np
 from ..gait import GaitSpec
 from .core import (BackendBase, PeriodRecords, Status, blank_collisions, collision_bin_of, lane_controls,
                    on_step_grid, steps_per_period)
-from ..scene import SceneParams
+from ..scene import RobotQuirk, SceneParams
 
 MISSING = "the dart backend needs DART's Python package: pip install -e '.[dart]'"
 DETECTORS = ("fcl-mesh", "fcl", "ode", "bullet", "dart")
@@ -93,12 +93,27 @@ def numerics_of(spec) -> DartNumerics:
                         servo=str(servo[0]) if servo else "constraint")
 
 
-def check_study(backend: str, spec) -> None:
-    """A study's backend and DART numerics agree, and DART is installed when it runs on it (ValueError)."""
+def check_model(params: SceneParams, numerics: DartNumerics) -> None:
+    """ValueError for a model the twin cannot build: armature under its pd servo, backlash or
+    per-robot quirks (DART builds ideal rigid arms on one hinge each)."""
+    if numerics.servo == "pd" and params.robot.servo_armature > 0:
+        raise ValueError("DART has no joint armature: its pd servo needs a model with servo_armature 0, "
+                         f"got {params.robot.servo_armature:g} kg m^2")
+    if params.robot.backlash_deg > 0 or any(q != RobotQuirk() for q in params.quirks):
+        raise ValueError("the DART twin builds ideal robots: backlash and centre-of-mass offsets run on the "
+                         "MuJoCo backends")
+
+
+def check_study(backend: str, spec, params: SceneParams | None = None) -> None:
+    """A study's backend and DART numerics agree, DART is installed when it runs on it, and can build
+    ``params`` when given (ValueError)."""
     if backend == "dart":
         if not available():
             raise ValueError(MISSING)
-        numerics_of(spec).validate()
+        numerics = numerics_of(spec)
+        numerics.validate()
+        if params is not None:
+            check_model(params, numerics)
     elif spec is not None:
         raise ValueError("dart numerics are for --backend dart")
 
@@ -166,9 +181,7 @@ class DartScene:
         import dartpy as dart
         numerics.validate()
         params.validate()
-        if numerics.servo == "pd" and params.robot.servo_armature > 0:
-            raise ValueError("DART has no joint armature: its pd servo needs a model with servo_armature 0, "
-                             f"got {params.robot.servo_armature:g} kg m^2")
+        check_model(params, numerics)
         self.params, self.numerics = params, numerics
         self._act = None  # the pd servo's filtered (setpoint, rate) per robot and arm
         D = dart.dynamics
