@@ -478,7 +478,7 @@ def validate(
 ):
     """Measure the paper's claims from the studies in sweeps/ and write docs/validation.md."""
     from .store import StoreError
-    from .validation import STUDIES, SWEEPS, run_validation
+    from .validate import STUDIES, SWEEPS, run_validation
     sweeps = sweeps or SWEEPS
     try:
         preset = _preset(model)

@@ -14,7 +14,7 @@ import sys
 
 import pytest
 
-from smarticle_mjx import validation as V
+from smarticle_mjx.validate import page as V
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"

@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 from smarticle_mjx.cli import app
 from smarticle_mjx.presets import DEFAULT
 from smarticle_mjx.store import Store
-from smarticle_mjx.validation import STUDIES
+from smarticle_mjx.studies import STUDIES
 
 TINY = {
     "random_90": 'configs = "random"\nn = 24\nr_range_W = [0.9, 1.4]\namplitudes_deg = [90]\nperiods = 8\n',
@@ -85,7 +85,7 @@ def test_validate_writes_a_row_per_claim_and_reuses_stores(tmp_path):
 
 
 def test_a_store_of_another_package_version_is_rerun_and_kept(tmp_path, monkeypatch):
-    from smarticle_mjx import validation
+    from smarticle_mjx import studies
     sweeps, data, out = _sweeps(tmp_path), tmp_path / "data", tmp_path / "v.md"
     r = CliRunner().invoke(app, ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps),
                                  "--single-periods", "3", "--quiet", "--studies", "polar"])
@@ -95,7 +95,7 @@ def test_a_store_of_another_package_version_is_rerun_and_kept(tmp_path, monkeypa
     rows = json.loads((tmp_path / "v" / "validation.json").read_text())["rows"]
     assert sum("not run yet" in row["measured"] for row in rows) == 11
     old = _hashes(data / DEFAULT)["validation_polar.h5"]
-    monkeypatch.setattr(validation, "__version__", "99.0")
+    monkeypatch.setattr(studies, "__version__", "99.0")
     monkeypatch.setattr("smarticle_mjx.store.versions", lambda: {"package": "smarticle-mjx 99.0"})
     r = CliRunner().invoke(app, ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps),
                                  "--single-periods", "3", "--quiet", "--studies", "polar"])
@@ -133,7 +133,8 @@ def test_the_page_writes_its_time_step_check_itself(tmp_path):
     page's step and the reference (1.54 holds |β − 1.8| < 0.3, 1.35 does
     not: one claim fewer), where it does not move, and files that belong to
     another model or to other stores, which the paragraph refuses to use."""
-    from smarticle_mjx.validation import beta_holds, step_check
+    from smarticle_mjx.validate.claims import beta_holds
+    from smarticle_mjx.validate.page import step_check
     assert beta_holds(1.54) and not beta_holds(1.35) and not beta_holds(2.2) and beta_holds(float("nan")) is None
     result = {"rows": [{"verdict": "holds"}] * 5 + [{"verdict": "does not hold"}] * 8,
               "extra": {"random_90": {"beta": {"value": 1.5401}}}}

@@ -277,3 +277,17 @@ def signed_turn_per_track(angles) -> np.ndarray:
     t = turning(np.atleast_2d(np.asarray(angles, float)))
     with np.errstate(invalid="ignore"):
         return np.array([np.nanmean(r) if np.isfinite(r).any() else np.nan for r in t])
+
+
+def lone_robot(xy, heading, period_s: float) -> dict:
+    """A lone robot's transport from its once-per-cycle track ``xy`` [T+1, 2] (W; the start first) and
+    body ``heading`` [T+1] (rad): net drift per cycle (|end − start| / cycles: a robot that jiggles in
+    place has a mean step but no drift), mean step per cycle, net speed (W/s), the plain MSD exponent
+    beta_single over delays 5..min(25, T/3 + 3) with its fit error, and the mean heading turn per cycle (deg).
+    """
+    xy = np.asarray(xy, float)
+    net = float(net_speed(xy)[0])
+    ex = msd_exponent(xy, (5, min(25, len(xy) // 3 + 3)), centered=False)  # one track: plain MSD
+    return {"net_W_per_cycle": net, "step_W_per_cycle": float(np.nanmean(step_lengths(xy))),
+            "speed_W_per_s": net / period_s, "beta": ex.beta, "beta_err": ex.err,
+            "heading_deg_per_cycle": float(np.degrees(np.mean(turning(heading))))}

@@ -1,0 +1,334 @@
+"""Study specs and their store cache: what a study file in sweeps/ says, and the complete store that stands for it.
+
+Three kinds of study (one reader, :func:`read_study`):
+
+* a **scan** (random, polar or explicit starts; any ``ScanConfig`` keys) -> :class:`smarticle_mjx.scan.ScanConfig`;
+* a **started-bound** study (``configs = "bound"``): pairs started as steady gliders taken from
+  another study's store, run at one or several amplitudes -> :class:`BoundStudy`;
+* a **relaxation** study (``configs = "relax"``): trials in stages -> :class:`RelaxStudy`.
+
+The ``ensure_*`` functions return the complete store(s) of a study: reused when made with the same
+configuration, model preset and package version, resumed when interrupted, else run. A store or journal
+made otherwise is moved aside (``<stem>.replaced-<created>...``), never deleted, and the study rerun.
+Every stage of a staged study is a store of its own, so a killed run resumes where it stopped and a
+partial run leaves complete, valid stores.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import pathlib
+import tomllib
+from typing import Callable
+
+import numpy as np
+
+from . import __version__, presets
+from .reduce import gliders as GL
+from .report import analyse_run
+from .scan import ScanConfig, load_study, params_json, run_scan
+from .scene import SceneParams
+from .store import Store, journal_path
+
+SWEEPS = pathlib.Path(__file__).resolve().parents[1] / "sweeps"
+
+# The validation suite's studies (docs/validation.md): name -> file in sweeps/, in the order they run
+# (each started-bound study after its source, which it names among these).
+STUDIES = {
+    "random_90": "validation_random.toml",
+    "polar": "validation_polar.toml",
+    "amplitude": "validation_amplitude.toml",
+    "cw_90": "validation_cw.toml",
+    "descent": "validation_descent.toml",
+    "diagonal_90": "validation_diagonal.toml",
+    "diagonal_random": "validation_diagonal_random.toml",
+    "relax": "validation_relax.toml",
+}
+
+@dataclasses.dataclass(frozen=True)
+class BoundStudy:
+    """Pairs started as steady gliders of another study (``configs = "bound"``).
+
+    Attributes:
+      source: name of the study (in ``STUDIES``) whose store supplies the
+        gliders: lanes of type ``glider`` bound in each of its last 10
+        periods, first ``pairs`` of them in lane order, started from their
+        relative coordinates (|r|, theta, phi) at the end of the last period
+        (the gait's phase 0), at rest, arms at the gait's first setpoint.
+      amplitudes_deg: the amplitudes, in the order run.
+      continuation: each amplitude's pairs start where the previous
+        amplitude's pairs ended (those bound in each of its last
+        ``keep_window`` periods); otherwise every amplitude starts from the
+        source gliders.
+      steady_window: last periods over which steady |r| is averaged.
+    """
+
+    source: str
+    amplitudes_deg: tuple[float, ...]
+    periods: int
+    pairs: int = 32
+    glider: str = "C1"
+    continuation: bool = False
+    gait: str = "square"
+    chirality: str = "ccw"
+    steady_window: int = 10
+    keep_window: int = 5
+    seed: int = 0
+    description: str = ""
+    figure: str = ""
+
+    def validate(self) -> None:
+        if self.source not in STUDIES:
+            raise ValueError(f"bound study: unknown source study {self.source!r} (known: {', '.join(STUDIES)})")
+        if self.glider not in ("C1", "C2"):
+            raise ValueError(f"bound study: glider must be C1 or C2, got {self.glider!r}")
+        if self.pairs <= 0 or self.periods <= 0 or not self.amplitudes_deg:
+            raise ValueError("bound study: pairs, periods and amplitudes must be positive / non-empty")
+        if not 0 < self.steady_window <= self.periods or not 0 < self.keep_window <= self.periods:
+            raise ValueError("bound study: steady and keep windows must lie within the periods run")
+
+    def stage_config(self, amplitude: float, initial: np.ndarray, model: str) -> ScanConfig:
+        return ScanConfig(configs="explicit", initial=tuple(tuple(float(x) for x in c) for c in initial),
+                          amplitudes_deg=(float(amplitude),), periods=self.periods, gait=self.gait,
+                          chirality=self.chirality, seed=self.seed, model=model)
+
+
+@dataclasses.dataclass(frozen=True)
+class RelaxStudy:
+    """A relaxation study (``configs = "relax"``): ``stages`` stores of
+    ``trials`` trials each (stage s holds trials s*trials ..), so a long
+    study completes across runs and a partial one is a set of complete
+    stores. ``settings``: any other :class:`smarticle_mjx.relax.RelaxConfig` keys."""
+
+    stages: int
+    trials: int
+    settings: tuple = ()
+    description: str = ""
+    figure: str = ""
+
+    def stage_config(self, stage: int, model: str):
+        from .relax import RelaxConfig
+        return RelaxConfig(**dict(self.settings), trials=self.trials, first_trial=stage * self.trials, model=model)
+
+    def validate(self) -> None:
+        if self.stages < 1 or self.trials < 1:
+            raise ValueError("relax study: stages and trials must be >= 1")
+        self.stage_config(0, presets.DEFAULT).validate(presets.params())
+
+
+def read_study(path) -> ScanConfig | BoundStudy | RelaxStudy:
+    """A study file from sweeps/: a scan (``ScanConfig`` keys) or a started-bound study."""
+    path = pathlib.Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ValueError(f"study file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+        raise ValueError(f"cannot read study file {path}: {e}") from None
+    study = raw.get("study", raw)
+    if study.get("configs") == "relax":
+        from .relax import RelaxConfig
+        known = {f.name for f in dataclasses.fields(RelaxConfig)} - {"trials", "first_trial", "model"}
+        own = {"stages", "trials", "description", "figure", "configs"}
+        unknown = set(study) - known - own
+        if unknown:
+            raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
+        try:
+            rs = RelaxStudy(stages=int(study.get("stages", 1)), trials=int(study.get("trials", 20)),
+                            settings=tuple(sorted((k, v) for k, v in study.items() if k in known)),
+                            description=study.get("description", ""), figure=study.get("figure", ""))
+            rs.validate()
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"study file {path}: {e}") from None
+        return rs
+    if study.get("configs") != "bound":
+        return load_study(path)
+    fields = {f.name for f in dataclasses.fields(BoundStudy)}
+    unknown = set(study) - fields - {"configs"}
+    if unknown:
+        raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
+    kw = {k: v for k, v in study.items() if k in fields}
+    if "amplitudes_deg" in kw:
+        kw["amplitudes_deg"] = tuple(float(x) for x in kw["amplitudes_deg"])
+    try:
+        bs = BoundStudy(**kw)
+    except TypeError as e:
+        raise ValueError(f"study file {path}: {e}") from None
+    bs.validate()
+    return bs
+
+
+def _stamp(text) -> str:
+    return "".join(c for c in str(text) if c.isdigit())[:14] or "unknown"
+
+
+def _normalised(config: dict, want: dict, params: SceneParams) -> dict:
+    """A stored configuration with keys added since it was written filled in
+    with the values they implicitly had."""
+    have = json.loads(json.dumps(config))
+    have.setdefault("model", "paper")  # stores from before presets
+    have["scan"] = {**want["scan"], **have.get("scan", {}), "model": have["model"]}
+    if "initial" not in want["scan"]:
+        have["scan"].pop("initial", None)
+    defaults = params_json(params.__class__())
+    have["scene"] = {**defaults, **have.get("scene", {}),
+                     "robot": {**defaults["robot"], **have.get("scene", {}).get("robot", {})}}
+    return have
+
+
+def _wanted(cfg: ScanConfig) -> tuple[SceneParams, dict]:
+    """The scene parameters of scan ``cfg`` and the configuration its store must hold."""
+    params = cfg.scene_params()
+    return params, {"model": cfg.model, "scan": cfg.to_json(), "scene": params_json(params)}
+
+
+def stale_reason(cfg: ScanConfig, path: pathlib.Path) -> str | None:
+    """Why the complete store at ``path`` cannot stand for scan ``cfg``
+    (another model, package version or configuration), or None if it can."""
+    params, want = _wanted(cfg)
+    st = Store(path)
+    have = _normalised(st.config, want, params)
+    if have["model"] != cfg.model:
+        return f"made by model {have['model']}"
+    if st.attrs.get("package") != f"smarticle-mjx {__version__}":
+        return f"made by {st.attrs.get('package')}"
+    if have != want:
+        return "made from a different study file"
+    return None
+
+
+def _move_aside(path: pathlib.Path, what: pathlib.Path, why: str, created, notes: list | None) -> None:
+    """Rename ``what`` (the store at ``path`` or its journal) to
+    ``<stem>.replaced-<created>...``, never delete it, and note why."""
+    aside = what.with_name(f"{path.stem}.replaced-{_stamp(created)}{what.name[len(path.stem):]}")
+    what.rename(aside)
+    if notes is not None:
+        notes.append(f"{path.name}: {why}; kept as {aside.name} and rerun")
+
+
+def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict], None] | None = None,
+                notes: list | None = None, run: bool = True) -> pathlib.Path | None:
+    """The complete store of scan ``cfg`` at ``path``: reused if it was made
+    with the same configuration, model preset and package version; resumed
+    if interrupted; else run (or, with ``run=False``, None). A store (or
+    journal) made otherwise is moved aside, never deleted, and the scan is
+    rerun."""
+    params, want = _wanted(cfg)
+    package = f"smarticle-mjx {__version__}"
+    journal = journal_path(path)
+
+    if path.exists():
+        why = stale_reason(cfg, path)
+        if why is None:
+            return path
+        if not run:
+            return None
+        _move_aside(path, path, why, Store(path).attrs.get("created"), notes)
+    elif not run:
+        return None
+    elif journal.exists():
+        meta = json.loads((journal / "meta.json").read_text()) if (journal / "meta.json").exists() else {}
+        have = _normalised(meta.get("config", {}), want, params)
+        if meta.get("package") != package or have != want:
+            _move_aside(path, journal, "an interrupted run of another configuration or version", meta.get("created"),
+                        notes)
+    run_scan(cfg, path, mode="resume" if journal.exists() else "new", on_progress=on_progress)
+    return path
+
+
+def glider_starts(store: Store, kind: str, pairs: int) -> np.ndarray:
+    """[P, 3] (|r|, theta, phi) at the end of the last period of the first
+    ``pairs`` lanes (lane order) that end as steady ``kind`` gliders."""
+    a = analyse_run(store, store.runs[0])
+    if "final" not in a["arrays"]:
+        return np.zeros((0, 3))
+    final = a["arrays"]["final"]
+    lanes = np.flatnonzero(final == {"C1": GL.C1, "C2": GL.C2}[kind])[:pairs]
+    rel = store.run(store.runs[0], fields=("rel",))["rel"]
+    return rel[lanes, -1].astype(np.float64)
+
+
+def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.Path, model: str,
+                 on_progress=None, notes: list | None = None, run: bool = True) -> list[pathlib.Path]:
+    """Run (or reuse, or resume) every stage of a started-bound study; one
+    store per amplitude, ``<stem>_aNNNN.h5`` (tenths of a degree). Stops
+    early when no pair is left bound to carry on (continuation), or, with
+    ``run=False``, at the first stage without a current complete store."""
+    starts = glider_starts(Store(source), bs.glider, bs.pairs)
+    paths = []
+    for a in bs.amplitudes_deg:
+        if len(starts) == 0:
+            if notes is not None:
+                notes.append(f"{stem}: no {bs.glider} pair left bound before {a:g}°; later stages not run")
+            break
+        cfg = bs.stage_config(a, starts, model)
+        # amplitude in tenths of a degree: descent_a0900.h5 is 90 deg
+        path = ensure_scan(cfg, pathlib.Path(data) / f"{stem}_a{int(round(a * 10)):04d}.h5", on_progress, notes,
+                           run=run)
+        if path is None:
+            break
+        paths.append(path)
+        if bs.continuation:
+            st = Store(path)
+            d = st.run(st.runs[0], fields=("touched", "rel", "valid"))
+            keep = d["valid"] & d["touched"][:, -bs.keep_window:, 0].all(1)
+            starts = d["rel"][keep, -1].astype(np.float64)
+    return paths
+
+
+def relax_stage_path(data: pathlib.Path, stem: str, stage: int) -> pathlib.Path:
+    """The store of stage ``stage`` of a relaxation study: ``<stem>_sNN.h5``."""
+    return pathlib.Path(data) / f"{stem}_s{stage:02d}.h5"
+
+
+def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_progress=None,
+                 notes: list | None = None, run: bool = True) -> list[pathlib.Path]:
+    """Run (or reuse, or resume) the stages of a relaxation study in order,
+    ``<stem>_sNN.h5``; with ``run=False`` stop at the first stage without a
+    current complete store. A stage made by another configuration, model or
+    package version is moved aside (never deleted) and rerun."""
+    from .relax import run_relax
+    package = f"smarticle-mjx {__version__}"
+    params = presets.params(model)
+    paths = []
+    for stage in range(rs.stages):
+        cfg = rs.stage_config(stage, model)
+        want = json.loads(json.dumps({"model": model, "relax": cfg.to_json(), "scene": params_json(params)}))
+        path = relax_stage_path(data, stem, stage)
+        journal = journal_path(path)
+        if path.exists():
+            st = Store(path)
+            if st.attrs.get("package") == package and st.config == want:
+                paths.append(path)
+                continue
+            if not run:
+                break
+            _move_aside(path, path, "made by another configuration, model or version", st.attrs.get("created"), notes)
+        elif not run:
+            break
+        elif journal.exists():
+            meta = json.loads((journal / "meta.json").read_text()) if (journal / "meta.json").exists() else {}
+            if meta.get("package") != package or meta.get("config") != want:
+                _move_aside(path, journal, "an interrupted run of another configuration or version",
+                            meta.get("created"), notes)
+        run_relax(cfg, path, mode="resume" if journal.exists() else "new", on_progress=on_progress)
+        paths.append(path)
+    return paths
+
+
+def ensure(spec: ScanConfig | BoundStudy | RelaxStudy, data: pathlib.Path, stem: str, model: str,
+           sources: dict | None = None, on_progress: Callable[[dict], None] | None = None,
+           notes: list | None = None, run: bool = True) -> list[pathlib.Path]:
+    """The complete stores of study ``spec`` (file stem ``stem``) made by model ``model`` in ``data``,
+    one per stage (a scan has one): reused, resumed or run as :func:`ensure_scan` says; with
+    ``run=False`` only those that already stand for it. A started-bound study needs its source's
+    stores in ``sources`` (study name -> stores) and returns none without them."""
+    data = pathlib.Path(data)
+    if isinstance(spec, RelaxStudy):
+        return ensure_relax(spec, stem, data, model, on_progress, notes, run=run)
+    if isinstance(spec, BoundStudy):
+        src = (sources or {}).get(spec.source)
+        return ensure_bound(spec, stem, src[0], data, model, on_progress, notes, run=run) if src else []
+    got = ensure_scan(dataclasses.replace(spec, model=model), data / f"{stem}.h5", on_progress, notes, run=run)
+    return [got] if got is not None else []

@@ -1,0 +1,79 @@
+"""The validation page: the paper's claims, each measured from studies in sweeps/.
+
+``smx validate --data DIR --out docs/validation.md`` runs (or reuses, or resumes) one store per study
+in ``DIR/<model>/`` (:mod:`smarticle_mjx.studies`), simulates lone robots, gathers each claim's
+evidence from the stores (:mod:`.evidence`), judges every claim of the registry (:mod:`.claims`: each
+states its test before the number is known; a claim that fails is reported as failing) and writes
+the page with its figures (:mod:`.page`).
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+from .. import presets
+from ..scan import ScanConfig
+from ..scene import SceneParams
+from ..studies import STUDIES, SWEEPS, ensure, read_study
+from . import claims, evidence, page
+from .claims import CLAIMS
+
+SINGLE_AMPLITUDES = (10, 20, 30, 40, 50, 60, 70, 80, 90)
+SINGLE_PERIODS = 75
+
+__all__ = ["CLAIMS", "STUDIES", "SWEEPS", "evaluate", "run_validation", "single_robots"]
+
+
+def single_robots(params: SceneParams, amplitudes=SINGLE_AMPLITUDES, periods: int = SINGLE_PERIODS) -> dict:
+    """Lone robots, one per amplitude: per-period positions (W) and headings."""
+    from ..engine.simulate import simulate
+    from ..gait import GaitSpec
+    out = {}
+    for a in amplitudes:
+        g = GaitSpec(amplitude_deg=float(a))
+        a0 = g.setpoints(0.0, params.robot.servo_speed)
+        res = simulate(params, [[0.0, 0.0, 0.0, float(a0[0]), float(a0[1])]], g, periods)
+        out[float(a)] = {"xy": res.poses[:, 0, :2] / params.robot.body_length, "heading": res.poses[:, 0, 2],
+                         "period_s": res.period}
+    return out
+
+
+def evaluate(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None = None) -> dict:
+    """Every claim's row from the stores there are (figures drawn into ``figures``).
+
+    Returns:
+      {"rows": one per claim, "extra": numbers behind them, "figures": names}.
+    """
+    ev, extra, made = evidence.gather(stores, singles, figures, specs)
+    return {"rows": [c.row(ev.get(c.key), stores) for c in CLAIMS], "extra": extra, "figures": made}
+
+
+def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Path = SWEEPS,
+                   model: str = presets.DEFAULT, on_progress=None, command: str | None = None,
+                   single_periods: int = SINGLE_PERIODS, studies: list[str] | None = None) -> dict:
+    """Run or reuse the studies (all, or those named in ``studies``) with model preset ``model`` in
+    ``data/<model>/``, measure every claim from the complete stores there are, write the page."""
+    params = presets.params(model)
+    data = pathlib.Path(data) / model
+    data.mkdir(parents=True, exist_ok=True)
+    wanted = list(STUDIES) if studies is None else list(studies)
+    unknown = [s_ for s_ in wanted if s_ not in STUDIES]
+    if unknown:
+        raise ValueError(f"unknown studies {unknown}; known: {', '.join(STUDIES)}")
+    specs = {name: read_study(sweeps / f) for name, f in STUDIES.items()}
+    stores: dict = {}
+    notes: list[str] = []
+    for name, spec in specs.items():
+        got = ensure(spec, data, pathlib.Path(STUDIES[name]).stem, model,
+                     {k: (v if isinstance(v, list) else [v]) for k, v in stores.items()}, on_progress, notes,
+                     run=name in wanted)
+        if got:
+            # a scan is one store; a staged study (started-bound, relaxation) a list of them
+            stores[name] = got[0] if isinstance(spec, ScanConfig) else got
+    singles = single_robots(params, periods=single_periods)
+    figures = out_md.parent / out_md.stem
+    result = evaluate(stores, singles, figures, specs)
+    result["extra"]["notes"] = notes
+    page.write_page(result, stores, out_md, figures,
+                    command or page.relative_command(pathlib.Path(data).parent, out_md, model), model)
+    return result

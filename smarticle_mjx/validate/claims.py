@@ -1,0 +1,393 @@
+"""The paper's claims as a registry: each one its text, the paper's value, its test and a function
+that measures it from evidence (plain numbers and arrays; :mod:`.evidence` reads them from stores).
+
+A claim's function returns an :class:`Outcome` (holds: True, False or None for not measurable;
+the measured text; the note on how it was measured). :meth:`Claim.row` turns it into a row of the
+page. Nothing here reads a store or simulates, so each test can be checked on built data
+(tests/test_claims.py: every claim where it holds and where it does not).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Callable
+
+import numpy as np
+
+from ..reduce import binding, gliders as GL
+
+VERDICTS = {True: "holds", False: "does not hold", None: "not measurable"}
+
+LONE_DRIFT_W = 0.0015  # the lab's lone robot at 90 deg, W per cycle (text)
+LONE_DRIFT_FACTOR = 3.0
+TYPE_SHARE = 0.05  # each glider type holds more than this share of the steady bound samples
+BETA_PAPER, BETA_TOLERANCE = 1.8, 0.3  # gliders at 90 deg: |beta - 1.8| < 0.3
+DIAGONAL_BETA, DIAGONAL_MIN_GLIDERS = 1.0, 5
+POLAR_AXIS_DEG, POLAR_AXIS_TOL, POLAR_MIRROR_CORR = 270.0, 20.0, 0.7
+MIRROR_THETA_TOL = 15.0
+RELAX_MAX_WIDTH = 0.3  # the emergence fraction is judged once its 95 % interval is at most this wide
+LAB_DISTANCE_W, LAB_DISTANCE_ERR = 2.9, 0.2
+CONTOUR_R = 0.5
+ALPHA = 0.05
+
+
+def f(x, spec=".2f") -> str:
+    """A number for the table; a dash for missing or NaN."""
+    return "–" if x is None or not np.isfinite(x) else format(x, spec)
+
+
+def finite(x) -> bool:
+    return x is not None and bool(np.isfinite(x))
+
+
+def ci(v, lo, hi, spec=".2f") -> str:
+    return f"{f(v, spec)} [{f(lo, spec)}, {f(hi, spec)}]"
+
+
+@dataclasses.dataclass(frozen=True)
+class Outcome:
+    """What a claim's function found: ``holds`` (None: not measurable), the measured text, the note;
+    ``test``, when given, replaces the claim's test on the page (a dash where nothing could be tested)."""
+
+    holds: bool | None
+    measured: str
+    note: str = ""
+    test: str | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Claim:
+    """One claim of the paper: ``text``, the ``paper``'s value, the ``test`` (stated before any number),
+    the ``studies`` whose stores it needs (the first missing one is named when it cannot be measured) and
+    ``measure`` (evidence -> :class:`Outcome`)."""
+
+    key: str
+    text: str
+    paper: str
+    test: str
+    studies: tuple[str, ...]
+    measure: Callable[[Any], Outcome]
+
+    def outcome(self, evidence) -> Outcome:
+        return self.measure(evidence)
+
+    def row(self, evidence, stores=()) -> dict:
+        """The page's row; ``evidence`` None: a study is missing (``stores``: the studies there are)."""
+        if evidence is None:
+            study = next((s for s in self.studies if s not in stores), self.studies[0])
+            return {"claim": self.text, "paper": self.paper, "measured": f"study {study} not run yet", "test": "–",
+                    "verdict": VERDICTS[None], "note": f"Run `smx validate --studies {study}` (the page is written "
+                                                      "from the complete stores there are)."}
+        o = self.measure(evidence)
+        return {"claim": self.text, "paper": self.paper, "measured": o.measured,
+                "test": self.test if o.test is None else o.test, "verdict": VERDICTS[o.holds], "note": o.note}
+
+
+CLAIMS: list[Claim] = []
+
+
+def claim(key: str, text: str, paper: str, test: str, studies: tuple[str, ...]):
+    """Register the decorated function as the measure of a claim (the page lists them in this order)."""
+    def deco(fn):
+        CLAIMS.append(Claim(key, text, paper, test, studies, fn))
+        return fn
+    return deco
+
+
+def get(key: str) -> Claim:
+    return next(c for c in CLAIMS if c.key == key)
+
+
+# ----------------------------------------------------------------- lone robot
+
+@claim("lone_drift", "a lone robot drifts about 0.0015 W per cycle at 90°", "0.0015 W/cycle (text)",
+       "net drift within a factor 3 of 0.0015 W/cycle", ())
+def lone_drift(ev: dict) -> Outcome:
+    """``ev``: net and mean step per cycle (W) of the lone robot at 90 deg, cycles."""
+    n90 = ev["net_W_per_cycle"]
+    lo, hi = LONE_DRIFT_W / LONE_DRIFT_FACTOR, LONE_DRIFT_W * LONE_DRIFT_FACTOR
+    return Outcome(bool(lo <= n90 <= hi),
+                   f"net {f(n90, '.2g')} W/cycle (mean step {f(ev['step_W_per_cycle'], '.2g')}; {ev['cycles']} cycles)",
+                   "Net drift = \\|end − start\\| / cycles of the once-per-cycle body centre (a robot that jiggles "
+                   "in place has a mean step but no drift). Converged in dt (docs/timestep.md). The lab robot's "
+                   "motor noise, backlash and marker jitter are not modelled; on a μ = 0.37 plate friction holds "
+                   "the model's body through most of the gait. Not tuned.")
+
+
+# ----------------------------------------------------- the random study at 90 deg
+# evidence: report.analyse_run of the store ({"summary": ..., "arrays": ...})
+
+def _both_typed(a90: dict) -> str | None:
+    s90 = a90["summary"]
+    if s90.get("C1") and s90.get("C2"):
+        return None
+    return f"too few steady bound samples of both types to cluster ({s90['steady_samples']})"
+
+
+@claim("both_types", "both C1 (φ ≈ 180°) and C2 (φ ≈ 0°) gliders form", "Fig. 2C–D, 4D",
+       "each type holds > 5 % of the steady bound samples (k-means, named by φ)", ("random_90",))
+def both_types(a90: dict) -> Outcome:
+    why = _both_typed(a90)
+    if why:
+        return Outcome(None, why, "", "–")
+    s90 = a90["summary"]
+    c1, c2, tot = s90["C1"], s90["C2"], s90["steady_samples"]
+    both = c1["steady_samples"] > TYPE_SHARE * tot and c2["steady_samples"] > TYPE_SHARE * tot
+    return Outcome(bool(both),
+                   f"C1 {c1['steady_samples']}, C2 {c2['steady_samples']} of {tot} steady bound samples; clusters: "
+                   + "; ".join(f"{c['kind']} \\|r\\| {c['r_W']:.2f} W, θ {c['theta_deg']:.0f}°, "
+                               f"φ {c['phi_deg']:.0f}° ({c['samples']})" for c in s90["clusters"]),
+                   f"k-means ({s90['options']['clusters']} clusters) on per-period (\\|r\\|, θ, φ) of bound pairs "
+                   f"after period {s90['options']['burn_in']}, each cluster named by its mean φ (C1 within 90° of "
+                   f"180°). {s90['valid']} valid random starts, {s90['periods']} periods.")
+
+
+@claim("c1_basin", "C1's basin is larger than C2's", "Fig. 4C–D (text)",
+       "95 % intervals of the two basin fractions do not overlap, C1 above", ("random_90",))
+def c1_basin(a90: dict) -> Outcome:
+    why = _both_typed(a90)
+    if why:
+        return Outcome(None, why, "", "–")
+    s90 = a90["summary"]
+    c1, c2, n = s90["C1"], s90["C2"], s90["valid"]
+    lo1, hi1 = binding.binomial_interval(c1["basin_configs"], n)
+    lo2, hi2 = binding.binomial_interval(c2["basin_configs"], n)
+    return Outcome(bool(lo1 > hi2),
+                   f"C1 {ci(c1['basin_fraction'], lo1, hi1, '.3f')}, C2 {ci(c2['basin_fraction'], lo2, hi2, '.3f')} "
+                   f"of {n} valid starts",
+                   "Basin = valid starts that end as that glider (bound in each of the last 10 periods, majority "
+                   "type); exact binomial intervals.")
+
+
+@claim("c1_lifetime", "C1 lives longer than C2", "Fig. 6B",
+       "mean C1 lifetime > mean C2 lifetime, and C1 longer by a one-sided Mann–Whitney test at p < 0.05 "
+       "(stricter than before)", ("random_90",))
+def c1_lifetime(a90: dict) -> Outcome:
+    why = _both_typed(a90)
+    if why:
+        return Outcome(None, why, "", "–")
+    s90 = a90["summary"]
+    c1, c2 = s90["C1"], s90["C2"]
+    typed = a90["arrays"]["typed"]
+    l1, l2 = typed["length"][typed["kind"] == GL.C1], typed["length"][typed["kind"] == GL.C2]
+    from scipy.stats import mannwhitneyu
+    p = float(mannwhitneyu(l1, l2, alternative="greater").pvalue) if len(l1) and len(l2) else np.nan
+    ok = bool((c1["lifetime_mean"] or 0) > (c2["lifetime_mean"] or 0) and p < ALPHA) if np.isfinite(p) else None
+    return Outcome(ok,
+                   f"mean bound-run length C1 {f(c1['lifetime_mean'], '.1f')} ({len(l1)} runs), "
+                   f"C2 {f(c2['lifetime_mean'], '.1f')} ({len(l2)} runs) periods; one-sided Mann–Whitney p = "
+                   f"{f(p, '.2g')} (still bound at the end: C1 {f(c1['censored_fraction'], '.0%')}, "
+                   f"C2 {f(c2['censored_fraction'], '.0%')}; {s90['periods']}-period trials)",
+                   "Lifetime = length of a bound run typed by its majority; runs still bound at the end are cut "
+                   "there (censored), which shortens the longer-lived type, so the test is conservative.")
+
+
+def beta_holds(beta) -> bool | None:
+    """The beta row's test (None: no beta measured)."""
+    return bool(abs(beta - BETA_PAPER) < BETA_TOLERANCE) if finite(beta) else None
+
+
+@claim("beta", "gliders at 90° move nearly ballistically (β ≈ 1.8)", "Fig. 3A, 3C",
+       f"|β − {BETA_PAPER:g}| < {BETA_TOLERANCE:g}", ("random_90",))
+def beta(a90: dict) -> Outcome:
+    s90 = a90["summary"]
+    b = s90.get("beta") or {}
+    v, tu, ht = s90.get("v_com") or {}, s90.get("turning") or {}, s90.get("signed_heading_turn") or {}
+    o = s90["options"]
+    measured = (f"β = {ci(b.get('value'), b.get('lo'), b.get('hi'))} ({b['tracks']} gliders ≥ "
+                f"{o['glider_min_periods']} periods, delays {b['lag_range']}); net gliding speed V_com "
+                f"{ci(v.get('net_W_per_period'), v.get('net_lo'), v.get('net_hi'), '.4f')} W/period (mean step "
+                f"{f(v.get('mean_step_W_per_period'), '.4f')}); direction of travel turns a median "
+                f"{f(tu.get('median_direction_change_deg'), '.0f')}° per period, persistence "
+                f"{f(tu.get('direction_persistence'))}; signed body-heading turn "
+                f"{ci(ht.get('deg_per_period'), ht.get('lo'), ht.get('hi'))}°/period") if b else "no gliders"
+    return Outcome(beta_holds(b.get("value")), measured,
+                   f"Gliders = each lane's longest bound run ≥ {o['glider_min_periods']} periods (the paper: > 30 "
+                   "cycles); the paper's centred MSD ⟨x²⟩ − ⟨x⟩² pooled over gliders and time origins, slope over "
+                   f"delays {o['fit_lags']} periods; 95 % bootstrap interval over gliders. V_com = \\|end − start\\| / "
+                   "periods of a glider's once-per-period centre of mass (mean over gliders, bootstrap interval).")
+
+
+# ----------------------------------------------------------------- polar scan
+
+@claim("polar_symmetry", "at |r| = 1.3 W the attracted region is nearly symmetric about θ ≈ 270°", "Fig. 7C",
+       "mean θ within 20° of 270° and mirror correlation > 0.7", ("polar",))
+def polar_symmetry(ev: dict) -> Outcome:
+    """``ev``: circular mean θ of attracted starts (axis_deg), the mirror correlation of the attracted
+    fraction per θ bin, counts, the bins' fraction range and the scan's layout."""
+    axis, corr = ev["axis_deg"], ev["mirror_correlation"]
+    ok = bool(abs(axis - POLAR_AXIS_DEG) < POLAR_AXIS_TOL and corr > POLAR_MIRROR_CORR) \
+        if np.isfinite(axis + corr) else None
+    lo, hi = ev["fraction_range"]
+    return Outcome(ok,
+                   f"circular mean θ of attracted starts {f(axis, '.0f')}°; correlation of the attracted fraction "
+                   f"with its mirror image about 270°: {f(corr)} ({ev['attracted']} of {ev['valid']} valid starts "
+                   "attracted)",
+                   f"{ev['positions']} positions × {ev['orientations']} orientations at \\|r\\| = {ev['radius_W']} W, "
+                   f"{ev['periods']} periods (the paper: 1000 positions, 75 periods); attracted = bound in the last "
+                   f"period; the attracted fraction per 10° bin of θ ranges {f(lo)}–{f(hi)}"
+                   + (" (a nearly flat profile leaves the mirror correlation little shape to find)."
+                      if hi - lo < 0.3 else "."))
+
+
+# ----------------------------------------------------------- diagonal gait
+
+@claim("diagonal_beta", "under the time-symmetric gait β ≈ 1", "Fig. 3C (black)",
+       "|β − 1| < 0.3 from ≥ 5 gliders", ("diagonal_90", "diagonal_random"))
+def diagonal_beta(ev: dict) -> Outcome:
+    """``ev``: ``beta`` (transport.msd_exponent of the pooled glider tracks, or None), ``lags`` and
+    ``parts`` (one line per source of bound pairs)."""
+    bd = ev["beta"]
+    enough = bd is not None and bd.tracks >= DIAGONAL_MIN_GLIDERS
+    ok = bool(abs(bd.beta - DIAGONAL_BETA) < BETA_TOLERANCE) if enough and np.isfinite(bd.beta) else None
+    return Outcome(ok,
+                   (f"β = {ci(bd.beta, bd.lo, bd.hi)} ({bd.tracks} gliders, delays {list(ev['lags'])}); "
+                    if enough else "too few bound pairs for β: ") + "; ".join(ev["parts"]),
+                   "Two sources of bound pairs under the diagonal gait S1 → S3 → S1 at 90°: the C1 gliders of the "
+                   "90° random study started as they were and switched to this gait (the paper's Fig. 3C black "
+                   "curve is for bound pairs), and random starts. β as for the square gait: centred MSD at long "
+                   "delays, 95 % bootstrap interval over gliders. Under this gait the model's pairs do not stay "
+                   "bound, so there is no glider to measure.")
+
+
+# ----------------------------------------------------------------- chirality
+
+@claim("mirror", "opposite chirality gives mirror-image glider trajectories", "Fig. 4E(i–ii)",
+       "the 95 % bootstrap intervals of the two mean turns both exclude 0, with opposite signs (stricter than "
+       "before: a sign test that can fail), and C1 θ equal to the mirrored θ within 15°", ("cw_90", "random_90"))
+def mirror(ev: dict) -> Outcome:
+    """``ev``: mean signed body-heading turn per glider with its bootstrap interval under each
+    chirality ((mean, lo, hi, n) for "ccw" and "cw"), C1's mean θ (ccw) and the mirrored cw one."""
+    (m1, lo1, hi1, n1), (m2, lo2, hi2, n2) = ev["ccw"], ev["cw"]
+    th_ccw, mirrored = ev["c1_theta_ccw"], ev["c1_theta_cw_mirrored"]
+    dth = abs((th_ccw - mirrored + 180) % 360 - 180)
+    ok = None
+    if np.isfinite([lo1, hi1, lo2, hi2, dth]).all():
+        sig = (lo1 > 0 and hi2 < 0) or (hi1 < 0 and lo2 > 0)
+        ok = bool(sig and dth < MIRROR_THETA_TOL)
+    s = ev["cw_summary"]
+    return Outcome(ok,
+                   f"signed body-heading turn per glider: ccw {ci(m1, lo1, hi1)}°/period ({n1} gliders), "
+                   f"cw {ci(m2, lo2, hi2)}°/period ({n2} gliders); C1 mean θ: ccw {f(th_ccw, '.0f')}°, "
+                   f"cw mirrored (180° − θ) {f(mirrored, '.0f')}°",
+                   f"Clockwise random study ({s['valid']} valid starts, {s['periods']} periods) against the "
+                   f"counter-clockwise one; gliders = bound runs ≥ {s['options']['glider_min_periods']} periods, one "
+                   "mean turn per glider; a mirror maps θ to 180° − θ and φ to −φ.")
+
+
+# ------------------------------------------------------- steady |r| vs amplitude
+
+@claim("descent", "steady-state |r| decreases with α_max above 45°, with a sharp drop near 85°", "Fig. 3E",
+       "ρ < 0 with p < 0.05, and the largest drop between 80° and 90°", ("descent",))
+def descent(ev: dict) -> Outcome:
+    """``ev``: ``sep``, one row per amplitude (amplitude_deg, r_W, lo, hi, pairs, started) in increasing
+    amplitude; ``window`` (periods averaged), ``periods`` per stage, ``continuation``."""
+    sep = [(s["amplitude_deg"], s["r_W"], s["lo"], s["hi"], s["pairs"], s["started"]) for s in ev["sep"]]
+    win = ev["window"]
+    x = np.array([s_[0] for s_ in sep])
+    y = np.array([s_[1] for s_ in sep], float)
+    ok = np.isfinite(y)
+    from scipy.stats import spearmanr
+    rho, p = spearmanr(x[ok], y[ok]) if ok.sum() >= 3 else (np.nan, np.nan)
+    drops = y[:-1] - y[1:]  # decrease from one amplitude to the next higher one
+    where = f"{x[np.nanargmax(drops)]:g}→{x[np.nanargmax(drops) + 1]:g}°" if np.isfinite(drops).any() else "–"
+    near85 = where in ("80→85°", "85→90°", "80→90°")
+    return Outcome(bool(rho < 0 and p < ALPHA and near85) if np.isfinite(rho) else None,
+                   ", ".join(f"{a:g}°: {f(r)} ({n})" for a, r, lo, hi, n, _ in sep)
+                   + f" W (pairs bound through the last {win} periods); Spearman ρ = {f(rho)} (p = {f(p, '.2g')}); "
+                     f"largest drop {where}",
+                   f"Pairs started bound, as the paper did: {sep[-1][5] if sep else 0} steady C1 gliders of the 90° "
+                   f"random study, run {ev['periods']} periods at each amplitude "
+                   + ("(each stage starting where the pairs still bound at the end of the previous one ended)"
+                      if ev["continuation"] else
+                      "(each amplitude started from those gliders at rest, arms at the gait's first corner; stepping "
+                      "down with each stage starting where the previous one ended was tried first: all 32 pairs "
+                      "stayed bound at 85° and all parted within a period at 80°)")
+                   + "; steady \\|r\\| = mean over "
+                   f"the last {win} periods of pairs bound in all of them (pair count in brackets; 95 % bootstrap "
+                   "intervals over pairs in the figure). Before (model `paper`, November 2026), pairs found bound "
+                   "among random starts gave ρ = −0.60, p = 0.28.")
+
+
+# ----------------------------------------------------------- P_b vs amplitude
+
+PB_GROUPS = {"10–30°": (0, 30), "40–60°": (40, 60), "70–90°": (70, 180)}
+
+
+def pb_groups(amps: np.ndarray) -> dict[str, np.ndarray]:
+    return {g: (amps >= lo) & (amps <= hi) for g, (lo, hi) in PB_GROUPS.items()}
+
+
+@claim("pb_dip", "P_b(α_max) is lower at intermediate amplitudes (40–60°)", "Fig. 3B",
+       "every P_b(end) at 40–60° below the means at 10–30° and at 70–90°, and the pooled 40–60° interval below "
+       "both pooled flank intervals (stricter than before)", ("amplitude",))
+def pb_dip(ev: dict) -> Outcome:
+    """``ev``: ``amplitudes_deg``, ``pb_end`` ([A, 3] P_b at the end with its interval), ``valid`` per
+    amplitude, ``pooled`` (group -> (P, lo, hi, n)), ``periods``."""
+    amps, pe, n, pooled = np.asarray(ev["amplitudes_deg"]), np.asarray(ev["pb_end"], float), \
+        np.asarray(ev["valid"]), ev["pooled"]
+    groups = pb_groups(amps)
+    ok = None
+    if all(sel.any() for sel in groups.values()):
+        mid, low, high = groups["40–60°"], groups["10–30°"], groups["70–90°"]
+        below_means = bool(pe[mid, 0].max() < pe[low, 0].mean() and pe[mid, 0].max() < pe[high, 0].mean())
+        separated = pooled["40–60°"][2] < min(pooled["10–30°"][1], pooled["70–90°"][1])
+        ok = bool(below_means and separated)
+    half = np.nanmax((pe[:, 2] - pe[:, 1]) / 2) if len(pe) else np.nan
+    return Outcome(ok,
+                   ", ".join(f"{a:g}°: {f(p0)} [{f(lo)}, {f(hi)}]" for a, (p0, lo, hi) in zip(amps, pe))
+                   + "; pooled " + ", ".join(f"{g} {ci(*v[:3])}" for g, v in pooled.items()),
+                   f"{int(n.min())}–{int(n.max())} valid random starts per amplitude (widest 95 % half-width "
+                   f"{f(half)}), {ev['periods']} periods (the paper: 5000 × 75); bound at the end; exact binomial "
+                   "intervals.")
+
+
+# ----------------------------------------------------------------- relaxation
+# evidence: report.relax_summary of the pooled stages, with "settings" (the stores' relaxation keys),
+# "stages" and "p_fisher" (Fisher's exact test of the model's emergence against the lab's)
+
+@claim("relax_emergence", "in about half of the relaxation trials a pair glides away together for ≥ 100 periods",
+       "77 of 151 trials (Fig. 1)", "model and lab fractions do not differ (Fisher's exact test p ≥ 0.05); "
+       "measurable once the model's 95 % interval is at most 0.3 wide", ("relax",))
+def relax_emergence(a: dict) -> Outcome:
+    k, n, lab, s = a["emerged"], a["valid"], a["lab"], a["settings"]
+    rt = a["relaxation_periods"]
+    measurable = n and a["interval"][1] - a["interval"][0] <= RELAX_MAX_WIDTH
+    return Outcome(bool(a["p_fisher"] >= ALPHA) if measurable else None,
+                   f"{k}/{n} = {ci(a['fraction'], *a['interval'])} (lab {ci(lab['fraction'], *lab['interval'])}); "
+                   f"C1 {a['glider_kinds']['C1']}, C2 {a['glider_kinds']['C2']}",
+                   f"{n} trials ({a['stages']} stages) of {s['n_robots']} robots × {s['periods']} periods at "
+                   f"{s['amplitude_deg']:g}°, compressed in-phase start (gap {s['gap_mm']:g} mm, jitter "
+                   f"{s['jitter_mm']:g} mm / {s['jitter_deg']:g}°). Glider: a pair bound every period for ≥ 100 "
+                   f"consecutive periods, no touch with a third robot and every third robot ≥ {a['apart_W']:g} W "
+                   f"away. Relaxation (last period with a robot touching two others): median "
+                   f"{f(rt['median'], '.0f')} periods [IQR {f(rt['q25'], '.0f')}–{f(rt['q75'], '.0f')}] (paper: "
+                   f"about 30); {a['stopped_early']} trials stopped early, all robots apart and quiet for "
+                   f"{s['quiet_periods']} periods.")
+
+
+@claim("relax_distance", "the glider travels 2.9 ± 0.2 W on average", "2.9 ± 0.2 W (text)",
+       "|model − 2.9| ≤ 2 √(SEM² + 0.2²)", ("relax",))
+def relax_distance(a: dict) -> Outcome:
+    d = a["distance"]
+    ok = abs(d["mean"] - LAB_DISTANCE_W) <= 2 * math.hypot(d["sem"], LAB_DISTANCE_ERR)
+    return Outcome(bool(ok) if d["n"] >= 2 else None,
+                   f"{f(d['mean'])} ± {f(d['sem'])} W (n = {d['n']} gliders; median {f(d['median'])}); "
+                   f"lifetime {f(a['glider_lifetime']['mean'], '.0f')} periods, {a['glider_censored']} still bound "
+                   "at the end",
+                   "Distance = \\|end − start\\| of the pair centre over the glider's bound-and-apart run (the "
+                   "longest one of the trial); the lab's ± read as a standard error.")
+
+
+@claim("contour", "bound pairs' contour length grows linearly with their lifetime", "SI, contour length vs time",
+       "Pearson r > 0.5 and p < 0.05", ("relax",))
+def contour(a: dict) -> Outcome:
+    fit, ty = a["fit"], a["typed"]
+    ok = bool(finite(fit["r"]) and fit["r"] > CONTOUR_R and fit["p"] < ALPHA) if fit["n"] >= 3 else None
+    return Outcome(ok,
+                   f"slope {f(fit['slope'], '.4f')} W/period, r = {f(fit['r'])} (p = {fit['p']:.2g}, {fit['n']} "
+                   f"episodes ≥ 2 periods); C1 episodes {f(ty['C1']['mean'], '.1f')} vs C2 "
+                   f"{f(ty['C2']['mean'], '.1f')} periods (one-sided Mann–Whitney p = {ty['p_c1_longer']:.2g})",
+                   "Every episode of a pair bound and apart from the rest, its contour length (sum of the pair "
+                   "centre's per-period steps) against its lifetime; figure lifetime_contour.png.")

@@ -1,0 +1,173 @@
+"""The validation page: the claims' rows, the studies behind them, the lone robots and the figures,
+with the page's own paragraph on its provenance and time step, all written from the stores and JSON
+files there are (no hand-written notes)."""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import pathlib
+
+from ..report import describe_configs, json_default
+from ..store import Store
+from ..studies import STUDIES, SWEEPS
+from .claims import BETA_PAPER, BETA_TOLERANCE, VERDICTS, beta_holds, f, finite
+
+REPO = SWEEPS.parent
+# the 90-degree random study re-run at a reference time step (benchmarks/validation_step.py)
+STEP_CHECK = REPO / "benchmarks" / "results" / "validation_step.json"
+
+
+def study_line(name: str, paths) -> str:
+    paths = paths if isinstance(paths, list) else [paths]
+    st = Store(paths[0])
+    if st.kind == "relax":
+        rc = st.config["relax"]
+        n = sum(int(Store(p).config["relax"]["trials"]) for p in paths)
+        return (f"| {name} | `sweeps/{STUDIES[name]}` | {n} trials in {len(paths)} stages of {rc['n_robots']} robots, "
+                f"α {rc['amplitude_deg']:g}°, {rc['periods']} periods, {rc['gait']} {rc['chirality']}; model "
+                f"`{st.model}`; {st.attrs.get('package')}, mujoco {st.attrs.get('mujoco')} |")
+    sc = st.config["scan"]
+    what = describe_configs(sc) if sc["configs"] != "explicit" else \
+        f"{len(sc['initial'])} pairs started as steady gliders"
+    amps = [float(Store(p).config["scan"]["amplitudes_deg"][0]) for p in paths] if len(paths) > 1 \
+        else sc["amplitudes_deg"]
+    what = what.replace("|", "\\|")
+    return (f"| {name} | `sweeps/{STUDIES[name]}` | {what}, α {amps}, {sc['periods']} periods"
+            f"{' per stage' if len(paths) > 1 else ''}, {sc['gait']} {sc['chirality']}; model `{st.model}`; "
+            f"{st.attrs.get('package')}, mujoco {st.attrs.get('mujoco')} |")
+
+
+def wall_minutes(paths) -> float:
+    """Wall time from creation to finish summed over stores (minutes; includes
+    any pause before a resume)."""
+    tot = 0.0
+    for p in paths:
+        a = Store(p).attrs
+        try:
+            t0 = datetime.datetime.fromisoformat(str(a["created"]))
+            t1 = datetime.datetime.fromisoformat(str(a["finished"]))
+            tot += (t1 - t0).total_seconds() / 60
+        except (KeyError, ValueError):
+            pass
+    return tot
+
+
+def made_with(paths) -> dict[str, set]:
+    """Months, package versions, time steps (ms) and integrators the stores were made with, read from them."""
+    made = {"months": set(), "packages": set(), "steps_ms": set(), "integrators": set()}
+    for p in paths:
+        st = Store(p)
+        try:
+            made["months"].add(datetime.datetime.fromisoformat(str(st.attrs["created"])).strftime("%B %Y"))
+        except (KeyError, ValueError):
+            pass
+        made["packages"].add(str(st.attrs.get("package", "an unrecorded version")))
+        scene = st.config.get("scene", {})
+        if "timestep" in scene:
+            made["steps_ms"].add(float(scene["timestep"]) * 1e3)
+        if "integrator" in scene:
+            made["integrators"].add(str(scene["integrator"]))
+    return made
+
+
+def provenance(made: dict[str, set]) -> str:
+    """When and with what numerics the stores were made ("November 2026, smarticle-mjx 0.3.3,
+    0.5 ms step, implicitfast"), so the page cannot claim a time step or a version its data did not use."""
+    if not made["packages"]:
+        return "No study has been run yet."
+    join = lambda xs: " and ".join(sorted(xs)) or "unrecorded"  # noqa: E731
+    steps = {f"{s:g} ms" for s in made["steps_ms"]}
+    return (f"Measured {join(made['months'])} with {join(made['packages'])}, time step {join(steps)} "
+            f"({join(made['integrators'])}); every store says so in its attributes.")
+
+
+def step_check(result: dict, model: str, step_ms: set, check: pathlib.Path = STEP_CHECK) -> list[str]:
+    """The page's paragraph on its time step, written from the step check's
+    JSON (``benchmarks/validation_step.py``): the 90-degree random study's beta
+    and net gliding speed at the reference step beside this page's, the beta
+    verdict at each, and how many claims hold once the reference's verdict is
+    taken. Says so when the check is missing or was made on other stores."""
+    try:
+        got = json.loads(pathlib.Path(check).read_text())
+    except (OSError, ValueError):
+        return ["No reference-step check of this page's glider rows exists (`benchmarks/validation_step.py`)."]
+    rows = result["rows"]
+    beta = ((result["extra"].get("random_90") or {}).get("beta") or {}).get("value")
+    if got.get("model") != model or len(step_ms) != 1 or not finite(beta):
+        return [f"The reference-step check (`benchmarks/results/{check.name}`) is of model `{got.get('model')}`, not "
+                "of this page's stores."]
+    step = next(iter(step_ms))
+    ref = min(got["rows"], key=lambda r: r["timestep_ms"])
+    here = [r for r in got["rows"] if abs(r["timestep_ms"] - step) < 1e-9 and r["beta"][0] is not None
+            and abs(r["beta"][0] - beta) < 5e-4]
+    if not here or ref["timestep_ms"] >= step:
+        return [f"The reference-step check (`benchmarks/results/{check.name}`) was not made on this page's "
+                f"{step:g} ms stores; re-run `benchmarks/validation_step.py` to compare them with a finer step."]
+    h = here[0]
+    fmt = lambda r: (f"β {r['beta'][0]:.2f} [{r['beta'][1]:.2f}, {r['beta'][2]:.2f}], net gliding speed "  # noqa: E731
+                     f"{r['v_com_W_per_period'][0]:.4f} W/period ({r['gliders']} gliders)")
+    at_ref, at_here = beta_holds(ref["beta"][0]), beta_holds(h["beta"][0])
+    held = sum(r["verdict"] == "holds" for r in rows)
+    held_ref = held - int(bool(at_here)) + int(bool(at_ref))
+    verdict = "the same" if at_ref == at_here else f"**{VERDICTS[at_ref]}** at the reference, so that row's verdict is the step's"
+    return [f"The time step is checked on the glider row against a reference step "
+            f"(`benchmarks/validation_step.py`, `benchmarks/results/{check.name}`): the 90° random study gives "
+            f"{fmt(h)} at {step:g} ms and {fmt(ref)} at {ref['timestep_ms']:g} ms. "
+            f"The β test |β − {BETA_PAPER:g}| < {BETA_TOLERANCE:g}: {VERDICTS[at_here]} here, {verdict}. "
+            f"With the reference's verdict, **{held_ref} of {len(rows)} claims hold**."]
+
+
+def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathlib.Path, command: str,
+               model: str, check: pathlib.Path = STEP_CHECK) -> None:
+    rel = pathlib.Path(figures).name
+    every = [q for v in stores.values() for q in (v if isinstance(v, list) else [v])]
+    held = sum(r["verdict"] == "holds" for r in result["rows"])
+    made = made_with(every)
+    lines = ["# Validation against the paper", "",
+             f"Model `{model}` (docs/model.md). {provenance(made)} Regenerate with `{command}`: it reuses complete stores made by the "
+             "same model and package version, resumes interrupted ones and runs the missing studies "
+             f"(these took {wall_minutes(every):.0f} minutes of wall time on 2 cores). "
+             "`--studies NAME,...` runs a subset; the page is written from the complete stores there are.", "",
+             "Every row states its test before the number. A claim that does not hold is reported as such; the "
+             f"model was not tuned to any row. **{held} of {len(result['rows'])} claims hold** at this step.", "",
+             *step_check(result, model, made["steps_ms"], check), "",
+             "| claim | paper | measured | test | verdict | how measured, what was tried |", "|---|---|---|---|---|---|"]
+    cell = lambda x: str(x).replace("|", "\\|").replace("\\\\|", "\\|")  # noqa: E731
+    for r in result["rows"]:
+        lines.append(f"| {cell(r['claim'])} | {cell(r['paper'])} | {cell(r['measured'])} | {cell(r['test'])} | "
+                     f"**{r['verdict']}** | {r['note']} |")
+    lines += ["", "## Studies", "", "| study | file | store |", "|---|---|---|"]
+    for name, paths in stores.items():
+        lines.append(study_line(name, paths))
+    lines += [f"| single robots | built in | α [{', '.join(f'{a:g}' for a in result['extra']['single'])}], {result['extra']['single_periods']} "
+              "periods each | |", "",
+              "## Lone robots", "",
+              "| α_max | net drift (W/cycle) | mean step (W/cycle) | speed (W/s) | β_single | heading drift (°/cycle) |",
+              "|---|---|---|---|---|---|"]
+    for a, s_ in result["extra"]["single"].items():
+        lines.append(f"| {a:g}° | {f(s_['net_W_per_cycle'], '.2e')} | {f(s_['step_W_per_cycle'], '.2e')} | "
+                     f"{f(s_['speed_W_per_s'], '.2e')} | {f(s_['beta'])} ± {f(s_['beta_err'])} | "
+                     f"{f(s_['heading_deg_per_cycle'], '.3f')} |")
+    if result["extra"].get("notes"):
+        lines += ["", "## Stores replaced in this run", ""] + [f"- {n}" for n in result["extra"]["notes"]]
+    lines += ["", "## Figures", ""]
+    lines += [f"![{n}]({rel}/{n})" for n in result["figures"]]
+    out_md.write_text("\n".join(lines) + "\n")
+    (figures / "validation.json").write_text(json.dumps(
+        {"model": model, "rows": result["rows"], "extra": result["extra"]}, indent=1, default=json_default))
+
+
+def relative_command(data: pathlib.Path, out_md: pathlib.Path, model: str, studies=None) -> str:
+    """The regenerate command, with paths relative to the repository when they
+    lie inside it (``DIR`` / ``PAGE`` placeholders otherwise), never one
+    machine's absolute path."""
+    def rel(p: pathlib.Path, placeholder: str) -> str:
+        p = pathlib.Path(os.path.abspath(p))
+        try:
+            return str(p.relative_to(REPO))
+        except ValueError:
+            return placeholder
+    cmd = f"smx validate --data {rel(data, 'DIR')} --out {rel(out_md, 'PAGE')} --model {model}"
+    return cmd

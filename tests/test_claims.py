@@ -1,0 +1,202 @@
+"""Each of the paper's claims (smarticle_mjx/validate/claims.py) judged on built evidence: once where
+the built numbers satisfy the claim's stated test and once where they do not, so a wrong threshold, a
+flipped comparison or a test that cannot fail shows up here rather than only end to end."""
+
+import numpy as np
+import pytest
+
+from smarticle_mjx.reduce import gliders as GL
+from smarticle_mjx.reduce.transport import Exponent
+from smarticle_mjx.validate import claims as K
+
+
+def verdict(key, ev):
+    return K.get(key).row(ev)["verdict"]
+
+
+def test_the_registry_lists_the_thirteen_claims_in_page_order_once():
+    keys = [c.key for c in K.CLAIMS]
+    assert keys == ["lone_drift", "both_types", "c1_basin", "c1_lifetime", "beta", "polar_symmetry",
+                    "diagonal_beta", "mirror", "descent", "pb_dip", "relax_emergence", "relax_distance", "contour"]
+    assert len({c.text for c in K.CLAIMS}) == 13 and all(c.test and c.paper for c in K.CLAIMS)
+
+
+def test_a_missing_study_names_itself_and_is_not_measurable():
+    row = K.get("mirror").row(None, stores={"cw_90": "x.h5"})
+    assert row["verdict"] == "not measurable" and "random_90" in row["measured"] and row["test"] == "–"
+
+
+@pytest.mark.parametrize("net, holds", [(1.5e-3, True), (6e-4, True), (4e-3, True),
+                                        (4e-4, False), (5e-3, False), (5.8e-7, False)])
+def test_lone_drift_holds_within_a_factor_three_of_the_lab(net, holds):
+    """The lab's lone robot drifts 1.5e-3 W per cycle: within 3x either way holds."""
+    ev = {"net_W_per_cycle": net, "step_W_per_cycle": net * 2, "cycles": 75}
+    assert verdict("lone_drift", ev) == ("holds" if holds else "does not hold")
+
+
+def random90(c1_samples=300, c2_samples=60, c1_basin=60, c2_basin=10, c1_life=None, c2_life=None,
+             beta=1.7, valid=280):
+    rng = np.random.default_rng(0)
+    c1_life = rng.integers(50, 75, 40) if c1_life is None else np.asarray(c1_life)
+    c2_life = rng.integers(5, 30, 40) if c2_life is None else np.asarray(c2_life)
+    typed = {"length": np.concatenate([c1_life, c2_life]),
+             "kind": np.array([GL.C1] * len(c1_life) + [GL.C2] * len(c2_life))}
+
+    def kind(samples, basin, life):
+        return {"steady_samples": samples, "basin_configs": basin, "basin_fraction": basin / valid,
+                "lifetime_mean": float(np.mean(life)), "censored_fraction": 0.5}
+    s = {"C1": kind(c1_samples, c1_basin, c1_life), "C2": kind(c2_samples, c2_basin, c2_life),
+         "steady_samples": c1_samples + c2_samples + 40, "valid": valid, "periods": 75,
+         "clusters": [{"kind": "C1", "r_W": 1.3, "theta_deg": 220.0, "phi_deg": 180.0, "samples": c1_samples}],
+         "options": {"clusters": 8, "burn_in": 25, "glider_min_periods": 30, "fit_lags": (5, 15)},
+         "beta": {"value": beta, "lo": beta - 0.1, "hi": beta + 0.1, "tracks": 50, "lag_range": (5, 15)},
+         "v_com": {"net_W_per_period": 0.003, "net_lo": 0.002, "net_hi": 0.004, "mean_step_W_per_period": 0.01},
+         "turning": {"median_direction_change_deg": 40.0, "direction_persistence": 0.4},
+         "signed_heading_turn": {"deg_per_period": 10.0, "lo": 8.0, "hi": 12.0}}
+    return {"summary": s, "arrays": {"typed": typed}}
+
+
+def test_both_glider_types_need_more_than_five_percent_of_the_steady_samples_each():
+    assert verdict("both_types", random90(c2_samples=60)) == "holds"  # 60 of 400 = 15 %
+    assert verdict("both_types", random90(c2_samples=10)) == "does not hold"  # 10 of 350 < 5 %
+    no_c2 = random90()
+    no_c2["summary"]["C2"] = None
+    assert verdict("both_types", no_c2) == "not measurable"
+
+
+def test_c1_basin_larger_needs_separated_exact_intervals():
+    assert verdict("c1_basin", random90(c1_basin=60, c2_basin=10)) == "holds"  # 0.21 vs 0.04 of 280
+    assert verdict("c1_basin", random90(c1_basin=20, c2_basin=12)) == "does not hold"  # intervals overlap
+    assert verdict("c1_basin", random90(c1_basin=10, c2_basin=60)) == "does not hold"  # C2 above
+
+
+def test_c1_outlives_c2_by_mean_and_a_one_sided_rank_test():
+    assert verdict("c1_lifetime", random90()) == "holds"  # C1 runs 50-75 periods, C2 5-30
+    assert verdict("c1_lifetime", random90(c1_life=[10, 20, 30], c2_life=[40, 50, 60])) == "does not hold"
+    # C1 longer on average but by one outlier only: the rank test does not back it
+    assert verdict("c1_lifetime", random90(c1_life=[5, 6, 7, 8, 300], c2_life=[9, 10, 11, 12, 13])) == "does not hold"
+
+
+@pytest.mark.parametrize("beta, holds", [(1.8, True), (1.55, True), (2.05, True), (1.45, False), (2.2, False),
+                                         (1.0, False)])
+def test_gliders_are_nearly_ballistic_when_beta_is_within_point_three_of_one_point_eight(beta, holds):
+    assert verdict("beta", random90(beta=beta)) == ("holds" if holds else "does not hold")
+
+
+def polar(axis, corr):
+    return {"axis_deg": axis, "mirror_correlation": corr, "attracted": 100, "valid": 300, "periods": 40,
+            "positions": 72, "orientations": 5, "radius_W": 1.3, "fraction_range": (0.0, 1.0)}
+
+
+def test_the_polar_basin_is_symmetric_about_270_when_centred_and_mirror_correlated():
+    assert verdict("polar_symmetry", polar(265.0, 0.8)) == "holds"
+    assert verdict("polar_symmetry", polar(275.0, 0.13)) == "does not hold"  # centred, not mirror-like
+    assert verdict("polar_symmetry", polar(200.0, 0.9)) == "does not hold"  # mirror-like about another axis
+    assert verdict("polar_symmetry", polar(float("nan"), 0.9)) == "not measurable"
+
+
+def test_the_diagonal_gait_is_diffusive_when_beta_is_near_one_from_enough_gliders():
+    ev = lambda b, n: {"beta": Exponent(b, 0.05, n, (5, 15), "bootstrap", b - 0.1, b + 0.1),  # noqa: E731
+                       "lags": (5, 15), "parts": ["x of y"]}
+    assert verdict("diagonal_beta", ev(1.1, 12)) == "holds"
+    assert verdict("diagonal_beta", ev(1.6, 12)) == "does not hold"
+    assert verdict("diagonal_beta", ev(1.0, 3)) == "not measurable"  # fewer than 5 gliders
+    assert verdict("diagonal_beta", {"beta": None, "lags": (5, 15), "parts": []}) == "not measurable"
+
+
+def mirror_ev(ccw, cw, th_ccw=220.0, th_cw_mirrored=225.0):
+    return {"ccw": ccw, "cw": cw, "c1_theta_ccw": th_ccw, "c1_theta_cw_mirrored": th_cw_mirrored,
+            "cw_summary": {"valid": 200, "periods": 40, "options": {"glider_min_periods": 20}}}
+
+
+def test_chirality_mirrors_gliders_when_turns_have_opposite_significant_signs_and_theta_maps():
+    assert verdict("mirror", mirror_ev((16, 13, 19, 79), (-12, -16, -8, 54))) == "holds"
+    assert verdict("mirror", mirror_ev((16, 13, 19, 79), (-2, -6, 2, 54))) == "does not hold"  # cw interval has 0
+    assert verdict("mirror", mirror_ev((16, 13, 19, 79), (12, 8, 16, 54))) == "does not hold"  # same sign
+    assert verdict("mirror", mirror_ev((16, 13, 19, 79), (-12, -16, -8, 54), 220.0, 250.0)) == "does not hold"
+    # theta compared on the circle: 355 and 5 deg are 10 deg apart
+    assert verdict("mirror", mirror_ev((16, 13, 19, 79), (-12, -16, -8, 54), 355.0, 5.0)) == "holds"
+
+
+def descent_ev(r_by_amp):
+    sep = [{"amplitude_deg": a, "r_W": r, "lo": r - 0.02, "hi": r + 0.02, "pairs": 20, "started": 32}
+           for a, r in sorted(r_by_amp.items())]
+    return {"sep": sep, "window": 10, "periods": 15, "continuation": False}
+
+
+def test_steady_separation_falls_with_amplitude_with_its_largest_drop_near_85_degrees():
+    amps = [45, 50, 55, 60, 65, 70, 75, 80, 85, 90]
+    falling = {a: 1.8 - 0.01 * (a - 45) for a in amps}
+    falling[90] = falling[85] - 0.3  # the sharp drop between 85 and 90
+    assert verdict("descent", descent_ev(falling)) == "holds"
+    early = dict(falling)
+    early[90] = falling[85] - 0.01
+    early[50] = early[45] - 0.4  # the largest drop at 45-50, not near 85
+    early.update({a: early[50] - 0.01 * (a - 50) for a in amps if a > 50})
+    assert verdict("descent", descent_ev(early)) == "does not hold"
+    assert verdict("descent", descent_ev({a: 1.3 + 0.01 * (a - 45) for a in amps})) == "does not hold"  # rises
+    assert verdict("descent", descent_ev({90: 1.3, 85: 1.4})) == "not measurable"  # two amplitudes
+
+
+def pb_ev(p):
+    amps = np.array(sorted(p))
+    n = np.full(len(amps), 200)
+    pe = [(p[a], max(p[a] - 0.05, 0), p[a] + 0.05) for a in amps]
+    from smarticle_mjx.reduce import binding
+    pooled = {}
+    for g, sel in K.pb_groups(amps).items():
+        k = int(sum(round(p[a] * 200) for a in amps[sel]))
+        lo, hi = binding.binomial_interval(k, 200 * int(sel.sum()))
+        nn = 200 * int(sel.sum())
+        pooled[g] = (k / nn if nn else np.nan, lo, hi, nn)
+    return {"amplitudes_deg": amps, "pb_end": pe, "valid": n, "pooled": pooled, "periods": 30}
+
+
+def test_the_binding_probability_dips_at_intermediate_amplitudes():
+    amps = range(10, 100, 10)
+    dip = {a: 0.05 if 40 <= a <= 60 else 0.3 for a in amps}
+    assert verdict("pb_dip", pb_ev(dip)) == "holds"
+    rising = {a: 0.01 * a / 3 for a in amps}  # the model's monotone rise, no dip
+    assert verdict("pb_dip", pb_ev(rising)) == "does not hold"
+    shallow = {a: 0.28 if 40 <= a <= 60 else 0.3 for a in amps}  # below the means, pooled intervals overlap
+    assert verdict("pb_dip", pb_ev(shallow)) == "does not hold"
+    assert verdict("pb_dip", pb_ev({a: 0.1 for a in (70, 80, 90)})) == "not measurable"
+
+
+def relax_ev(emerged, valid, distances=(2.8, 3.0, 2.9, 3.1), r=0.8, p=1e-5, n_episodes=60):
+    from scipy.stats import fisher_exact
+    from smarticle_mjx.reduce import binding
+    lo, hi = binding.binomial_interval(emerged, valid)
+    d = np.asarray(distances, float)
+    return {"emerged": emerged, "valid": valid, "fraction": emerged / valid, "interval": (lo, hi),
+            "lab": {"fraction": 77 / 151, "interval": (0.43, 0.59)},
+            "p_fisher": float(fisher_exact([[emerged, valid - emerged], [77, 74]])[1]),
+            "glider_kinds": {"C1": emerged, "C2": 0}, "apart_W": 2.0, "stopped_early": 0, "stages": 5,
+            "relaxation_periods": {"median": 30.0, "q25": 20.0, "q75": 40.0},
+            "settings": {"n_robots": 7, "periods": 300, "amplitude_deg": 90.0, "gap_mm": 2.0, "jitter_mm": 1.0,
+                         "jitter_deg": 2.0, "quiet_periods": 10},
+            "distance": {"n": len(d), "mean": float(d.mean()) if len(d) else np.nan,
+                         "sem": float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else np.nan,
+                         "median": float(np.median(d)) if len(d) else np.nan},
+            "glider_lifetime": {"mean": 150.0}, "glider_censored": 1,
+            "fit": {"slope": 0.01, "r": r, "p": p, "n": n_episodes},
+            "typed": {"C1": {"mean": 30.0}, "C2": {"mean": 20.0}, "p_c1_longer": 0.1}}
+
+
+def test_relaxation_emergence_agrees_with_the_lab_by_fisher_once_the_interval_is_narrow():
+    assert verdict("relax_emergence", relax_ev(50, 100)) == "holds"  # 0.50 against 77/151
+    assert verdict("relax_emergence", relax_ev(7, 100)) == "does not hold"  # the model's 0.07
+    assert verdict("relax_emergence", relax_ev(1, 4)) == "not measurable"  # interval wider than 0.3
+
+
+def test_the_glider_travels_about_2_9_widths():
+    assert verdict("relax_distance", relax_ev(50, 100)) == "holds"
+    assert verdict("relax_distance", relax_ev(7, 100, distances=(0.1, 0.2, 0.05, 0.4))) == "does not hold"
+    assert verdict("relax_distance", relax_ev(1, 100, distances=(2.9,))) == "not measurable"
+
+
+def test_contour_length_grows_linearly_with_lifetime_when_correlated_and_significant():
+    assert verdict("contour", relax_ev(50, 100, r=0.8, p=1e-6)) == "holds"
+    assert verdict("contour", relax_ev(50, 100, r=0.5, p=1e-5)) == "does not hold"  # r must exceed 0.5
+    assert verdict("contour", relax_ev(50, 100, r=0.9, p=0.2)) == "does not hold"
+    assert verdict("contour", relax_ev(50, 100, r=0.9, p=0.01, n_episodes=2)) == "not measurable"
