@@ -10,6 +10,7 @@ effect is absent at its parameters' ``null`` values.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Callable
 
 import numpy as np
@@ -39,6 +40,25 @@ class Param:
     unit: str
     log: bool = False
     square: bool = False
+
+
+def value_to_unit(p: Param, x: float) -> float:
+    """Parameter value ``x`` on the fit's unit interval (linear, log or square, as ``p`` says)."""
+    if p.square:
+        return (x ** 2 - p.lo ** 2) / (p.hi ** 2 - p.lo ** 2)
+    if p.log:
+        return (math.log(x) - math.log(p.lo)) / (math.log(p.hi) - math.log(p.lo))
+    return (x - p.lo) / (p.hi - p.lo)
+
+
+def unit_to_value(p: Param, u: float) -> float:
+    """The value at ``u`` of the unit interval (clipped to it): the inverse of :func:`value_to_unit`."""
+    u = min(max(u, 0.0), 1.0)
+    if p.square:
+        return math.sqrt(p.lo ** 2 + u * (p.hi ** 2 - p.lo ** 2))
+    if p.log:
+        return math.exp(math.log(p.lo) + u * (math.log(p.hi) - math.log(p.lo)))
+    return p.lo + u * (p.hi - p.lo)
 
 
 def _same(p: SceneParams, v: dict) -> SceneParams:

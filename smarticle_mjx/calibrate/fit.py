@@ -40,7 +40,7 @@ import math
 import numpy as np
 
 from .data import Trial
-from .effects import BY_NAME, LIBRARY, Effect, EffectSet
+from .effects import BY_NAME, LIBRARY, Effect, EffectSet, unit_to_value, value_to_unit
 from .nominal import apply as apply_nominal, fit_nominal
 from .residuals import CONTACT_W, Features, features, masked, residual_blocks
 from .drift import drift_test, fit_tilt
@@ -117,23 +117,6 @@ class Problem:
 
 
 # ------------------------------------------------------------------ parameter transforms
-
-def value_to_unit(p, x):
-    if p.square:
-        return (x ** 2 - p.lo ** 2) / (p.hi ** 2 - p.lo ** 2)
-    if p.log:
-        return (math.log(x) - math.log(p.lo)) / (math.log(p.hi) - math.log(p.lo))
-    return (x - p.lo) / (p.hi - p.lo)
-
-
-def unit_to_value(p, u):
-    u = min(max(u, 0.0), 1.0)
-    if p.square:
-        return math.sqrt(p.lo ** 2 + u * (p.hi ** 2 - p.lo ** 2))
-    if p.log:
-        return math.exp(math.log(p.lo) + u * (math.log(p.hi) - math.log(p.lo)))
-    return p.lo + u * (p.hi - p.lo)
-
 
 def _values(effects: list[Effect], u) -> dict:
     out, k = {}, 0

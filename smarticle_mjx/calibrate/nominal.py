@@ -132,8 +132,7 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     a model preset). Returns the fit; ``problem`` is left at the preset.
     """
     from scipy.optimize import least_squares
-    from .effects import EffectSet
-    from .fit import unit_to_value, value_to_unit
+    from .effects import EffectSet, unit_to_value, value_to_unit
     ref = problem.trials[0].params
     start = start or {}
     eparams = tuple(effect.params) if effect is not None else ()
