@@ -26,3 +26,59 @@ def test_the_check_sees_a_private_import(tmp_path):
     p = tmp_path / "probe.py"
     p.write_text("from __future__ import annotations\nfrom .scan import _hidden, public\n")
     assert _private_imports(p, tmp_path) == ["probe.py:2 imports _hidden from scan"]
+
+
+def _import_graph(package: pathlib.Path) -> dict[str, set[str]]:
+    """Module -> the package's modules it imports (at the top or inside a function)."""
+    mods = {}
+    for p in package.rglob("*.py"):
+        name = ".".join(p.relative_to(package.parent).with_suffix("").parts)
+        mods[name.removesuffix(".__init__")] = p
+    graph = {}
+    for m, p in mods.items():
+        here = m if p.name == "__init__.py" else m.rsplit(".", 1)[0]
+        deps = set()
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                base = here.split(".")[:len(here.split(".")) - node.level + 1] if node.level else []
+                target = ".".join(base + ([node.module] if node.module else []))
+                deps |= {f"{target}.{a.name}" if f"{target}.{a.name}" in mods else target for a in node.names}
+            elif isinstance(node, ast.Import):
+                deps |= {a.name for a in node.names}
+        graph[m] = {d for d in deps if d in mods and d != m}
+    return graph
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    out = []
+    for start in sorted(graph):
+        stack, seen = [(start, [start])], set()
+        while stack:
+            v, path = stack.pop()
+            for w in sorted(graph[v]):
+                if w == start:
+                    out.append(path + [start])
+                elif w not in seen:
+                    seen.add(w)
+                    stack.append((w, path + [w]))
+    return out
+
+
+def test_no_import_circles():
+    """Data flows one way: no module imports, directly or through others, a module that imports it
+    (lazy imports inside functions count: they hide a circle, they do not remove it)."""
+    found = _circles(_import_graph(PACKAGE))
+    assert not found, "\n".join(" -> ".join(c) for c in found)
+
+
+def test_the_circle_check_sees_a_lazy_circle(tmp_path):
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "sub" / "__init__.py").write_text("")
+    (pkg / "sub" / "a.py").write_text("from .b import x\n")
+    (pkg / "sub" / "b.py").write_text("def f():\n    from ..c import y\n")
+    (pkg / "c.py").write_text("import pkg.sub.a\n")
+    assert _circles(_import_graph(pkg))[0] == ["pkg.c", "pkg.sub.a", "pkg.sub.b", "pkg.c"]
+    (pkg / "c.py").write_text("")
+    assert _circles(_import_graph(pkg)) == []
