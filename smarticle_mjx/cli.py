@@ -475,6 +475,7 @@ def validate(
     single_periods: int = typer.Option(75, help="periods of each lone-robot run"),
     quiet: bool = typer.Option(False, help="no progress bar"),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
+    imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP + "; stores go to DATA/MODEL+NAME"),
 ):
     """Measure the paper's claims from the studies in sweeps/ and write docs/validation.md."""
     from .store import StoreError
@@ -497,10 +498,12 @@ def validate(
             raise UserError(f"{data} exists and is not a directory")
         if single_periods < 2:
             raise UserError("--single-periods must be >= 2")
+        from . import imperfections as imp
+        imp.get(imperfections)
         bar, progress = _progress(quiet)
         with bar:
             res = run_validation(data, out, sweeps, model=preset.name, on_progress=progress,
-                                 single_periods=single_periods, studies=chosen)
+                                 single_periods=single_periods, studies=chosen, imperfections=imperfections)
     except (UserError, ValueError, StoreError) as e:
         _fail(str(e))
     for r in res["rows"]:

@@ -88,10 +88,11 @@ class BoundStudy:
         if not 0 < self.steady_window <= self.periods or not 0 < self.keep_window <= self.periods:
             raise ValueError("bound study: steady and keep windows must lie within the periods run")
 
-    def stage_config(self, amplitude: float, initial: np.ndarray, model: str) -> ScanConfig:
+    def stage_config(self, amplitude: float, initial: np.ndarray, model: str,
+                     imperfections: str = "none") -> ScanConfig:
         return ScanConfig(configs="explicit", initial=tuple(tuple(float(x) for x in c) for c in initial),
                           amplitudes_deg=(float(amplitude),), periods=self.periods, gait=self.gait,
-                          chirality=self.chirality, seed=self.seed, model=model)
+                          chirality=self.chirality, seed=self.seed, model=model, imperfections=imperfections)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -107,9 +108,10 @@ class RelaxStudy:
     description: str = ""
     figure: str = ""
 
-    def stage_config(self, stage: int, model: str):
+    def stage_config(self, stage: int, model: str, imperfections: str = "none"):
         from .relax import RelaxConfig
-        return RelaxConfig(**dict(self.settings), trials=self.trials, first_trial=stage * self.trials, model=model)
+        return RelaxConfig(**{"imperfections": imperfections, **dict(self.settings)}, trials=self.trials,
+                           first_trial=stage * self.trials, model=model)
 
     def validate(self) -> None:
         if self.stages < 1 or self.trials < 1:
@@ -168,9 +170,12 @@ def _normalised(config: dict, want: dict, params: SceneParams) -> dict:
     with the values they implicitly had."""
     have = json.loads(json.dumps(config))
     have.setdefault("model", "paper")  # stores from before presets
-    have["scan"] = {**want["scan"], **have.get("scan", {}), "model": have["model"]}
+    stored = have.get("scan", {})
+    have["scan"] = {**want["scan"], **stored, "model": have["model"]}
     if "initial" not in want["scan"]:
         have["scan"].pop("initial", None)
+    if "imperfections" not in stored:  # ideal robots (stores of them do not name the set)
+        have["scan"].pop("imperfections", None)
     defaults = params_json(params.__class__())
     have["scene"] = {**defaults, **have.get("scene", {}),
                      "robot": {**defaults["robot"], **have.get("scene", {}).get("robot", {})}}
@@ -179,8 +184,18 @@ def _normalised(config: dict, want: dict, params: SceneParams) -> dict:
 
 def _wanted(cfg: ScanConfig) -> tuple[SceneParams, dict]:
     """The scene parameters of scan ``cfg`` and the configuration its store must hold."""
-    params = cfg.scene_params()
-    return params, {"model": cfg.model, "scan": cfg.to_json(), "scene": params_json(params)}
+    return _recorded(cfg, cfg.to_json(), "scan")
+
+
+def _recorded(cfg, config_json: dict, kind: str) -> tuple[SceneParams, dict]:
+    """The scene parameters (with the drawn robots' quirks) and the configuration a store of study
+    ``cfg`` (a ScanConfig or RelaxConfig) records, as run_scan and run_relax write them."""
+    robots = cfg.robots()
+    params = robots.scene(cfg.scene_params())
+    want = {"model": cfg.model, kind: config_json, "scene": params_json(params)}
+    if not robots.set.ideal:
+        want["imperfections"] = robots.to_json()
+    return params, json.loads(json.dumps(want))
 
 
 def stale_reason(cfg: ScanConfig, path: pathlib.Path) -> str | None:
@@ -250,7 +265,8 @@ def glider_starts(store: Store, kind: str, pairs: int) -> np.ndarray:
 
 
 def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.Path, model: str,
-                 on_progress=None, notes: list | None = None, run: bool = True) -> list[pathlib.Path]:
+                 on_progress=None, notes: list | None = None, run: bool = True,
+                 imperfections: str = "none") -> list[pathlib.Path]:
     """Run (or reuse, or resume) every stage of a started-bound study; one
     store per amplitude, ``<stem>_aNNNN.h5`` (tenths of a degree). Stops
     early when no pair is left bound to carry on (continuation), or, with
@@ -262,7 +278,7 @@ def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.
             if notes is not None:
                 notes.append(f"{stem}: no {bs.glider} pair left bound before {a:g}°; later stages not run")
             break
-        cfg = bs.stage_config(a, starts, model)
+        cfg = bs.stage_config(a, starts, model, imperfections)
         # amplitude in tenths of a degree: descent_a0900.h5 is 90 deg
         path = ensure_scan(cfg, pathlib.Path(data) / f"{stem}_a{int(round(a * 10)):04d}.h5", on_progress, notes,
                            run=run)
@@ -283,18 +299,17 @@ def relax_stage_path(data: pathlib.Path, stem: str, stage: int) -> pathlib.Path:
 
 
 def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_progress=None,
-                 notes: list | None = None, run: bool = True) -> list[pathlib.Path]:
+                 notes: list | None = None, run: bool = True, imperfections: str = "none") -> list[pathlib.Path]:
     """Run (or reuse, or resume) the stages of a relaxation study in order,
     ``<stem>_sNN.h5``; with ``run=False`` stop at the first stage without a
     current complete store. A stage made by another configuration, model or
     package version is moved aside (never deleted) and rerun."""
     from .relax import run_relax
     package = f"smarticle-mjx {__version__}"
-    params = presets.params(model)
     paths = []
     for stage in range(rs.stages):
-        cfg = rs.stage_config(stage, model)
-        want = json.loads(json.dumps({"model": model, "relax": cfg.to_json(), "scene": params_json(params)}))
+        cfg = rs.stage_config(stage, model, imperfections)
+        want = _recorded(cfg, cfg.to_json(), "relax")[1]
         path = relax_stage_path(data, stem, stage)
         journal = journal_path(path)
         if path.exists():
@@ -319,16 +334,20 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
 
 def ensure(spec: ScanConfig | BoundStudy | RelaxStudy, data: pathlib.Path, stem: str, model: str,
            sources: dict | None = None, on_progress: Callable[[dict], None] | None = None,
-           notes: list | None = None, run: bool = True) -> list[pathlib.Path]:
+           notes: list | None = None, run: bool = True, imperfections: str = "none") -> list[pathlib.Path]:
     """The complete stores of study ``spec`` (file stem ``stem``) made by model ``model`` in ``data``,
     one per stage (a scan has one): reused, resumed or run as :func:`ensure_scan` says; with
     ``run=False`` only those that already stand for it. A started-bound study needs its source's
-    stores in ``sources`` (study name -> stores) and returns none without them."""
+    stores in ``sources`` (study name -> stores) and returns none without them. ``imperfections``: the
+    robots' imperfection set (smarticle_mjx/imperfections.py) every stage is run with, unless a relaxation
+    study file names its own."""
     data = pathlib.Path(data)
     if isinstance(spec, RelaxStudy):
-        return ensure_relax(spec, stem, data, model, on_progress, notes, run=run)
+        return ensure_relax(spec, stem, data, model, on_progress, notes, run=run, imperfections=imperfections)
     if isinstance(spec, BoundStudy):
         src = (sources or {}).get(spec.source)
-        return ensure_bound(spec, stem, src[0], data, model, on_progress, notes, run=run) if src else []
-    got = ensure_scan(dataclasses.replace(spec, model=model), data / f"{stem}.h5", on_progress, notes, run=run)
+        return ensure_bound(spec, stem, src[0], data, model, on_progress, notes, run=run,
+                            imperfections=imperfections) if src else []
+    got = ensure_scan(dataclasses.replace(spec, model=model, imperfections=imperfections), data / f"{stem}.h5",
+                      on_progress, notes, run=run)
     return [got] if got is not None else []

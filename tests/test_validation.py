@@ -148,3 +148,38 @@ def test_the_page_writes_its_time_step_check_itself(tmp_path):
     assert "is of model `paper`" in step_check(result, "lab-lag", {0.5},
                                                  _check_file(tmp_path, 1.6, 1.7, model="paper"))[0]
     assert "No reference-step check" in step_check(result, "lab-lag", {0.5}, tmp_path / "none.json")[0]
+
+
+def test_validate_with_imperfections_keeps_its_stores_apart_and_records_the_robots(tmp_path):
+    """--imperfections lab runs the studies with drawn robots into DATA/MODEL+lab: the ideal model's
+    stores are not touched, every store records the set and its draws, the lone-robot row is the mean
+    of several drawn robots, the page names the set, and a second run reuses the stores bit for bit."""
+    sweeps, data, out = _sweeps(tmp_path), tmp_path / "data", tmp_path / "v.md"
+    args = ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps), "--single-periods", "3",
+            "--quiet", "--studies", "polar,relax"]
+    r = CliRunner().invoke(app, args)
+    assert r.exit_code == 0, r.output
+    ideal = _hashes(data / DEFAULT)
+    r = CliRunner().invoke(app, args + ["--imperfections", "lab"])
+    assert r.exit_code == 0, r.output
+    assert _hashes(data / DEFAULT) == ideal
+    folder = data / f"{DEFAULT}+lab"
+    polar = Store(folder / "validation_polar.h5")
+    assert polar.config["scan"]["imperfections"] == "lab" and polar.config["imperfections"]["name"] == "lab"
+    relax = Store(folder / "validation_relax_s00.h5")
+    assert relax.config["relax"]["imperfections"] == "lab"
+    page = out.read_text()
+    assert "set `lab`" in page and "--imperfections lab" in page
+    rows = json.loads((tmp_path / "v" / "validation.json").read_text())["rows"]
+    assert "mean of 8 robots" in rows[0]["measured"]
+    before = _hashes(folder)
+    r = CliRunner().invoke(app, args + ["--imperfections", "lab"])
+    assert r.exit_code == 0, r.output
+    assert _hashes(folder) == before and "note:" not in r.output
+
+
+def test_validate_rejects_unknown_imperfections_in_one_line(tmp_path):
+    r = CliRunner().invoke(app, ["validate", "--data", str(tmp_path / "d"), "--out", str(tmp_path / "v.md"),
+                                 "--imperfections", "wobbly"])
+    assert r.exit_code == 2 and "wobbly" in r.output and len(r.output.strip().splitlines()) == 1
+    assert not (tmp_path / "d").exists() and not (tmp_path / "v.md").exists()

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import pathlib
 
+import numpy as np
+
 from .. import presets
 from ..scan import ScanConfig
 from ..scene import SceneParams
@@ -24,16 +26,35 @@ SINGLE_PERIODS = 75
 __all__ = ["CLAIMS", "STUDIES", "SWEEPS", "evaluate", "run_validation", "single_robots"]
 
 
-def single_robots(params: SceneParams, amplitudes=SINGLE_AMPLITUDES, periods: int = SINGLE_PERIODS) -> dict:
-    """Lone robots, one per amplitude: per-period positions (W) and headings."""
+LONE_ROBOTS_DRAWN = 8  # lone robots per amplitude when the robots have imperfections (one each otherwise)
+
+
+def single_robots(params: SceneParams, amplitudes=SINGLE_AMPLITUDES, periods: int = SINGLE_PERIODS,
+                  imperfections: str = "none", seed: int = 0) -> dict:
+    """Lone robots, one per amplitude: per-period positions (W) and headings. With ``imperfections``,
+    :data:`LONE_ROBOTS_DRAWN` robots drawn from that set (``seed``) per amplitude, each alone on the
+    plate: ``xy`` [R, T+1, 2] and ``heading`` [R, T+1]."""
+    import dataclasses
+
+    from .. import imperfections as imp
     from ..engine.simulate import simulate
     from ..gait import GaitSpec
+    ideal = imp.get(imperfections).ideal
+    n = 1 if ideal else LONE_ROBOTS_DRAWN
+    draw = imp.draw(imperfections, n, seed)
     out = {}
     for a in amplitudes:
         g = GaitSpec(amplitude_deg=float(a))
         a0 = g.setpoints(0.0, params.robot.servo_speed)
-        res = simulate(params, [[0.0, 0.0, 0.0, float(a0[0]), float(a0[1])]], g, periods)
-        out[float(a)] = {"xy": res.poses[:, 0, :2] / params.robot.body_length, "heading": res.poses[:, 0, 2],
+        xy, heading = [], []
+        for i in range(n):
+            robot = None if ideal else dataclasses.replace(draw, arm_speed=draw.arm_speed[i:i + 1],
+                                                           clock=draw.clock[i:i + 1], quirks=draw.quirks[i:i + 1])
+            p = params if robot is None else robot.scene(params)
+            res = simulate(p, [[0.0, 0.0, 0.0, float(a0[0]), float(a0[1])]], g, periods, imperfections=robot)
+            xy.append(res.poses[:, 0, :2] / params.robot.body_length)
+            heading.append(res.poses[:, 0, 2])
+        out[float(a)] = {"xy": xy[0] if ideal else np.stack(xy), "heading": heading[0] if ideal else np.stack(heading),
                          "period_s": res.period}
     return out
 
@@ -50,11 +71,18 @@ def evaluate(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | N
 
 def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Path = SWEEPS,
                    model: str = presets.DEFAULT, on_progress=None, command: str | None = None,
-                   single_periods: int = SINGLE_PERIODS, studies: list[str] | None = None) -> dict:
+                   single_periods: int = SINGLE_PERIODS, studies: list[str] | None = None,
+                   imperfections: str = "none") -> dict:
     """Run or reuse the studies (all, or those named in ``studies``) with model preset ``model`` in
-    ``data/<model>/``, measure every claim from the complete stores there are, write the page."""
+    ``data/<model>/``, measure every claim from the complete stores there are, write the page.
+
+    ``imperfections``: run every study with the robots' imperfections of that set (drawn from each
+    study's seed; smarticle_mjx/imperfections.py), in ``data/<model>+<set>/``."""
+    from .. import imperfections as imp
+    ideal = imp.get(imperfections).ideal
     params = presets.params(model)
-    data = pathlib.Path(data) / model
+    label = model if ideal else f"{model}+{imperfections}"
+    data = pathlib.Path(data) / label
     data.mkdir(parents=True, exist_ok=True)
     wanted = list(STUDIES) if studies is None else list(studies)
     unknown = [s_ for s_ in wanted if s_ not in STUDIES]
@@ -66,14 +94,17 @@ def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Pat
     for name, spec in specs.items():
         got = ensure(spec, data, pathlib.Path(STUDIES[name]).stem, model,
                      {k: (v if isinstance(v, list) else [v]) for k, v in stores.items()}, on_progress, notes,
-                     run=name in wanted)
+                     run=name in wanted, imperfections=imperfections)
         if got:
             # a scan is one store; a staged study (started-bound, relaxation) a list of them
             stores[name] = got[0] if isinstance(spec, ScanConfig) else got
-    singles = single_robots(params, periods=single_periods)
+    singles = single_robots(params, periods=single_periods, imperfections=imperfections)
     figures = out_md.parent / out_md.stem
     result = evaluate(stores, singles, figures, specs)
     result["extra"]["notes"] = notes
+    if not ideal:
+        result["extra"]["imperfections"] = {"set": imperfections, "lone_robots_per_amplitude": LONE_ROBOTS_DRAWN}
     page.write_page(result, stores, out_md, figures,
-                    command or page.relative_command(pathlib.Path(data).parent, out_md, model), model)
+                    command or page.relative_command(pathlib.Path(data).parent, out_md, model, imperfections=imperfections),
+                    model, imperfections=imperfections)
     return result

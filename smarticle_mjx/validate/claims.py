@@ -107,12 +107,15 @@ def lone_drift(ev: dict) -> Outcome:
     """``ev``: net and mean step per cycle (W) of the lone robot at 90 deg, cycles."""
     n90 = ev["net_W_per_cycle"]
     lo, hi = LONE_DRIFT_W / LONE_DRIFT_FACTOR, LONE_DRIFT_W * LONE_DRIFT_FACTOR
-    return Outcome(bool(lo <= n90 <= hi),
-                   f"net {f(n90, '.2g')} W/cycle (mean step {f(ev['step_W_per_cycle'], '.2g')}; {ev['cycles']} cycles)",
+    robots = ev.get("robots", 1)
+    what = (f"net {f(n90, '.2g')} W/cycle (mean step {f(ev['step_W_per_cycle'], '.2g')}; {ev['cycles']} cycles"
+            + (f"; mean of {robots} robots)" if robots > 1 else ")"))
+    why = ("The lab robot's motor noise, backlash and marker jitter are not modelled; on a μ = 0.37 plate friction "
+           "holds the model's body through most of the gait. Not tuned." if robots == 1 else
+           f"Each of {robots} robots drawn with the study's imperfections runs alone; their mean. Not tuned.")
+    return Outcome(bool(lo <= n90 <= hi), what,
                    "Net drift = \\|end − start\\| / cycles of the once-per-cycle body centre (a robot that jiggles "
-                   "in place has a mean step but no drift). Converged in dt (docs/timestep.md). The lab robot's "
-                   "motor noise, backlash and marker jitter are not modelled; on a μ = 0.37 plate friction holds "
-                   "the model's body through most of the gait. Not tuned.")
+                   "in place has a mean step but no drift). Converged in dt (docs/timestep.md). " + why)
 
 
 # ----------------------------------------------------- the random study at 90 deg

@@ -25,8 +25,18 @@ def circ_mean_deg(a) -> float:
 
 
 def lone_robots(singles: dict) -> dict:
-    """Per amplitude: :func:`smarticle_mjx.reduce.transport.lone_robot` of its track."""
-    return {a: transport.lone_robot(d["xy"], d["heading"], d["period_s"]) for a, d in singles.items()}
+    """Per amplitude: :func:`smarticle_mjx.reduce.transport.lone_robot` of its track; of several
+    robots' tracks ([R, T+1, 2]: robots drawn with imperfections), each quantity's mean over robots."""
+    out = {}
+    for a, d in singles.items():
+        xy, heading = np.asarray(d["xy"]), np.asarray(d["heading"])
+        if xy.ndim == 2:
+            out[a] = transport.lone_robot(xy, heading, d["period_s"])
+            continue
+        each = [transport.lone_robot(x, h, d["period_s"]) for x, h in zip(xy, heading)]
+        out[a] = {k: float(np.mean([e[k] for e in each])) for k in each[0]}
+        out[a]["robots"] = len(each)
+    return out
 
 
 def polar(path) -> dict:
@@ -133,6 +143,9 @@ def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | Non
     extra["single"] = sing
     extra["single_periods"] = len(next(iter(singles.values()))["xy"]) - 1
     ev["lone_drift"] = {**sing[90.0], "cycles": extra["single_periods"]}
+    if np.asarray(singles[90.0]["xy"]).ndim == 3:
+        extra["single_periods"] = np.asarray(singles[90.0]["xy"]).shape[1] - 1
+        ev["lone_drift"]["cycles"] = extra["single_periods"]
     amps = sorted(sing)
     made += fig(plots.versus_amplitude(
         amps, {"net drift (W/cycle)": ([sing[a]["net_W_per_cycle"] for a in amps], None),

@@ -120,13 +120,13 @@ def step_check(result: dict, model: str, step_ms: set, check: pathlib.Path = STE
 
 
 def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathlib.Path, command: str,
-               model: str, check: pathlib.Path = STEP_CHECK) -> None:
+               model: str, check: pathlib.Path = STEP_CHECK, imperfections: str = "none") -> None:
     rel = pathlib.Path(figures).name
     every = [q for v in stores.values() for q in (v if isinstance(v, list) else [v])]
     held = sum(r["verdict"] == "holds" for r in result["rows"])
     made = made_with(every)
     lines = ["# Validation against the paper", "",
-             f"Model `{model}` (docs/model.md). {provenance(made)} Regenerate with `{command}`: it reuses complete stores made by the "
+             f"Model `{model}` (docs/model.md){robots_line(imperfections)}. {provenance(made)} Regenerate with `{command}`: it reuses complete stores made by the "
              "same model and package version, resumes interrupted ones and runs the missing studies "
              f"(these took {wall_minutes(every):.0f} minutes of wall time on 2 cores). "
              "`--studies NAME,...` runs a subset; the page is written from the complete stores there are.", "",
@@ -159,7 +159,18 @@ def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathli
         {"model": model, "rows": result["rows"], "extra": result["extra"]}, indent=1, default=json_default))
 
 
-def relative_command(data: pathlib.Path, out_md: pathlib.Path, model: str, studies=None) -> str:
+def robots_line(imperfections: str) -> str:
+    """How the page's robots were drawn: nothing for ideal robots (the paper's simulation)."""
+    if imperfections == "none":
+        return ""
+    from .. import imperfections as imp
+    priors = "; ".join(what for what, _ in imp.get(imperfections).sources)
+    return (f" with real robots' imperfections, set `{imperfections}` ({priors}), drawn per robot from each "
+            "study's seed and recorded in its stores")
+
+
+def relative_command(data: pathlib.Path, out_md: pathlib.Path, model: str, studies=None,
+                     imperfections: str = "none") -> str:
     """The regenerate command, with paths relative to the repository when they
     lie inside it (``DIR`` / ``PAGE`` placeholders otherwise), never one
     machine's absolute path."""
@@ -170,4 +181,4 @@ def relative_command(data: pathlib.Path, out_md: pathlib.Path, model: str, studi
         except ValueError:
             return placeholder
     cmd = f"smx validate --data {rel(data, 'DIR')} --out {rel(out_md, 'PAGE')} --model {model}"
-    return cmd
+    return cmd if imperfections == "none" else f"{cmd} --imperfections {imperfections}"
