@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+import inspect
 import math
 import pathlib
 import sys
@@ -182,6 +184,50 @@ _EXECUTOR_HELP = ("local (this machine), dask (a Dask cluster: --scheduler ADDRE
                   "(Slurm jobs as Dask workers, docs/cluster.md)")
 
 
+def _option(name: str, annotation, default, help: str) -> inspect.Parameter:
+    return inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, annotation=annotation,
+                             default=typer.Option(default, help=help))
+
+
+# The executor option group, defined once: every command that runs shards elsewhere takes it through
+# ``@_executor_options`` and receives the executor object (None: this machine) as ``executor``.
+_EXECUTOR_OPTIONS = (
+    _option("executor", str, "local", _EXECUTOR_HELP),
+    _option("scheduler", Optional[str], None, "dask: address of a running scheduler (tcp://host:8786)"),
+    _option("workers", Optional[int], None, "dask, local cluster: worker processes (default: one per core)"),
+    _option("threads_per_worker", int, 1, "dask: engine threads per shard (cores per worker)"),
+    _option("shard_size", int, 64, "dask: configurations per shard"),
+    _option("dashboard", bool, False, "dask, local cluster: serve Dask's dashboard"),
+    _option("jobs", int, 4, "slurm: jobs (one worker each)"),
+    _option("job_cores", int, 16, "slurm: cores per job"),
+    _option("job_memory", Optional[str], None, "slurm: memory per job, e.g. 32GB"),
+    _option("walltime", str, "02:00:00", "slurm: walltime per job ([D-]HH:MM:SS)"),
+    _option("queue", Optional[str], None, "slurm: partition"),
+    _option("account", Optional[str], None, "slurm: account"),
+)
+
+
+def _executor_options(command):
+    """Give ``command`` the executor options; it is called with ``executor`` = the executor they name
+    (one line and exit 2 on bad ones, before the command runs)."""
+    names = [p.name for p in _EXECUTOR_OPTIONS]
+
+    @functools.wraps(command)
+    def run(**kw):
+        o = {n: kw.pop(n) for n in names}
+        try:
+            ex = _executor(o["executor"], o["scheduler"], o["workers"], o["threads_per_worker"], o["shard_size"],
+                           o["dashboard"], dict(jobs=o["jobs"], cores=o["job_cores"], memory=o["job_memory"],
+                                                walltime=o["walltime"], queue=o["queue"], account=o["account"]))
+        except ValueError as e:
+            _fail(str(e))
+        return command(**kw, executor=ex)
+
+    own = [p for p in inspect.signature(command).parameters.values() if p.name != "executor"]
+    run.__signature__ = inspect.Signature(own + list(_EXECUTOR_OPTIONS))
+    return run
+
+
 def _scan_common(cfg, out: pathlib.Path, resume: bool, overwrite: bool, quiet: bool, flush_rows: int = 64,
                  executor=None):
     """Run a scan/sweep with a progress bar and print the summary."""
@@ -211,6 +257,7 @@ _CONFIGS_HELP = "random (uniform |r|, theta, phi) or polar (fixed |r| grid)"
 
 
 @app.command()
+@_executor_options
 def scan(
     configs: str = typer.Option("random", help=_CONFIGS_HELP),
     n: int = typer.Option(5000, help="random: number of configurations"),
@@ -238,33 +285,19 @@ def scan(
     collisions: bool = typer.Option(False, help="store the per-period collision record (native and dart backends)"),
     collision_bins: int = typer.Option(16, help="collision record: bins per gait period"),
     imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP),
-    executor: str = typer.Option("local", help=_EXECUTOR_HELP),
-    scheduler: Optional[str] = typer.Option(None, help="dask: address of a running scheduler (tcp://host:8786)"),
-    workers: Optional[int] = typer.Option(None, help="dask, local cluster: worker processes (default: one per core)"),
-    threads_per_worker: int = typer.Option(1, help="dask: engine threads per shard (cores per worker)"),
-    shard_size: int = typer.Option(64, help="dask: configurations per shard"),
-    dashboard: bool = typer.Option(False, help="dask, local cluster: serve Dask's dashboard"),
-    jobs: int = typer.Option(4, help="slurm: jobs (one worker each)"),
-    job_cores: int = typer.Option(16, help="slurm: cores per job"),
-    job_memory: Optional[str] = typer.Option(None, help="slurm: memory per job, e.g. 32GB"),
-    walltime: str = typer.Option("02:00:00", help="slurm: walltime per job ([D-]HH:MM:SS)"),
-    queue: Optional[str] = typer.Option(None, help="slurm: partition"),
-    account: Optional[str] = typer.Option(None, help="slurm: account"),
+    executor=None,
 ):
     """One basin scan at one amplitude into an HDF5 store."""
     from .scan import ScanConfig
     try:
         name = _preset(model).name
-        ex = _executor(executor, scheduler, workers, threads_per_worker, shard_size, dashboard,
-                       dict(jobs=jobs, cores=job_cores, memory=job_memory, walltime=walltime, queue=queue,
-                            account=account))
     except (UserError, ValueError) as e:
         _fail(str(e))
     cfg = ScanConfig(configs=configs, n=n, r_range_W=(r_min, r_max), radius_W=radius, positions=positions,
                      orientations=orientations, amplitudes_deg=(amplitude,), periods=periods, chirality=chirality,
                      gait=gait, period_s=period, backend=backend, seed=seed, batch_size=batch_size, model=name,
                      collisions=collisions, collision_bins=collision_bins, imperfections=imperfections)
-    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows, executor=ex)
+    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows, executor=executor)
 
 
 @app.command("relax")
@@ -317,6 +350,7 @@ def relax(
 
 
 @app.command("sweep-amplitude")
+@_executor_options
 def sweep_amplitude(
     amplitudes: Optional[str] = typer.Option(None, help="'10:90:10' (inclusive) or '10,40,90' degrees"),
     study: Optional[pathlib.Path] = typer.Option(None, help="study file (TOML) from sweeps/; flags below override"),
@@ -333,18 +367,7 @@ def sweep_amplitude(
     model: Optional[str] = typer.Option(None, help="model preset (default: the study file's, else the default preset)"),
     imperfections: Optional[str] = typer.Option(None, help="the robots' imperfections (default: the study "
                                                 "file's, else none)"),
-    executor: str = typer.Option("local", help=_EXECUTOR_HELP),
-    scheduler: Optional[str] = typer.Option(None, help="dask: address of a running scheduler (tcp://host:8786)"),
-    workers: Optional[int] = typer.Option(None, help="dask, local cluster: worker processes (default: one per core)"),
-    threads_per_worker: int = typer.Option(1, help="dask: engine threads per shard (cores per worker)"),
-    shard_size: int = typer.Option(64, help="dask: configurations per shard"),
-    dashboard: bool = typer.Option(False, help="dask, local cluster: serve Dask's dashboard"),
-    jobs: int = typer.Option(4, help="slurm: jobs (one worker each)"),
-    job_cores: int = typer.Option(16, help="slurm: cores per job"),
-    job_memory: Optional[str] = typer.Option(None, help="slurm: memory per job, e.g. 32GB"),
-    walltime: str = typer.Option("02:00:00", help="slurm: walltime per job ([D-]HH:MM:SS)"),
-    queue: Optional[str] = typer.Option(None, help="slurm: partition"),
-    account: Optional[str] = typer.Option(None, help="slurm: account"),
+    executor=None,
 ):
     """The same scan over several amplitudes, one store, one group per amplitude."""
     import dataclasses
@@ -360,12 +383,9 @@ def sweep_amplitude(
             raise UserError("give --amplitudes or --study")
         cfg = dataclasses.replace(cfg, **changes)
         _preset(cfg.model)
-        ex = _executor(executor, scheduler, workers, threads_per_worker, shard_size, dashboard,
-                       dict(jobs=jobs, cores=job_cores, memory=job_memory, walltime=walltime, queue=queue,
-                            account=account))
     except (UserError, ValueError) as e:
         _fail(str(e))
-    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows, executor=ex)
+    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows, executor=executor)
 
 
 @app.command("phase-diagram")
