@@ -419,16 +419,11 @@ def pb(
 ):
     """P_b(alpha_max): bound at the end and bound throughout, 95% Clopper-Pearson intervals (PNG + SVG)."""
     from . import plots
-    from .reduce import binding
-    from .store import Store, StoreError
+    from .report import pb_by_amplitude
+    from .store import StoreError
     try:
-        st = Store(store)
         _out_dir(out)
-        rows = []
-        for run in st.runs:
-            d = st.run(run, fields=("valid", "touched"))
-            p = binding.binding_probability(d["touched"][:, :, 0], d["valid"])
-            rows.append((st.run_attrs[run]["amplitude_deg"], p))
+        rows = pb_by_amplitude(store)
     except (UserError, StoreError) as e:
         _fail(str(e))
     typer.echo(f"{'alpha_max':>9}  {'valid':>6}  {'P_b end [95% CI]':>24}  {'P_b throughout [95% CI]':>24}")

@@ -211,6 +211,17 @@ def _collision_figure(st: Store, run: str, out: pathlib.Path, s: dict) -> list[s
         title=f"configuration {lane} (bound {int(d['lifetime'][lane])} periods), α_max = {s['amplitude_deg']:g}°")]
 
 
+def pb_by_amplitude(path) -> list[tuple[float, dict]]:
+    """(amplitude, :func:`smarticle_mjx.reduce.binding.binding_probability`) of every run of a sweep
+    store, in the store's run order: P_b at the end and throughout with 95 % exact intervals."""
+    st = Store(path)
+    rows = []
+    for run in st.runs:
+        d = st.run(run, fields=("valid", "touched"))
+        rows.append((st.run_attrs[run]["amplitude_deg"], binding.binding_probability(d["touched"][:, :, 0], d["valid"])))
+    return rows
+
+
 def amplitude_panels(summaries: list[dict]) -> dict:
     """beta, V_com and steady |r| of run summaries, as ``plots.versus_amplitude`` panels (NaN if missing)."""
     nan = float("nan")
