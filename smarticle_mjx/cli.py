@@ -301,6 +301,7 @@ def scan(
 
 
 @app.command("relax")
+@_executor_options
 def relax(
     robots: int = typer.Option(7, help="robots per trial (the paper: 7)"),
     trials: int = typer.Option(20, help="trials (perturbed copies of the compressed start)"),
@@ -325,8 +326,10 @@ def relax(
     quiet: bool = typer.Option(False, help="no progress bar"),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
     imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP),
+    executor=None,
 ):
     """The relaxation experiment: N robots start compressed and in phase; do gliders emerge? (smx report reads it)"""
+    from .executors import ExecutorError
     from .relax import RelaxConfig, run_relax
     from .store import StoreError
     if resume and overwrite:
@@ -341,8 +344,8 @@ def relax(
         mode = "resume" if resume else "overwrite" if overwrite else "new"
         bar, progress = _progress(quiet)
         with bar:
-            summary = run_relax(cfg, out, mode=mode, on_progress=progress)
-    except (UserError, ValueError, StoreError) as e:
+            summary = run_relax(cfg, out, mode=mode, on_progress=progress, executor=executor)
+    except (UserError, ValueError, StoreError, ExecutorError) as e:
         _fail(str(e))
     typer.echo(f"{summary['trials']} trials, {summary['stopped_early']} stopped early (no contact for "
                f"{quiet_periods} periods); wall {summary['wall_s']:.1f} s, {summary['steps']:,} steps "

@@ -1,17 +1,20 @@
-"""Where a scan's shards run: here (``scan.run_scan`` with no executor) or on Dask.
+"""Where a study's rows run: here (:class:`LocalExecutor`) or on Dask (:class:`DaskExecutor`).
 
-A *shard* is a range of one run's configurations. On Dask each shard is a
-pure task (:func:`shard_rows`): it builds the scene on the worker (once per
-worker process), runs the engine with early exit and refill through the same
-``scan.simulate_rows`` as a local scan, and returns the rows; workers do no
-I/O. The client is the only writer: it journals each shard as it arrives, in
-any order (the store's journal keeps out-of-order parts), so ``--resume``
-resubmits only the row ranges the journal lacks.
+The runner (``scan.run_scan``, ``relax.run_relax``) hands an executor a *row job* and the row ranges
+its store still lacks; the executor returns finished rows through a callback and never imports the
+runner. A row job (:class:`RowJob`: ``scan.ScanJob``, ``relax.RelaxJob``) is a picklable object that
+opens a backend for its scene and simulates any range of one run's rows on it, so a row's content does
+not depend on which executor, shard or batch computed it.
+
+On Dask a *shard* is a range of one run's rows, a pure task (:func:`shard_rows`): it opens the job's
+backend on the worker (once per worker process), runs the rows and returns them; workers do no I/O.
+The client is the only writer: it journals each shard as it arrives, in any order (the store's journal
+keeps out-of-order parts), so ``--resume`` resubmits only the row ranges the journal lacks.
 
 Faults. A worker that dies mid-shard (killed, out of memory, its node gone)
 makes the scheduler run the shard elsewhere; ``allowed-failures`` bounds how
 often (:data:`ALLOWED_FAILURES`). A shard that raises is not retried (the
-engine is deterministic: it would raise again); either way the scan stops
+engine is deterministic: it would raise again); either way the study stops
 with one line naming the shard, and ``--resume`` continues.
 """
 
@@ -21,6 +24,7 @@ import dataclasses
 import importlib.util
 import math
 import threading
+from typing import Callable, Protocol
 
 import numpy as np
 
@@ -129,34 +133,121 @@ def plan_shards(todo: dict[str, list[tuple[int, int]]], size: int) -> list[Shard
     return out
 
 
+class RowJob(Protocol):
+    """What an executor runs: a picklable job whose rows are simulated in ranges of one run."""
+
+    def backend_key(self, nthread: int | None) -> tuple:
+        """Equal for jobs that can share one open backend."""
+
+    def open_backend(self, nthread: int | None = None):
+        """A backend for the job's scene (the caller closes it)."""
+
+    def rows(self, backend, run: str, lo: int, hi: int, on_rows: Callable[[np.ndarray, dict], None]) -> dict:
+        """Simulate rows ``lo .. hi-1`` of ``run``; ``on_rows(row indices, rows)`` as they finish (any order).
+        Returns the engine's summary (``backend_seconds``: time inside the backend)."""
+
+
+OnRows = Callable[[str, int, dict], None]  # (run, first row, rows): a contiguous block to store
+
+
+class Executor(Protocol):
+    """Runs a row job's missing ranges and hands back the rows; the caller is the only writer."""
+
+    def describe(self) -> dict | None:
+        """The executor's own keys, stored beside the study's configuration (None: nothing to record)."""
+
+    def run(self, job: RowJob, todo: dict[str, list[tuple[int, int]]], on_rows: OnRows) -> dict:
+        """Run every range of ``todo`` (run -> [(lo, hi)]); ``on_rows`` per finished block. Returns a
+        summary (``backend_s`` where the executor measures it)."""
+
+
+class LocalExecutor:
+    """Every missing range on this machine's cores, one backend for the whole job.
+
+    Args:
+      flush_rows: finished rows are handed back in contiguous blocks of at least this many (the
+        journal's part size); None: each row as soon as it finishes, in any order (relaxation trials:
+        one journal part per trial).
+      nthread: the native backend's threads (None: all cores).
+    """
+
+    def __init__(self, flush_rows: int | None = 64, nthread: int | None = None):
+        if flush_rows is not None and flush_rows < 1:
+            raise ValueError("--flush-rows must be positive")
+        self.flush_rows = flush_rows
+        self.nthread = nthread
+
+    def describe(self) -> None:
+        return None
+
+    def run(self, job: RowJob, todo: dict[str, list[tuple[int, int]]], on_rows: OnRows) -> dict:
+        summary = {"backend_s": 0.0}
+        if not any(todo.values()):
+            return summary
+        backend = job.open_backend(self.nthread)
+        try:
+            for name, ranges in todo.items():
+                for lo, hi in ranges:
+                    emit = _Blocks(name, lo, self.flush_rows, on_rows)
+                    ran = job.rows(backend, name, lo, hi, emit)
+                    summary["backend_s"] += ran["backend_seconds"]
+                    emit.flush(force=True)
+        finally:
+            backend.close()
+        return summary
+
+
+class _Blocks:
+    """Collects one range's finished rows and hands them on in contiguous blocks (or one by one)."""
+
+    def __init__(self, run: str, lo: int, size: int | None, on_rows: OnRows):
+        self.run, self.next_row, self.size, self.on_rows = run, lo, size, on_rows
+        self.pending: dict[int, dict] = {}
+
+    def __call__(self, idx, rows: dict) -> None:
+        if self.size is None:
+            for j, i in enumerate(idx):
+                self.on_rows(self.run, int(i), {f: v[j:j + 1] for f, v in rows.items()})
+            return
+        for j, i in enumerate(idx):
+            self.pending[int(i)] = {f: v[j] for f, v in rows.items()}
+        self.flush()
+
+    def flush(self, force: bool = False) -> None:
+        k = self.next_row
+        while k in self.pending:
+            k += 1
+        if k > self.next_row and (force or k - self.next_row >= self.size):
+            idx = range(self.next_row, k)
+            rows = {f: np.stack([self.pending[i][f] for i in idx]) for f in self.pending[self.next_row]}
+            for i in idx:
+                del self.pending[i]
+            self.on_rows(self.run, self.next_row, rows)
+            self.next_row = k
+
+
 _WORKER_BACKENDS: dict = {}
 _WORKER_LOCK = threading.Lock()  # a worker with several Dask threads runs its shards one at a time
 
 
-def shard_rows(config, params, amplitude_deg: float, lo: int, hi: int, nthread: int | None) -> dict:
-    """Rows ``lo .. hi-1`` of the run at ``amplitude_deg`` (a Dask task: no I/O, result returned)."""
+def shard_rows(job: RowJob, run: str, lo: int, hi: int, nthread: int | None) -> dict:
+    """Rows ``lo .. hi-1`` of ``run`` (a Dask task: no I/O, result returned)."""
     with _WORKER_LOCK:
-        return _shard_rows(config, params, amplitude_deg, lo, hi, nthread)
+        return _shard_rows(job, run, lo, hi, nthread)
 
 
-def _shard_rows(config, params, amplitude_deg, lo, hi, nthread):
-    from .engine import Scene, make_backend
-    from .scan import RunInputs, simulate_rows
-    key = (repr(params), config.backend, config.collisions, nthread)
+def _shard_rows(job, run, lo, hi, nthread):
+    key = job.backend_key(nthread)
     if key not in _WORKER_BACKENDS:
-        scene = Scene.build(params, 2, collisions=config.collisions)
-        kw = {"nthread": nthread} if config.backend == "native" else config.backend_options()
         _WORKER_BACKENDS.clear()  # one scene per worker process at a time
-        _WORKER_BACKENDS[key] = make_backend(config.backend, scene, **kw)
-    backend = _WORKER_BACKENDS[key]
-    inputs = RunInputs.of(config, params, amplitude_deg)
+        _WORKER_BACKENDS[key] = job.open_backend(nthread)
     got: dict[int, dict] = {}
 
     def on_rows(idx, rows):
         for j, i in enumerate(idx):
             got[int(i)] = {f: v[j] for f, v in rows.items()}
 
-    simulate_rows(backend, config, params, inputs, lo, hi, on_rows)
+    job.rows(_WORKER_BACKENDS[key], run, lo, hi, on_rows)
     return {f: np.stack([got[i][f] for i in range(lo, hi)]) for f in got[lo]}
 
 
@@ -237,12 +328,12 @@ class DaskExecutor:
         except (OSError, TimeoutError) as e:
             raise ExecutorError(f"cannot reach the Dask scheduler at {self.scheduler}: {e}") from None
 
-    def run(self, config, params, runs: dict, todo: dict[str, list[tuple[int, int]]], on_shard) -> None:
-        """Run every shard of ``todo``; ``on_shard(run, lo, rows)`` for each, as they finish."""
+    def run(self, job: RowJob, todo: dict[str, list[tuple[int, int]]], on_rows: OnRows) -> dict:
+        """Run every shard of ``todo``; ``on_rows(run, lo, rows)`` for each, as they finish."""
         from distributed import as_completed
         shards = plan_shards(todo, self.shard_size)
         if not shards:
-            return
+            return {}
         cluster, client = self._connect()
         self.address = client.scheduler.address
         try:
@@ -251,7 +342,7 @@ class DaskExecutor:
             nthread = self.threads_per_worker
             futures = {}
             for sh in shards:
-                f = client.submit(shard_rows, config, params, runs[sh.run]["amplitude_deg"], sh.lo, sh.hi, nthread,
+                f = client.submit(shard_rows, job, sh.run, sh.lo, sh.hi, nthread,
                                   key=sh.key, pure=False, retries=0,
                                   resources={"shard": 1} if self._owns_workers else None)
                 futures[f] = sh
@@ -264,8 +355,9 @@ class DaskExecutor:
                     for g in futures:
                         g.cancel()
                     raise ExecutorError(_failure(sh, e, self.address)) from None
-                on_shard(sh.run, sh.lo, rows)
+                on_rows(sh.run, sh.lo, rows)
                 del rows
+            return {}
         finally:
             try:
                 client.close()

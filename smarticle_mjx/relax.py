@@ -202,14 +202,50 @@ def _rows(start, res, config: RelaxConfig) -> dict:
             "left_plate": left_plate(res.poses, np.zeros(2), half)}
 
 
+@dataclasses.dataclass(frozen=True)
+class RelaxJob:
+    """A relaxation's row job (``executors.RowJob``): simulates any range of its trials."""
+
+    config: RelaxConfig
+    params: SceneParams
+    starts: np.ndarray  # [T, N, 5] every trial's start
+    phase: np.ndarray  # [T, N] every trial's per-robot phase
+
+    def backend_key(self, nthread: int | None) -> tuple:
+        return (repr(self.params), self.config.backend, self.config.n_robots, nthread)
+
+    def open_backend(self, nthread: int | None = None):
+        scene = Scene.build(self.params, self.config.n_robots)
+        return make_backend(self.config.backend, scene, **({"nthread": nthread} if self.config.backend == "native"
+                                                           else self.config.backend_options()))
+
+    def rows(self, backend, run: str, lo: int, hi: int, on_rows) -> dict:
+        c, g = self.config, self.config.gait_spec()
+        idx = np.arange(lo, hi)
+        lanes = Lanes(self.starts[idx], np.full(len(idx), g.amplitude), np.full(len(idx), g.chirality_sign, np.int32),
+                      np.full(len(idx), g.kind_code, np.int32), self.phase[idx], g.period())
+        lanes = c.robots().lanes(lanes, c.first_trial + idx)
+
+        def on_lanes(res):
+            on_rows(idx[res.index], _rows(self.starts[idx[res.index]], res, c))
+
+        return run_lanes(backend, lanes, c.periods, batch_size=c.batch_size, chunk_periods=c.chunk_periods,
+                         rule=RetireRule(quiet_periods=c.quiet_periods), on_lanes=on_lanes)
+
+
 def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams | None = None,
-              on_progress: Callable[[dict], None] | None = None, nthread: int | None = None) -> dict:
+              on_progress: Callable[[dict], None] | None = None, nthread: int | None = None,
+              executor=None) -> dict:
     """Run the relaxation trials into the store ``out`` (resumable: a resumed
     store simulates only the trials its journal lacks).
+
+    ``executor``: an ``executors.Executor`` (None: this machine, ``nthread`` engine threads);
+    ``DaskExecutor`` runs shards of trials elsewhere, this process stays the only writer.
 
     Returns:
       summary: trials, trials stopped early, steps, wall time.
     """
+    from .executors import LocalExecutor
     from .scan import params_json
     model = config.model if params is None else "custom"
     params = config.scene_params() if params is None else params
@@ -228,42 +264,29 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
     full = {"model": model, "relax": config.to_json(), "scene": params_json(params)}
     if not robots.set.ideal:
         full["imperfections"] = robots.to_json()
+    if executor is not None and executor.describe() is not None:
+        full["executor"] = executor.describe()
     t0 = time.perf_counter()
     summary = {"trials": config.trials, "steps": 0}
     with Writer(out, full, runs, mode=mode, fields=RELAX_FIELDS) as w:
-        todo = [i for a, b in w.missing(RUN, config.trials) for i in range(a, b)]
-        done = config.trials - len(todo)
+        todo = w.missing(RUN, config.trials)
+        done = config.trials - sum(b - a for a, b in todo)
 
         def progress():
             if on_progress:
                 on_progress({"run": RUN, "done": done, "total": config.trials,
                              "elapsed": time.perf_counter() - t0, "steps": summary["steps"]})
 
+        def on_rows(run, lo, rows):  # trials finish in any order: one journal part each (local executor)
+            nonlocal done
+            w.append(run, lo, rows)
+            done += len(rows["valid"])
+            summary["steps"] += int(rows["periods_run"].sum()) * nsteps
+            progress()
+
         progress()
-        if todo:
-            idx = np.array(todo)
-            scene = Scene.build(params, config.n_robots)
-            backend = make_backend(config.backend, scene, **({"nthread": nthread} if config.backend == "native"
-                                                               else config.backend_options()))
-            lanes = Lanes(starts[idx], np.full(len(idx), g.amplitude), np.full(len(idx), g.chirality_sign, np.int32),
-                          np.full(len(idx), g.kind_code, np.int32), phase[idx], g.period())
-            lanes = robots.lanes(lanes, config.first_trial + idx)
-
-            def on_lanes(res):
-                nonlocal done
-                rows = _rows(starts[idx[res.index]], res, config)
-                for j, i in enumerate(idx[res.index]):  # one journal part per trial: trials finish in any order
-                    w.append(RUN, int(i), {k: v[j:j + 1] for k, v in rows.items()})
-                done += len(res.index)
-                summary["steps"] += int(res.periods_run.sum()) * nsteps
-                progress()
-
-            try:
-                run_lanes(backend, lanes, config.periods, batch_size=config.batch_size,
-                          chunk_periods=config.chunk_periods, rule=RetireRule(quiet_periods=config.quiet_periods),
-                          on_lanes=on_lanes)
-            finally:
-                backend.close()
+        job = RelaxJob(config, params, starts, phase)
+        (executor or LocalExecutor(flush_rows=None, nthread=nthread)).run(job, {RUN: todo}, on_rows)
         w.finalize()
     summary["wall_s"] = time.perf_counter() - t0
     summary["steps_per_s"] = summary["steps"] / max(summary["wall_s"], 1e-9)

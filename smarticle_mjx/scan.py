@@ -17,6 +17,7 @@ from . import imperfections, presets
 from .engine import Lanes, Scene, make_backend, steps_per_period
 from .engine.batch import RetireRule, run_lanes
 from .engine.core import Record
+from .executors import LocalExecutor
 from .gait import GaitSpec
 from .scene import SceneParams
 from .store import Writer, longest_run
@@ -250,6 +251,29 @@ def simulate_rows(backend, config: ScanConfig, params: SceneParams, inputs: RunI
               on_progress=(lambda done, total, lp: on_progress(done)) if on_progress else None, record=record)
 
 
+@dataclasses.dataclass(frozen=True)
+class ScanJob:
+    """A scan's row job (``executors.RowJob``): simulates any range of one run's configurations."""
+
+    config: ScanConfig
+    params: SceneParams
+    amplitudes: dict  # run name -> amplitude (deg)
+
+    def backend_key(self, nthread: int | None) -> tuple:
+        return (repr(self.params), self.config.backend, self.config.collisions, nthread)
+
+    def open_backend(self, nthread: int | None = None):
+        scene = Scene.build(self.params, 2, collisions=self.config.collisions)
+        kw = self.config.backend_options()
+        if nthread is not None and self.config.backend == "native":
+            kw = {"nthread": nthread}
+        return make_backend(self.config.backend, scene, **kw)
+
+    def rows(self, backend, run: str, lo: int, hi: int, on_rows) -> dict:
+        inputs = RunInputs.of(self.config, self.params, self.amplitudes[run])
+        return simulate_rows(backend, self.config, self.params, inputs, lo, hi, on_rows)
+
+
 def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | None = None,
              flush_rows: int = 64, on_progress: Callable[[dict], None] | None = None, executor=None) -> dict:
     """Run a scan or sweep into the store ``out``.
@@ -264,9 +288,9 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
         parameter, as always).
       flush_rows: journal finished rows in blocks of at least this many.
       on_progress: receives dicts with run, done, total, steps, elapsed.
-      executor: None runs here (all cores); an executor object
-        (``smarticle_mjx.executors.DaskExecutor``) runs shards elsewhere
-        and hands their rows back; this process stays the only writer.
+      executor: an ``executors.Executor``; None: ``LocalExecutor(flush_rows)`` (this machine, all
+        cores). ``DaskExecutor`` runs shards elsewhere and hands their rows back; this process stays
+        the only writer.
 
     Returns:
       Summary: configurations, valid, bound-at-end fraction per run, wall
@@ -306,18 +330,18 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
 
         for name in runs:
             progress(name)
-        if executor is None:
-            _run_here(config, params, runs, cfg, w, flush_rows, summary, nsteps, done, progress)
-        else:
-            todo = {name: w.missing(name, len(cfg)) for name in runs}
 
-            def on_shard(name, lo, rows):
-                w.append(name, lo, rows)
-                done[name] += len(rows["config"])
-                summary["steps"] += int(rows["periods_run"].sum()) * nsteps[name]
-                progress(name)
+        def on_rows(name, lo, rows):
+            w.append(name, lo, rows)
+            done[name] += len(rows["config"])
+            summary["steps"] += int(rows["periods_run"].sum()) * nsteps[name]
+            progress(name)
 
-            executor.run(config, params, runs, todo, on_shard)
+        job = ScanJob(config, params, {name: a["amplitude_deg"] for name, a in runs.items()})
+        ran = (executor or LocalExecutor(flush_rows)).run(job, {name: w.missing(name, len(cfg)) for name in runs},
+                                                           on_rows)
+        if "backend_s" in ran:
+            summary["backend_s"] = ran["backend_s"]
         w.finalize()
     from .store import Store
     st = Store(out)
@@ -329,45 +353,6 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
     summary["wall_s"] = time.perf_counter() - t0
     summary["steps_per_s"] = summary["steps"] / max(summary["wall_s"], 1e-9)
     return summary
-
-
-def _run_here(config, params, runs, cfg, w, flush_rows, summary, nsteps, done, progress):
-    """The local executor: every missing row range of every run, on this machine's cores."""
-    scene = Scene.build(params, 2, collisions=config.collisions)
-    backend = make_backend(config.backend, scene, **config.backend_options())
-    try:
-        for name, attrs in runs.items():
-            inputs = RunInputs.of(config, params, attrs["amplitude_deg"])
-            for lo, hi in w.missing(name, len(cfg)):
-                pending: dict[int, dict] = {}
-                next_row = lo
-
-                def flush(force=False):
-                    nonlocal next_row
-                    k = next_row
-                    while k in pending:
-                        k += 1
-                    if k > next_row and (force or k - next_row >= flush_rows):
-                        idx = range(next_row, k)
-                        rows = {f: np.stack([pending[i][f] for i in idx]) for f in pending[next_row]}
-                        w.append(name, next_row, rows)
-                        for i in idx:
-                            del pending[i]
-                        next_row = k
-
-                def on_rows(idx, rows, name=name):
-                    for j, i in enumerate(idx):
-                        pending[int(i)] = {f: v[j] for f, v in rows.items()}
-                    done[name] += len(idx)
-                    summary["steps"] += int(rows["periods_run"].sum()) * nsteps[name]
-                    flush()
-                    progress(name)
-
-                ran = simulate_rows(backend, config, params, inputs, lo, hi, on_rows)
-                summary["backend_s"] = summary.get("backend_s", 0.0) + ran["backend_seconds"]
-                flush(force=True)
-    finally:
-        backend.close()
 
 
 def config_from_json(d: dict) -> ScanConfig:

@@ -148,11 +148,11 @@ def test_a_failing_shard_stops_the_scan_in_one_line_and_resume_runs_only_the_res
     real = executors._shard_rows
     calls = []
 
-    def flaky(config, params, amplitude_deg, lo, hi, nthread):
+    def flaky(job, run, lo, hi, nthread):
         calls.append((lo, hi))
         if lo == 8:
             raise RuntimeError("servo on fire")
-        return real(config, params, amplitude_deg, lo, hi, nthread)
+        return real(job, run, lo, hi, nthread)
 
     monkeypatch.setattr(executors, "_shard_rows", flaky)
     # threads in this process, so the patched shard function is the one that runs
@@ -164,7 +164,7 @@ def test_a_failing_shard_stops_the_scan_in_one_line_and_resume_runs_only_the_res
             run_scan(CFG, out, executor=DaskExecutor(scheduler=cluster.scheduler_address, shard_size=4))
         assert not out.exists()
         calls.clear()
-        monkeypatch.setattr(executors, "_shard_rows", lambda *a: (calls.append(tuple(a[3:5])), real(*a))[1])
+        monkeypatch.setattr(executors, "_shard_rows", lambda *a: (calls.append(tuple(a[2:4])), real(*a))[1])
         run_scan(CFG, out, mode="resume", executor=DaskExecutor(scheduler=cluster.scheduler_address, shard_size=4))
     assert (8, 12) in calls and len(calls) < 4, calls
     assert_same_store(local_store, out)
@@ -293,3 +293,20 @@ def test_sweep_amplitude_on_dask_writes_the_local_sweep(tmp_path):
     with h5py.File(dask_out) as f:
         assert sorted(f["runs"]) == ["a060.00", "a090.00"]
         assert json.loads(f.attrs["config"])["executor"]["kind"] == "dask"
+
+
+@needs_dask
+def test_a_relaxation_on_dask_writes_the_local_store(tmp_path):
+    """Relaxations run through the same executors as scans: trials sharded over a threaded
+    LocalCluster (shards of 2 of 5 trials, one with the lab's imperfections) give the store the local
+    executor gives, trial for trial, and the store names its executor."""
+    from distributed import LocalCluster
+    from smarticle_mjx.relax import RelaxConfig, run_relax
+    cfg = RelaxConfig(n_robots=3, trials=5, periods=6, batch_size=2, imperfections="lab")
+    run_relax(cfg, tmp_path / "local.h5")
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None,
+                      silence_logs=50) as cluster:
+        run_relax(cfg, tmp_path / "dask.h5", executor=DaskExecutor(scheduler=cluster.scheduler_address, shard_size=2))
+    assert_same_store(tmp_path / "local.h5", tmp_path / "dask.h5")
+    with h5py.File(tmp_path / "dask.h5") as f:
+        assert json.loads(f.attrs["config"])["executor"]["shard_size"] == 2
