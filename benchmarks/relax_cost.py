@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
-from smarticle_mjx import presets, studies  # noqa: E402
+from smarticle_mjx import presets, specs, studies  # noqa: E402
 from smarticle_mjx.relax import RelaxConfig, run_relax  # noqa: E402
 from smarticle_mjx.store import Store  # noqa: E402
 
@@ -49,8 +49,8 @@ def study(folder: pathlib.Path) -> dict:
     rows = []
     # the stages' stores as smx validate names them (it keeps stores of an older
     # version beside them, validation_relax_s00.replaced-<stamp>.h5: not this study)
-    name = studies.STUDIES["relax"]
-    rs = studies.read_study(studies.SWEEPS / name)
+    name = specs.STUDIES["relax"]
+    rs = specs.read_study(specs.SWEEPS / name)
     for p in (studies.relax_stage_path(folder, pathlib.Path(name).stem, s) for s in range(rs.stages)):
         if not p.exists():
             continue

@@ -25,7 +25,8 @@ ROOT = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(ROOT.parent))
 from smarticle_mjx import presets  # noqa: E402
 from smarticle_mjx.report import analyse_run  # noqa: E402
-from smarticle_mjx.scan import load_study, run_scan  # noqa: E402
+from smarticle_mjx.scan import run_scan  # noqa: E402
+from smarticle_mjx.specs import load_study  # noqa: E402
 from smarticle_mjx.store import Store  # noqa: E402
 
 STUDY = ROOT.parent / "sweeps" / "validation_random.toml"

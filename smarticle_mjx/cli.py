@@ -288,7 +288,7 @@ def scan(
     executor=None,
 ):
     """One basin scan at one amplitude into an HDF5 store."""
-    from .scan import ScanConfig
+    from .specs import ScanConfig
     try:
         name = _preset(model).name
     except (UserError, ValueError) as e:
@@ -375,7 +375,7 @@ def sweep_amplitude(
     """The same scan over several amplitudes, one store, one group per amplitude."""
     import dataclasses
 
-    from .scan import ScanConfig, load_study, parse_amplitudes
+    from .specs import ScanConfig, load_study, parse_amplitudes
     try:
         cfg = load_study(study) if study is not None else ScanConfig()
         changes = {k: v for k, v in dict(configs=configs, n=n, periods=periods, backend=backend, seed=seed,
@@ -613,7 +613,7 @@ def synth(
 ):
     """Measured-like data from the model with hidden effects, in the interchange format."""
     from .calibrate.synth import parse_effect, synth as make
-    from .scan import parse_amplitudes
+    from .specs import parse_amplitudes
     try:
         name = _preset(model).name
         effects = dict(parse_effect(e) for e in effect)

@@ -41,93 +41,14 @@ from typing import Callable
 
 import numpy as np
 
-from . import configs as C, imperfections, presets
+from . import configs as C
 from .engine import Lanes, Scene, make_backend, steps_per_period
 from .engine.batch import RetireRule, run_lanes
-from .gait import GaitSpec
 from .scene import RobotParams, SceneParams
+from .specs import RelaxConfig
 from .store import RELAX_FIELDS, Store, Writer
 
 RUN = "trials"  # the one run group of a relaxation store
-
-
-@dataclasses.dataclass(frozen=True)
-class RelaxConfig:
-    """Everything that defines a relaxation study's data; stored in full."""
-
-    n_robots: int = 7
-    trials: int = 20
-    first_trial: int = 0  # trial indices first_trial .. first_trial+trials-1 (stages of one study)
-    periods: int = 300  # the lab's trials ran 300 gait periods
-    amplitude_deg: float = 90.0
-    chirality: str = "ccw"
-    gait: str = "square"
-    period_s: float | None = None
-    seed: int = 0
-    gap_mm: float = 2.0  # gap between neighbouring robots' bounding boxes in the packing
-    jitter_mm: float = 1.0  # per-axis standard deviation of each robot's start position
-    jitter_deg: float = 2.0  # standard deviation of each robot's start heading
-    phase_jitter: float = 0.0  # standard deviation of per-robot gait phase (periods); 0: in phase (paper)
-    plate_m: float = 0.6  # side of the square plate, centred on the packing
-    backend: str = "native"
-    batch_size: int = 4
-    chunk_periods: int = 5
-    quiet_periods: int = 10  # stop a trial after this many periods without any contact (0: never)
-    model: str = presets.DEFAULT
-    # backend "dart": (time step s, collision detector, LCP solver[, servo]); None: the DART twin's defaults
-    dart_numerics: tuple | None = None
-    # the robots' imperfections (smarticle_mjx/imperfections.py): the same robots in every
-    # trial (drawn from ``seed``), their phase jitter drawn per trial
-    imperfections: str = "none"
-
-    def robots(self) -> imperfections.Draw:
-        return imperfections.draw(self.imperfections, self.n_robots, self.seed)
-
-    def gait_spec(self) -> GaitSpec:
-        return GaitSpec(amplitude_deg=self.amplitude_deg, chirality=self.chirality, kind=self.gait,
-                        period_s=self.period_s)
-
-    def scene_params(self) -> SceneParams:
-        return presets.params(self.model)
-
-    def validate(self, params: SceneParams) -> None:
-        imperfections.get(self.imperfections).check_backend(self.backend)
-        if self.n_robots < 2:
-            raise ValueError(f"a relaxation needs at least 2 robots, got {self.n_robots}")
-        if self.n_robots > 30:
-            raise ValueError(f"at most 30 robots per trial, got {self.n_robots}")
-        if self.trials < 1:
-            raise ValueError(f"trials must be >= 1, got {self.trials}")
-        if self.first_trial < 0:
-            raise ValueError(f"first trial must be >= 0, got {self.first_trial}")
-        if self.periods < 1:
-            raise ValueError(f"periods must be >= 1, got {self.periods}")
-        for name in ("gap_mm", "jitter_mm", "jitter_deg", "phase_jitter"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name.replace('_', '-')} must be a finite number >= 0, got {v}")
-        if not self.plate_m > 0:
-            raise ValueError(f"plate side must be positive, got {self.plate_m}")
-        if self.batch_size < 1 or self.chunk_periods < 1 or self.quiet_periods < 0:
-            raise ValueError("batch size and chunk periods must be >= 1, quiet periods >= 0")
-        from .engine import BACKENDS
-        if self.backend not in BACKENDS:
-            raise ValueError(f"unknown backend {self.backend!r}; choose one of {', '.join(BACKENDS)}")
-        from .engine.dart import check_study
-        check_study(self.backend, self.dart_numerics, self.robots().scene(params))
-        self.gait_spec().validate(params.robot.servo_speed, params.robot.arm_limit_deg)
-
-    def backend_options(self) -> dict:
-        """Keyword arguments of ``make_backend`` beyond the scene (the dart backend's numerics)."""
-        from .engine.dart import study_options
-        return study_options(self.backend, self.dart_numerics)
-
-    def to_json(self) -> dict:
-        from .engine.dart import study_json
-        d = dataclasses.asdict(self)
-        if self.imperfections == "none":
-            del d["imperfections"]  # stores of ideal robots keep their earlier configuration
-        return study_json(d, self.backend)
 
 
 def packing(n: int, robot: RobotParams, alpha: tuple[float, float], gap: float) -> np.ndarray:
@@ -246,7 +167,7 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
       summary: trials, trials stopped early, steps, wall time.
     """
     from .executors import LocalExecutor
-    from .scan import params_json
+    from .specs import params_json
     model = config.model if params is None else "custom"
     params = config.scene_params() if params is None else params
     params.validate()

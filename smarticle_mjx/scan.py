@@ -3,190 +3,20 @@
 from __future__ import annotations
 
 import dataclasses
-import json
-import math
-import pathlib
 import time
-import tomllib
 from typing import Callable
 
 import numpy as np
 
 from . import configs as C
-from . import imperfections, presets
 from .engine import Lanes, Scene, make_backend, steps_per_period
 from .engine.batch import RetireRule, run_lanes
 from .engine.core import Record
 from .executors import LocalExecutor
 from .gait import GaitSpec
 from .scene import SceneParams
+from .specs import ScanConfig, config_from_json, params_from_json, params_json, run_name
 from .store import Writer, longest_run
-
-
-@dataclasses.dataclass(frozen=True)
-class ScanConfig:
-    """Everything that defines a scan's data; stored in full in the store.
-
-    ``configs`` "random": ``n`` uniform (|r|, theta, phi) with |r| in
-    ``r_range_W``; "polar": |r| = ``radius_W``, ``positions`` x
-    ``orientations`` grid (the paper's 1000-point scan at 1.3 W);
-    "explicit": the (|r| W, theta rad, phi rad) triples in ``initial``
-    (pairs started in a known state, e.g. as gliders).
-    """
-
-    configs: str = "random"
-    n: int = 5000
-    r_range_W: tuple[float, float] = (0.5, 2.5)
-    radius_W: float = 1.3
-    positions: int = 1000
-    orientations: int = 1
-    amplitudes_deg: tuple[float, ...] = (90.0,)
-    periods: int = 75
-    chirality: str = "ccw"
-    gait: str = "square"
-    period_s: float | None = None
-    backend: str = "native"
-    seed: int = 0
-    batch_size: int = 256
-    chunk_periods: int = 5
-    quiet_periods: int = 2
-    model: str = presets.DEFAULT  # model preset (smarticle_mjx/presets.py)
-    collisions: bool = False  # keep the per-period collision record (native and dart backends)
-    collision_bins: int = 16  # its bins per gait period
-    initial: tuple[tuple[float, float, float], ...] | None = None  # configs = "explicit"
-    # backend "dart": (time step s, collision detector, LCP solver[, servo]); None: the DART twin's defaults
-    dart_numerics: tuple | None = None
-    # the robots' imperfections (smarticle_mjx/imperfections.py), drawn from ``seed``
-    imperfections: str = "none"
-
-    def scene_params(self) -> SceneParams:
-        """The preset's parameters (ValueError naming the known presets if unknown)."""
-        return presets.params(self.model)
-
-    def robots(self) -> imperfections.Draw:
-        """The pair's imperfections, drawn from the scan's seed (ValueError for an unknown set)."""
-        return imperfections.draw(self.imperfections, 2, self.seed)
-
-    def validate(self, params: SceneParams) -> None:
-        imperfections.get(self.imperfections).check_backend(self.backend)
-        if self.configs not in ("random", "polar", "explicit"):
-            raise ValueError(f"--configs must be random, polar or explicit, got {self.configs!r}")
-        if self.configs == "explicit":
-            a = np.asarray(self.initial if self.initial is not None else [], float)
-            if a.ndim != 2 or a.shape[1] != 3 or len(a) == 0:
-                raise ValueError("explicit configurations must be a non-empty list of (|r|, theta, phi) triples")
-            if not np.isfinite(a).all() or (a[:, 0] <= 0).any():
-                raise ValueError("explicit configurations must be finite with |r| > 0")
-        elif self.configs == "random":
-            if self.n <= 0:
-                raise ValueError(f"--n must be positive, got {self.n}")
-            lo, hi = self.r_range_W
-            if not 0 <= lo < hi:
-                raise ValueError(f"|r| range must satisfy 0 <= min < max, got {self.r_range_W}")
-        else:
-            if self.positions <= 0 or self.orientations <= 0:
-                raise ValueError("--positions and --orientations must be positive")
-            if self.radius_W <= 0:
-                raise ValueError(f"--radius must be positive, got {self.radius_W}")
-        if self.periods <= 0:
-            raise ValueError(f"--periods must be positive, got {self.periods}")
-        if not self.amplitudes_deg:
-            raise ValueError("no amplitudes given")
-        if len(set(self.amplitudes_deg)) != len(self.amplitudes_deg):
-            raise ValueError("amplitudes must be distinct")
-        for a in self.amplitudes_deg:
-            self.gait_spec(a).validate(params.robot.servo_speed, params.robot.arm_limit_deg)
-        from .engine import BACKENDS
-        if self.backend not in BACKENDS:
-            raise ValueError(f"--backend must be {', '.join(BACKENDS[:-1])} or {BACKENDS[-1]}, got {self.backend!r}")
-        from .engine.dart import check_study
-        check_study(self.backend, self.dart_numerics, self.robots().scene(params))
-        if self.backend == "warp":
-            from .engine import mjwarp
-            if not mjwarp.available():
-                raise ValueError(mjwarp.MISSING)
-        if self.batch_size <= 0 or self.chunk_periods <= 0 or self.quiet_periods < 0:
-            raise ValueError("batch size and chunk periods must be positive, quiet periods >= 0")
-        if self.collisions and self.backend not in ("native", "dart"):
-            raise ValueError("--collisions is recorded by the native and dart backends only")
-        if self.collision_bins < 1:
-            raise ValueError(f"--collision-bins must be positive, got {self.collision_bins}")
-
-    def backend_options(self) -> dict:
-        """Keyword arguments of ``make_backend`` beyond the scene (the dart backend's numerics)."""
-        from .engine.dart import study_options
-        return study_options(self.backend, self.dart_numerics)
-
-    def gait_spec(self, amplitude_deg: float) -> GaitSpec:
-        return GaitSpec(amplitude_deg=float(amplitude_deg), chirality=self.chirality, kind=self.gait,
-                        period_s=self.period_s)
-
-    def initial_configs(self) -> np.ndarray:
-        """[M, 3] (|r| in W, theta, phi in rad); the same for every amplitude."""
-        if self.configs == "random":
-            return C.random_configs(self.n, np.random.default_rng(self.seed), self.r_range_W)
-        if self.configs == "explicit":
-            return np.asarray(self.initial, float).reshape(-1, 3)
-        return C.polar_configs(self.radius_W, self.positions, self.orientations)
-
-    def to_json(self) -> dict:
-        d = dataclasses.asdict(self)
-        d["r_range_W"] = list(self.r_range_W)
-        d["amplitudes_deg"] = [float(a) for a in self.amplitudes_deg]
-        if self.initial is None:
-            del d["initial"]  # stores of random and polar scans keep their earlier configuration
-        else:
-            d["initial"] = [[float(x) for x in c] for c in self.initial]
-        if self.imperfections == "none":
-            del d["imperfections"]  # nor do stores of ideal robots
-        from .engine.dart import study_json
-        return study_json(d, self.backend)
-
-
-def run_name(amplitude_deg: float) -> str:
-    return f"a{amplitude_deg:06.2f}"
-
-
-def parse_amplitudes(text: str) -> tuple[float, ...]:
-    """'10:90:10' (inclusive range) or '10,40,90' -> amplitudes in degrees."""
-    text = text.strip()
-    try:
-        if ":" in text:
-            lo, hi, step = (float(x) for x in text.split(":"))
-            if step <= 0 or hi < lo:
-                raise ValueError
-            n = int(math.floor((hi - lo) / step + 1e-9)) + 1
-            return tuple(round(lo + k * step, 6) for k in range(n))
-        return tuple(float(x) for x in text.split(",") if x.strip())
-    except ValueError:
-        raise ValueError(f"amplitudes must look like '10:90:10' or '10,40,90', got {text!r}") from None
-
-
-def load_study(path) -> ScanConfig:
-    """A study file (TOML) from sweeps/: keys are ScanConfig fields."""
-    path = pathlib.Path(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"study file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise ValueError(f"cannot read study file {path}: {e}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ValueError(f"study file {path} is not valid TOML: {e}") from None
-    study = raw.get("study", raw)
-    if study.get("configs") == "bound":
-        raise ValueError(f"study file {path} starts pairs from another study's gliders; smx validate runs it")
-    if study.get("configs") == "relax":
-        raise ValueError(f"study file {path} is a relaxation study (smx relax); smx validate runs it")
-    fields = {f.name for f in dataclasses.fields(ScanConfig)}
-    unknown = set(study) - fields - {"description", "figure"}
-    if unknown:
-        raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
-    kw = _config_keywords(study)
-    try:
-        return ScanConfig(**kw)
-    except TypeError as e:
-        raise ValueError(f"study file {path}: {e}") from None
 
 
 def _rows(cfg: np.ndarray, valid: np.ndarray, res, body_length: float) -> dict:
@@ -355,35 +185,6 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
     return summary
 
 
-def config_from_json(d: dict) -> ScanConfig:
-    """The ScanConfig a store recorded (its ``config["scan"]``)."""
-    return ScanConfig(**_config_keywords(d))
-
-
-def _config_keywords(d: dict) -> dict:
-    """ScanConfig keywords from a study file's or a store's dict: its fields, lists back to tuples."""
-    fields = {f.name for f in dataclasses.fields(ScanConfig)}
-    kw = {k: v for k, v in d.items() if k in fields}
-    for k in ("r_range_W", "amplitudes_deg"):
-        if k in kw:
-            kw[k] = tuple(float(x) for x in kw[k])
-    if kw.get("initial") is not None:
-        kw["initial"] = tuple(tuple(float(x) for x in c) for c in kw["initial"])
-    if kw.get("dart_numerics") is not None:
-        kw["dart_numerics"] = tuple(kw["dart_numerics"])
-    return kw
-
-
-def params_from_json(d: dict) -> SceneParams:
-    """The SceneParams a store recorded (its ``config["scene"]``), lists back to tuples."""
-    from .scene import RobotParams, RobotQuirk
-    robot = RobotParams(**d["robot"])
-    rest = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k not in ("robot", "quirks")}
-    quirks = tuple(RobotQuirk(backlash_deg=None if q.get("backlash_deg") is None else tuple(q["backlash_deg"]),
-                              com_offset=tuple(q.get("com_offset", (0.0, 0.0)))) for q in d.get("quirks", ()))
-    return SceneParams(robot=robot, quirks=quirks, **rest)
-
-
 def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 40,
                     frame_interval: float | None = None):
     """Simulate lane ``lane`` of a scan store again, from its stored start, amplitude, gait and model.
@@ -422,6 +223,3 @@ def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 
     return t, track, res, params, inputs.gait, rows
 
 
-def params_json(params: SceneParams) -> dict:
-    # through JSON: tuples become lists, as a resumed store's saved copy has them
-    return json.loads(json.dumps(dataclasses.asdict(params)))

@@ -19,147 +19,17 @@ from __future__ import annotations
 import dataclasses
 import json
 import pathlib
-import tomllib
 from typing import Callable
 
 import numpy as np
 
-from . import __version__, presets
+from . import __version__
 from .reduce import gliders as GL
 from .report import analyse_run
-from .scan import ScanConfig, load_study, params_json, run_scan
+from .scan import run_scan
+from .specs import BoundStudy, RelaxStudy, ScanConfig, params_json
 from .scene import SceneParams
 from .store import Store, journal_path
-
-SWEEPS = pathlib.Path(__file__).resolve().parents[1] / "sweeps"
-
-# The validation suite's studies (docs/validation.md): name -> file in sweeps/, in the order they run
-# (each started-bound study after its source, which it names among these).
-STUDIES = {
-    "random_90": "validation_random.toml",
-    "polar": "validation_polar.toml",
-    "amplitude": "validation_amplitude.toml",
-    "cw_90": "validation_cw.toml",
-    "descent": "validation_descent.toml",
-    "diagonal_90": "validation_diagonal.toml",
-    "diagonal_random": "validation_diagonal_random.toml",
-    "relax": "validation_relax.toml",
-}
-
-@dataclasses.dataclass(frozen=True)
-class BoundStudy:
-    """Pairs started as steady gliders of another study (``configs = "bound"``).
-
-    Attributes:
-      source: name of the study (in ``STUDIES``) whose store supplies the
-        gliders: lanes of type ``glider`` bound in each of its last 10
-        periods, first ``pairs`` of them in lane order, started from their
-        relative coordinates (|r|, theta, phi) at the end of the last period
-        (the gait's phase 0), at rest, arms at the gait's first setpoint.
-      amplitudes_deg: the amplitudes, in the order run.
-      continuation: each amplitude's pairs start where the previous
-        amplitude's pairs ended (those bound in each of its last
-        ``keep_window`` periods); otherwise every amplitude starts from the
-        source gliders.
-      steady_window: last periods over which steady |r| is averaged.
-    """
-
-    source: str
-    amplitudes_deg: tuple[float, ...]
-    periods: int
-    pairs: int = 32
-    glider: str = "C1"
-    continuation: bool = False
-    gait: str = "square"
-    chirality: str = "ccw"
-    steady_window: int = 10
-    keep_window: int = 5
-    seed: int = 0
-    description: str = ""
-    figure: str = ""
-
-    def validate(self) -> None:
-        if self.source not in STUDIES:
-            raise ValueError(f"bound study: unknown source study {self.source!r} (known: {', '.join(STUDIES)})")
-        if self.glider not in ("C1", "C2"):
-            raise ValueError(f"bound study: glider must be C1 or C2, got {self.glider!r}")
-        if self.pairs <= 0 or self.periods <= 0 or not self.amplitudes_deg:
-            raise ValueError("bound study: pairs, periods and amplitudes must be positive / non-empty")
-        if not 0 < self.steady_window <= self.periods or not 0 < self.keep_window <= self.periods:
-            raise ValueError("bound study: steady and keep windows must lie within the periods run")
-
-    def stage_config(self, amplitude: float, initial: np.ndarray, model: str,
-                     imperfections: str = "none") -> ScanConfig:
-        return ScanConfig(configs="explicit", initial=tuple(tuple(float(x) for x in c) for c in initial),
-                          amplitudes_deg=(float(amplitude),), periods=self.periods, gait=self.gait,
-                          chirality=self.chirality, seed=self.seed, model=model, imperfections=imperfections)
-
-
-@dataclasses.dataclass(frozen=True)
-class RelaxStudy:
-    """A relaxation study (``configs = "relax"``): ``stages`` stores of
-    ``trials`` trials each (stage s holds trials s*trials ..), so a long
-    study completes across runs and a partial one is a set of complete
-    stores. ``settings``: any other :class:`smarticle_mjx.relax.RelaxConfig` keys."""
-
-    stages: int
-    trials: int
-    settings: tuple = ()
-    description: str = ""
-    figure: str = ""
-
-    def stage_config(self, stage: int, model: str, imperfections: str = "none"):
-        from .relax import RelaxConfig
-        return RelaxConfig(**{"imperfections": imperfections, **dict(self.settings)}, trials=self.trials,
-                           first_trial=stage * self.trials, model=model)
-
-    def validate(self) -> None:
-        if self.stages < 1 or self.trials < 1:
-            raise ValueError("relax study: stages and trials must be >= 1")
-        self.stage_config(0, presets.DEFAULT).validate(presets.params())
-
-
-def read_study(path) -> ScanConfig | BoundStudy | RelaxStudy:
-    """A study file from sweeps/: a scan (``ScanConfig`` keys) or a started-bound study."""
-    path = pathlib.Path(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"study file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise ValueError(f"cannot read study file {path}: {e}") from None
-    study = raw.get("study", raw)
-    if study.get("configs") == "relax":
-        from .relax import RelaxConfig
-        known = {f.name for f in dataclasses.fields(RelaxConfig)} - {"trials", "first_trial", "model"}
-        own = {"stages", "trials", "description", "figure", "configs"}
-        unknown = set(study) - known - own
-        if unknown:
-            raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
-        try:
-            rs = RelaxStudy(stages=int(study.get("stages", 1)), trials=int(study.get("trials", 20)),
-                            settings=tuple(sorted((k, v) for k, v in study.items() if k in known)),
-                            description=study.get("description", ""), figure=study.get("figure", ""))
-            rs.validate()
-        except (TypeError, ValueError) as e:
-            raise ValueError(f"study file {path}: {e}") from None
-        return rs
-    if study.get("configs") != "bound":
-        return load_study(path)
-    fields = {f.name for f in dataclasses.fields(BoundStudy)}
-    unknown = set(study) - fields - {"configs"}
-    if unknown:
-        raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
-    kw = {k: v for k, v in study.items() if k in fields}
-    if "amplitudes_deg" in kw:
-        kw["amplitudes_deg"] = tuple(float(x) for x in kw["amplitudes_deg"])
-    try:
-        bs = BoundStudy(**kw)
-    except TypeError as e:
-        raise ValueError(f"study file {path}: {e}") from None
-    bs.validate()
-    return bs
-
 
 def _stamp(text) -> str:
     return "".join(c for c in str(text) if c.isdigit())[:14] or "unknown"

@@ -72,9 +72,9 @@ def test_sweep_has_one_group_per_amplitude(tmp_path):
 
 
 def test_study_files_in_sweeps_load():
-    from smarticle_mjx.scan import ScanConfig, load_study
+    from smarticle_mjx.specs import ScanConfig, load_study
     from smarticle_mjx.scene import SceneParams
-    from smarticle_mjx.studies import BoundStudy, RelaxStudy, read_study
+    from smarticle_mjx.specs import BoundStudy, RelaxStudy, read_study
     studies = sorted((pathlib.Path(__file__).resolve().parents[1] / "sweeps").glob("*.toml"))
     assert studies
     kinds = set()

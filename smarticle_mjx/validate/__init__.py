@@ -14,9 +14,10 @@ import pathlib
 import numpy as np
 
 from .. import presets
-from ..scan import ScanConfig
+from ..specs import ScanConfig
 from ..scene import SceneParams
-from ..studies import STUDIES, SWEEPS, ensure, read_study
+from ..specs import STUDIES, SWEEPS, read_study
+from ..studies import ensure
 from . import claims, evidence, page
 from .claims import CLAIMS
 

@@ -1,0 +1,434 @@
+"""Study specs: what a study is, validated, and how it is read and recorded.
+
+* :class:`ScanConfig`: a basin scan or amplitude sweep (random, polar or explicit pair starts);
+* :class:`RelaxConfig`: the relaxation experiment (N robots started compressed);
+* :class:`BoundStudy`: pairs started as steady gliders taken from another study's store
+  (``configs = "bound"`` in a study file);
+* :class:`RelaxStudy`: a relaxation study in stages (``configs = "relax"``).
+
+:func:`read_study` reads any study file of sweeps/ (TOML) into one of them; :func:`load_study` only
+scans (``smx scan --study``). Every spec validates itself against the scene it will run
+(``validate``) and writes the JSON its store records (``to_json``; ``config_from_json`` and
+``params_from_json`` read them back). Nothing here simulates or writes a store.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import pathlib
+import tomllib
+
+import numpy as np
+
+from . import configs as C
+from . import imperfections, presets
+from .gait import GaitSpec
+from .scene import SceneParams
+
+@dataclasses.dataclass(frozen=True)
+class ScanConfig:
+    """Everything that defines a scan's data; stored in full in the store.
+
+    ``configs`` "random": ``n`` uniform (|r|, theta, phi) with |r| in
+    ``r_range_W``; "polar": |r| = ``radius_W``, ``positions`` x
+    ``orientations`` grid (the paper's 1000-point scan at 1.3 W);
+    "explicit": the (|r| W, theta rad, phi rad) triples in ``initial``
+    (pairs started in a known state, e.g. as gliders).
+    """
+
+    configs: str = "random"
+    n: int = 5000
+    r_range_W: tuple[float, float] = (0.5, 2.5)
+    radius_W: float = 1.3
+    positions: int = 1000
+    orientations: int = 1
+    amplitudes_deg: tuple[float, ...] = (90.0,)
+    periods: int = 75
+    chirality: str = "ccw"
+    gait: str = "square"
+    period_s: float | None = None
+    backend: str = "native"
+    seed: int = 0
+    batch_size: int = 256
+    chunk_periods: int = 5
+    quiet_periods: int = 2
+    model: str = presets.DEFAULT  # model preset (smarticle_mjx/presets.py)
+    collisions: bool = False  # keep the per-period collision record (native and dart backends)
+    collision_bins: int = 16  # its bins per gait period
+    initial: tuple[tuple[float, float, float], ...] | None = None  # configs = "explicit"
+    # backend "dart": (time step s, collision detector, LCP solver[, servo]); None: the DART twin's defaults
+    dart_numerics: tuple | None = None
+    # the robots' imperfections (smarticle_mjx/imperfections.py), drawn from ``seed``
+    imperfections: str = "none"
+
+    def scene_params(self) -> SceneParams:
+        """The preset's parameters (ValueError naming the known presets if unknown)."""
+        return presets.params(self.model)
+
+    def robots(self) -> imperfections.Draw:
+        """The pair's imperfections, drawn from the scan's seed (ValueError for an unknown set)."""
+        return imperfections.draw(self.imperfections, 2, self.seed)
+
+    def validate(self, params: SceneParams) -> None:
+        imperfections.get(self.imperfections).check_backend(self.backend)
+        if self.configs not in ("random", "polar", "explicit"):
+            raise ValueError(f"--configs must be random, polar or explicit, got {self.configs!r}")
+        if self.configs == "explicit":
+            a = np.asarray(self.initial if self.initial is not None else [], float)
+            if a.ndim != 2 or a.shape[1] != 3 or len(a) == 0:
+                raise ValueError("explicit configurations must be a non-empty list of (|r|, theta, phi) triples")
+            if not np.isfinite(a).all() or (a[:, 0] <= 0).any():
+                raise ValueError("explicit configurations must be finite with |r| > 0")
+        elif self.configs == "random":
+            if self.n <= 0:
+                raise ValueError(f"--n must be positive, got {self.n}")
+            lo, hi = self.r_range_W
+            if not 0 <= lo < hi:
+                raise ValueError(f"|r| range must satisfy 0 <= min < max, got {self.r_range_W}")
+        else:
+            if self.positions <= 0 or self.orientations <= 0:
+                raise ValueError("--positions and --orientations must be positive")
+            if self.radius_W <= 0:
+                raise ValueError(f"--radius must be positive, got {self.radius_W}")
+        if self.periods <= 0:
+            raise ValueError(f"--periods must be positive, got {self.periods}")
+        if not self.amplitudes_deg:
+            raise ValueError("no amplitudes given")
+        if len(set(self.amplitudes_deg)) != len(self.amplitudes_deg):
+            raise ValueError("amplitudes must be distinct")
+        for a in self.amplitudes_deg:
+            self.gait_spec(a).validate(params.robot.servo_speed, params.robot.arm_limit_deg)
+        from .engine import BACKENDS
+        if self.backend not in BACKENDS:
+            raise ValueError(f"--backend must be {', '.join(BACKENDS[:-1])} or {BACKENDS[-1]}, got {self.backend!r}")
+        from .engine.dart import check_study
+        check_study(self.backend, self.dart_numerics, self.robots().scene(params))
+        if self.backend == "warp":
+            from .engine import mjwarp
+            if not mjwarp.available():
+                raise ValueError(mjwarp.MISSING)
+        if self.batch_size <= 0 or self.chunk_periods <= 0 or self.quiet_periods < 0:
+            raise ValueError("batch size and chunk periods must be positive, quiet periods >= 0")
+        if self.collisions and self.backend not in ("native", "dart"):
+            raise ValueError("--collisions is recorded by the native and dart backends only")
+        if self.collision_bins < 1:
+            raise ValueError(f"--collision-bins must be positive, got {self.collision_bins}")
+
+    def backend_options(self) -> dict:
+        """Keyword arguments of ``make_backend`` beyond the scene (the dart backend's numerics)."""
+        from .engine.dart import study_options
+        return study_options(self.backend, self.dart_numerics)
+
+    def gait_spec(self, amplitude_deg: float) -> GaitSpec:
+        return GaitSpec(amplitude_deg=float(amplitude_deg), chirality=self.chirality, kind=self.gait,
+                        period_s=self.period_s)
+
+    def initial_configs(self) -> np.ndarray:
+        """[M, 3] (|r| in W, theta, phi in rad); the same for every amplitude."""
+        if self.configs == "random":
+            return C.random_configs(self.n, np.random.default_rng(self.seed), self.r_range_W)
+        if self.configs == "explicit":
+            return np.asarray(self.initial, float).reshape(-1, 3)
+        return C.polar_configs(self.radius_W, self.positions, self.orientations)
+
+    def to_json(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["r_range_W"] = list(self.r_range_W)
+        d["amplitudes_deg"] = [float(a) for a in self.amplitudes_deg]
+        if self.initial is None:
+            del d["initial"]  # stores of random and polar scans keep their earlier configuration
+        else:
+            d["initial"] = [[float(x) for x in c] for c in self.initial]
+        if self.imperfections == "none":
+            del d["imperfections"]  # nor do stores of ideal robots
+        from .engine.dart import study_json
+        return study_json(d, self.backend)
+
+
+def run_name(amplitude_deg: float) -> str:
+    return f"a{amplitude_deg:06.2f}"
+
+
+def parse_amplitudes(text: str) -> tuple[float, ...]:
+    """'10:90:10' (inclusive range) or '10,40,90' -> amplitudes in degrees."""
+    text = text.strip()
+    try:
+        if ":" in text:
+            lo, hi, step = (float(x) for x in text.split(":"))
+            if step <= 0 or hi < lo:
+                raise ValueError
+            n = int(math.floor((hi - lo) / step + 1e-9)) + 1
+            return tuple(round(lo + k * step, 6) for k in range(n))
+        return tuple(float(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise ValueError(f"amplitudes must look like '10:90:10' or '10,40,90', got {text!r}") from None
+
+
+def load_study(path) -> ScanConfig:
+    """A study file (TOML) from sweeps/: keys are ScanConfig fields."""
+    path = pathlib.Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ValueError(f"study file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ValueError(f"cannot read study file {path}: {e}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ValueError(f"study file {path} is not valid TOML: {e}") from None
+    study = raw.get("study", raw)
+    if study.get("configs") == "bound":
+        raise ValueError(f"study file {path} starts pairs from another study's gliders; smx validate runs it")
+    if study.get("configs") == "relax":
+        raise ValueError(f"study file {path} is a relaxation study (smx relax); smx validate runs it")
+    fields = {f.name for f in dataclasses.fields(ScanConfig)}
+    unknown = set(study) - fields - {"description", "figure"}
+    if unknown:
+        raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
+    kw = _config_keywords(study)
+    try:
+        return ScanConfig(**kw)
+    except TypeError as e:
+        raise ValueError(f"study file {path}: {e}") from None
+
+
+@dataclasses.dataclass(frozen=True)
+class RelaxConfig:
+    """Everything that defines a relaxation study's data; stored in full."""
+
+    n_robots: int = 7
+    trials: int = 20
+    first_trial: int = 0  # trial indices first_trial .. first_trial+trials-1 (stages of one study)
+    periods: int = 300  # the lab's trials ran 300 gait periods
+    amplitude_deg: float = 90.0
+    chirality: str = "ccw"
+    gait: str = "square"
+    period_s: float | None = None
+    seed: int = 0
+    gap_mm: float = 2.0  # gap between neighbouring robots' bounding boxes in the packing
+    jitter_mm: float = 1.0  # per-axis standard deviation of each robot's start position
+    jitter_deg: float = 2.0  # standard deviation of each robot's start heading
+    phase_jitter: float = 0.0  # standard deviation of per-robot gait phase (periods); 0: in phase (paper)
+    plate_m: float = 0.6  # side of the square plate, centred on the packing
+    backend: str = "native"
+    batch_size: int = 4
+    chunk_periods: int = 5
+    quiet_periods: int = 10  # stop a trial after this many periods without any contact (0: never)
+    model: str = presets.DEFAULT
+    # backend "dart": (time step s, collision detector, LCP solver[, servo]); None: the DART twin's defaults
+    dart_numerics: tuple | None = None
+    # the robots' imperfections (smarticle_mjx/imperfections.py): the same robots in every
+    # trial (drawn from ``seed``), their phase jitter drawn per trial
+    imperfections: str = "none"
+
+    def robots(self) -> imperfections.Draw:
+        return imperfections.draw(self.imperfections, self.n_robots, self.seed)
+
+    def gait_spec(self) -> GaitSpec:
+        return GaitSpec(amplitude_deg=self.amplitude_deg, chirality=self.chirality, kind=self.gait,
+                        period_s=self.period_s)
+
+    def scene_params(self) -> SceneParams:
+        return presets.params(self.model)
+
+    def validate(self, params: SceneParams) -> None:
+        imperfections.get(self.imperfections).check_backend(self.backend)
+        if self.n_robots < 2:
+            raise ValueError(f"a relaxation needs at least 2 robots, got {self.n_robots}")
+        if self.n_robots > 30:
+            raise ValueError(f"at most 30 robots per trial, got {self.n_robots}")
+        if self.trials < 1:
+            raise ValueError(f"trials must be >= 1, got {self.trials}")
+        if self.first_trial < 0:
+            raise ValueError(f"first trial must be >= 0, got {self.first_trial}")
+        if self.periods < 1:
+            raise ValueError(f"periods must be >= 1, got {self.periods}")
+        for name in ("gap_mm", "jitter_mm", "jitter_deg", "phase_jitter"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name.replace('_', '-')} must be a finite number >= 0, got {v}")
+        if not self.plate_m > 0:
+            raise ValueError(f"plate side must be positive, got {self.plate_m}")
+        if self.batch_size < 1 or self.chunk_periods < 1 or self.quiet_periods < 0:
+            raise ValueError("batch size and chunk periods must be >= 1, quiet periods >= 0")
+        from .engine import BACKENDS
+        if self.backend not in BACKENDS:
+            raise ValueError(f"unknown backend {self.backend!r}; choose one of {', '.join(BACKENDS)}")
+        from .engine.dart import check_study
+        check_study(self.backend, self.dart_numerics, self.robots().scene(params))
+        self.gait_spec().validate(params.robot.servo_speed, params.robot.arm_limit_deg)
+
+    def backend_options(self) -> dict:
+        """Keyword arguments of ``make_backend`` beyond the scene (the dart backend's numerics)."""
+        from .engine.dart import study_options
+        return study_options(self.backend, self.dart_numerics)
+
+    def to_json(self) -> dict:
+        from .engine.dart import study_json
+        d = dataclasses.asdict(self)
+        if self.imperfections == "none":
+            del d["imperfections"]  # stores of ideal robots keep their earlier configuration
+        return study_json(d, self.backend)
+
+
+SWEEPS = pathlib.Path(__file__).resolve().parents[1] / "sweeps"
+
+# The validation suite's studies (docs/validation.md): name -> file in sweeps/, in the order they run
+# (each started-bound study after its source, which it names among these).
+STUDIES = {
+    "random_90": "validation_random.toml",
+    "polar": "validation_polar.toml",
+    "amplitude": "validation_amplitude.toml",
+    "cw_90": "validation_cw.toml",
+    "descent": "validation_descent.toml",
+    "diagonal_90": "validation_diagonal.toml",
+    "diagonal_random": "validation_diagonal_random.toml",
+    "relax": "validation_relax.toml",
+}
+
+@dataclasses.dataclass(frozen=True)
+class BoundStudy:
+    """Pairs started as steady gliders of another study (``configs = "bound"``).
+
+    Attributes:
+      source: name of the study (in ``STUDIES``) whose store supplies the
+        gliders: lanes of type ``glider`` bound in each of its last 10
+        periods, first ``pairs`` of them in lane order, started from their
+        relative coordinates (|r|, theta, phi) at the end of the last period
+        (the gait's phase 0), at rest, arms at the gait's first setpoint.
+      amplitudes_deg: the amplitudes, in the order run.
+      continuation: each amplitude's pairs start where the previous
+        amplitude's pairs ended (those bound in each of its last
+        ``keep_window`` periods); otherwise every amplitude starts from the
+        source gliders.
+      steady_window: last periods over which steady |r| is averaged.
+    """
+
+    source: str
+    amplitudes_deg: tuple[float, ...]
+    periods: int
+    pairs: int = 32
+    glider: str = "C1"
+    continuation: bool = False
+    gait: str = "square"
+    chirality: str = "ccw"
+    steady_window: int = 10
+    keep_window: int = 5
+    seed: int = 0
+    description: str = ""
+    figure: str = ""
+
+    def validate(self) -> None:
+        if self.source not in STUDIES:
+            raise ValueError(f"bound study: unknown source study {self.source!r} (known: {', '.join(STUDIES)})")
+        if self.glider not in ("C1", "C2"):
+            raise ValueError(f"bound study: glider must be C1 or C2, got {self.glider!r}")
+        if self.pairs <= 0 or self.periods <= 0 or not self.amplitudes_deg:
+            raise ValueError("bound study: pairs, periods and amplitudes must be positive / non-empty")
+        if not 0 < self.steady_window <= self.periods or not 0 < self.keep_window <= self.periods:
+            raise ValueError("bound study: steady and keep windows must lie within the periods run")
+
+    def stage_config(self, amplitude: float, initial: np.ndarray, model: str,
+                     imperfections: str = "none") -> ScanConfig:
+        return ScanConfig(configs="explicit", initial=tuple(tuple(float(x) for x in c) for c in initial),
+                          amplitudes_deg=(float(amplitude),), periods=self.periods, gait=self.gait,
+                          chirality=self.chirality, seed=self.seed, model=model, imperfections=imperfections)
+
+
+@dataclasses.dataclass(frozen=True)
+class RelaxStudy:
+    """A relaxation study (``configs = "relax"``): ``stages`` stores of
+    ``trials`` trials each (stage s holds trials s*trials ..), so a long
+    study completes across runs and a partial one is a set of complete
+    stores. ``settings``: any other :class:`smarticle_mjx.relax.RelaxConfig` keys."""
+
+    stages: int
+    trials: int
+    settings: tuple = ()
+    description: str = ""
+    figure: str = ""
+
+    def stage_config(self, stage: int, model: str, imperfections: str = "none"):
+        return RelaxConfig(**{"imperfections": imperfections, **dict(self.settings)}, trials=self.trials,
+                           first_trial=stage * self.trials, model=model)
+
+    def validate(self) -> None:
+        if self.stages < 1 or self.trials < 1:
+            raise ValueError("relax study: stages and trials must be >= 1")
+        self.stage_config(0, presets.DEFAULT).validate(presets.params())
+
+
+def read_study(path) -> ScanConfig | BoundStudy | RelaxStudy:
+    """A study file from sweeps/: a scan (``ScanConfig`` keys) or a started-bound study."""
+    path = pathlib.Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ValueError(f"study file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+        raise ValueError(f"cannot read study file {path}: {e}") from None
+    study = raw.get("study", raw)
+    if study.get("configs") == "relax":
+        known = {f.name for f in dataclasses.fields(RelaxConfig)} - {"trials", "first_trial", "model"}
+        own = {"stages", "trials", "description", "figure", "configs"}
+        unknown = set(study) - known - own
+        if unknown:
+            raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
+        try:
+            rs = RelaxStudy(stages=int(study.get("stages", 1)), trials=int(study.get("trials", 20)),
+                            settings=tuple(sorted((k, v) for k, v in study.items() if k in known)),
+                            description=study.get("description", ""), figure=study.get("figure", ""))
+            rs.validate()
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"study file {path}: {e}") from None
+        return rs
+    if study.get("configs") != "bound":
+        return load_study(path)
+    fields = {f.name for f in dataclasses.fields(BoundStudy)}
+    unknown = set(study) - fields - {"configs"}
+    if unknown:
+        raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
+    kw = {k: v for k, v in study.items() if k in fields}
+    if "amplitudes_deg" in kw:
+        kw["amplitudes_deg"] = tuple(float(x) for x in kw["amplitudes_deg"])
+    try:
+        bs = BoundStudy(**kw)
+    except TypeError as e:
+        raise ValueError(f"study file {path}: {e}") from None
+    bs.validate()
+    return bs
+
+
+def config_from_json(d: dict) -> ScanConfig:
+    """The ScanConfig a store recorded (its ``config["scan"]``)."""
+    return ScanConfig(**_config_keywords(d))
+
+
+def _config_keywords(d: dict) -> dict:
+    """ScanConfig keywords from a study file's or a store's dict: its fields, lists back to tuples."""
+    fields = {f.name for f in dataclasses.fields(ScanConfig)}
+    kw = {k: v for k, v in d.items() if k in fields}
+    for k in ("r_range_W", "amplitudes_deg"):
+        if k in kw:
+            kw[k] = tuple(float(x) for x in kw[k])
+    if kw.get("initial") is not None:
+        kw["initial"] = tuple(tuple(float(x) for x in c) for c in kw["initial"])
+    if kw.get("dart_numerics") is not None:
+        kw["dart_numerics"] = tuple(kw["dart_numerics"])
+    return kw
+
+
+def params_from_json(d: dict) -> SceneParams:
+    """The SceneParams a store recorded (its ``config["scene"]``), lists back to tuples."""
+    from .scene import RobotParams, RobotQuirk
+    robot = RobotParams(**d["robot"])
+    rest = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k not in ("robot", "quirks")}
+    quirks = tuple(RobotQuirk(backlash_deg=None if q.get("backlash_deg") is None else tuple(q["backlash_deg"]),
+                              com_offset=tuple(q.get("com_offset", (0.0, 0.0)))) for q in d.get("quirks", ()))
+    return SceneParams(robot=robot, quirks=quirks, **rest)
+
+
+def params_json(params: SceneParams) -> dict:
+    # through JSON: tuples become lists, as a resumed store's saved copy has them
+    return json.loads(json.dumps(dataclasses.asdict(params)))
