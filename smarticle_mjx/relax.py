@@ -42,7 +42,7 @@ from typing import Callable
 import numpy as np
 
 from . import configs as C
-from .engine import Lanes, Scene, make_backend, steps_per_period
+from .engine import Lanes, open_backend, steps_per_period
 from .engine.batch import RetireRule, run_lanes
 from .scene import RobotParams, SceneParams
 from .specs import RelaxConfig
@@ -136,9 +136,9 @@ class RelaxJob:
         return (repr(self.params), self.config.backend, self.config.n_robots, nthread)
 
     def open_backend(self, nthread: int | None = None):
-        scene = Scene.build(self.params, self.config.n_robots)
-        return make_backend(self.config.backend, scene, **({"nthread": nthread} if self.config.backend == "native"
-                                                           else self.config.backend_options()))
+        return open_backend(self.config.backend, self.params, self.config.n_robots,
+                            nthread=nthread if self.config.backend == "native" else None,
+                            **self.config.backend_options())
 
     def rows(self, backend, run: str, lo: int, hi: int, on_rows) -> dict:
         c, g = self.config, self.config.gait_spec()

@@ -9,7 +9,7 @@ from typing import Callable
 import numpy as np
 
 from . import configs as C
-from .engine import Lanes, Scene, make_backend, steps_per_period
+from .engine import Lanes, open_backend, steps_per_period
 from .engine.batch import RetireRule, run_lanes
 from .engine.core import Record
 from .executors import LocalExecutor
@@ -93,11 +93,9 @@ class ScanJob:
         return (repr(self.params), self.config.backend, self.config.collisions, nthread)
 
     def open_backend(self, nthread: int | None = None):
-        scene = Scene.build(self.params, 2, collisions=self.config.collisions)
-        kw = self.config.backend_options()
-        if nthread is not None and self.config.backend == "native":
-            kw = {"nthread": nthread}
-        return make_backend(self.config.backend, scene, **kw)
+        return open_backend(self.config.backend, self.params, 2, collisions=self.config.collisions,
+                            nthread=nthread if self.config.backend == "native" else None,
+                            **self.config.backend_options())
 
     def rows(self, backend, run: str, lo: int, hi: int, on_rows) -> dict:
         inputs = RunInputs.of(self.config, self.params, self.amplitudes[run])

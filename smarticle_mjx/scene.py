@@ -415,7 +415,8 @@ def _servo_xml(i: int, rp: RobotParams, lim: float) -> list[str]:
     return out
 
 
-def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str = "smarticles") -> str:
+def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str = "smarticles",
+               sensors: str = "touch", extra_sensors: str = "") -> str:
     """Return the MJCF text of a scene with one robot per pose.
 
     Args:
@@ -429,7 +430,14 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
       ``(alpha1, alpha2, rate1, rate2)``: setpoints (rad) then their rates
       (rad/s), robot after robot. For every robot pair (i < j) a contact
       sensor ``touch_i_j`` counts the contacts between the two robots.
+      sensors: "touch" (that count), "record" (the count and the pair's smallest
+        distance, as the engines' per-period record reads it) or "none" (no
+        sensor block: MJX has no subtree contact sensor).
+      extra_sensors: MJCF sensor lines appended after the touch sensors (the
+        engine's collision record).
     """
+    if sensors not in ("touch", "record", "none"):
+        raise ValueError(f"sensors must be touch, record or none, got {sensors!r}")
     params.validate()
     poses = [tuple(p) for p in poses]
     if len(poses) < 1:
@@ -451,10 +459,14 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
     acts = []
     for i in range(n):
         acts += _servo_xml(i, rp, lim)
-    sensors = []
+    sensor_lines = []
     for i in range(n):
         for j in range(i + 1, n):
-            sensors.append(f'    <contact name="touch_{i}_{j}" subtree1="r{i}" subtree2="r{j}" data="found" num="1"/>')
+            data = 'data="found" num="1"' if sensors == "touch" else 'data="found dist" num="1" reduce="mindist"'
+            sensor_lines.append(f'    <contact name="touch_{i}_{j}" subtree1="r{i}" subtree2="r{j}" {data}/>')
+    if extra_sensors:
+        sensor_lines.append(extra_sensors)
+    sensor_block = "" if sensors == "none" else "  <sensor>\n" + "\n".join(sensor_lines) + "\n  </sensor>\n"
     excludes = "\n".join(f'    <exclude body1="r{i}_arm1" body2="r{i}_arm2"/>' for i in range(n))
     if explicit:
         # body-plate contacts as explicit pairs: the plane's contact frame has its
@@ -502,10 +514,7 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
   <actuator>
 {chr(10).join(acts)}
   </actuator>
-  <sensor>
-{chr(10).join(sensors)}
-  </sensor>
-  <keyframe>
+{sensor_block}  <keyframe>
     <key name="init" qpos="{_fmt(*qpos)}" ctrl="{_fmt(*ctrl)}"{act}/>
   </keyframe>
 </mujoco>

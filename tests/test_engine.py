@@ -339,3 +339,28 @@ def test_every_backend_offers_the_written_interface(scene):
     with make_backend("native", scene, nthread=2) as native:
         assert native.pool is not None
     assert native.pool is None
+
+
+def test_open_backend_builds_the_sensors_its_records_need_and_refuses_what_it_cannot_record(monkeypatch):
+    """The touch record's sensors report the contact count and the smallest distance; the collision
+    record adds force sensors; MJX's scene has none (it reads the contact list). A record a backend
+    cannot make, or an unknown backend, is refused before any scene is compiled."""
+    import mujoco
+    from smarticle_mjx import engine
+    from smarticle_mjx.engine import Scene, open_backend
+    params = S.SceneParams()
+    plain = mujoco.MjModel.from_xml_string(Scene.mjcf(params, 2))
+    assert plain.nsensor == 1 and plain.sensor_dim[0] == 2  # found, dist
+    with_coll = mujoco.MjModel.from_xml_string(Scene.mjcf(params, 2, collisions=True))
+    assert with_coll.nsensor > 1
+    assert mujoco.MjModel.from_xml_string(Scene.mjcf(params, 2, sensors="none")).nsensor == 0
+    built = []
+    monkeypatch.setattr(engine.Scene, "build", lambda *a, **k: built.append(a))
+    with pytest.raises(ValueError, match="native and dart backends only"):
+        open_backend("mjx", params, 2, collisions=True)
+    with pytest.raises(ValueError, match="unknown backend 'bullet'"):
+        open_backend("bullet", params, 2)
+    assert built == []
+    monkeypatch.undo()
+    with open_backend("native", params, 2, collisions=True, nthread=1) as be:
+        assert be.name == "native" and be.scene.collisions

@@ -24,4 +24,23 @@ def make_backend(name: str, scene: Scene, nthread: int | None = None, **kw):
     raise ValueError(f"unknown backend {name!r}; choose one of {', '.join(BACKENDS)}")
 
 
-__all__ = ["BACKENDS", "Lanes", "PeriodRecords", "Scene", "Status", "make_backend", "steps_per_period"]
+COLLISION_RECORD = ("native", "dart")  # backends that record the per-period collision record
+
+
+def open_backend(name: str, params, n_robots: int, *, collisions: bool = False, nthread: int | None = None,
+                 **options):
+    """A backend ``name`` for a scene of ``n_robots`` robots built with the sensors its records need
+    (the per-period touch record; with ``collisions``, the collision record's force sensors).
+    Refuses, before building anything, a backend it does not know or a record the backend cannot
+    make. ``nthread``: the native backend's threads; ``options``: the backend's own keywords.
+    Use it as a context manager, or close it."""
+    if name not in BACKENDS:
+        raise ValueError(f"unknown backend {name!r}; choose one of {', '.join(BACKENDS)}")
+    if collisions and name not in COLLISION_RECORD:
+        raise ValueError("--collisions is recorded by the native and dart backends only")
+    scene = Scene.build(params, n_robots, collisions=collisions)
+    return make_backend(name, scene, nthread=nthread, **options)
+
+
+__all__ = ["BACKENDS", "COLLISION_RECORD", "Lanes", "PeriodRecords", "Scene", "Status", "make_backend",
+           "open_backend", "steps_per_period"]

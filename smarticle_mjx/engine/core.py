@@ -87,17 +87,22 @@ class Scene:
     collisions: bool = False  # has the collision record's sensors (after the touch sensors)
 
     @staticmethod
-    def build(params: SceneParams, n_robots: int, collisions: bool = False) -> "Scene":
-        """Compile the scene; ``collisions`` adds the collision record's sensors
-        (they read contact forces and change nothing in the dynamics)."""
+    def mjcf(params: SceneParams, n_robots: int, collisions: bool = False, sensors: str = "record") -> str:
+        """The scene's MJCF: ``n_robots`` robots spaced apart (lanes set their poses), with the
+        per-period record's sensors (``sensors="none"``: none, for MJX) and, with ``collisions``,
+        the collision record's."""
         if n_robots < 1:
             raise ValueError("n_robots must be >= 1")
         spacing = 4 * (params.robot.body_length + 2 * params.robot.arm_length)
         poses = [(spacing * i, 0.0, 0.0, 0.0, 0.0) for i in range(n_robots)]
-        xml = build_mjcf(params, poses)
-        xml = xml.replace('data="found" num="1"', 'data="found dist" num="1" reduce="mindist"')
-        if collisions and n_robots > 1:
-            xml = xml.replace("  </sensor>", collision_sensors_xml(n_robots) + "\n  </sensor>")
+        extra = collision_sensors_xml(n_robots) if collisions and n_robots > 1 and sensors != "none" else ""
+        return build_mjcf(params, poses, sensors=sensors, extra_sensors=extra)
+
+    @staticmethod
+    def build(params: SceneParams, n_robots: int, collisions: bool = False) -> "Scene":
+        """Compile the scene; ``collisions`` adds the collision record's sensors
+        (they read contact forces and change nothing in the dynamics)."""
+        xml = Scene.mjcf(params, n_robots, collisions)
         model = compile_model(xml)
         return Scene(params, model, SceneLayout.of(model), xml, collisions and n_robots > 1)
 

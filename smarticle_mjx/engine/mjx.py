@@ -78,7 +78,7 @@ class MjxBackend(BackendBase):
         if scene.params.integrator not in MJX_INTEGRATORS:
             raise ValueError(f"the mjx backend integrates with {', '.join(MJX_INTEGRATORS)}, not "
                              f"{scene.params.integrator!r}; use the native or warp backend")
-        self.model = mujoco.MjModel.from_xml_string(strip_sensors(scene.xml))
+        self.model = mujoco.MjModel.from_xml_string(Scene.mjcf(scene.params, scene.n_robots, sensors="none"))
         if ls_iterations < 1:
             raise ValueError(f"ls_iterations must be >= 1, got {ls_iterations}")
         self.model.opt.ls_iterations = min(int(ls_iterations), scene.params.ls_iterations)

@@ -108,7 +108,6 @@ def mjx_solver_census(scene: Scene, lanes: Lanes, nsteps: int, caps) -> dict:
     from mujoco import mjx
 
     from . import mjx_collision
-    from .mjx import strip_sensors
 
     mjx_collision.install()
     fields = ("qpos", "qvel", "ctrl", "qacc_warmstart")
@@ -119,7 +118,7 @@ def mjx_solver_census(scene: Scene, lanes: Lanes, nsteps: int, caps) -> dict:
             states[f].append(getattr(d, f).copy())
         c_ref.append(ref_qacc)
     c_ref = np.asarray(c_ref)
-    model = mujoco.MjModel.from_xml_string(strip_sensors(scene.xml))
+    model = mujoco.MjModel.from_xml_string(Scene.mjcf(scene.params, scene.n_robots, sensors="none"))
     fwd = jax.jit(jax.vmap(mjx.forward, in_axes=(None, 0)))
     d0 = mjx.make_data(model)
 
