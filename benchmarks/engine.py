@@ -28,33 +28,8 @@ from smarticle_mjx import configs as C
 from smarticle_mjx import scene as S
 from smarticle_mjx.engine import Lanes, Scene, make_backend
 from smarticle_mjx.engine.simulate import simulate
+from smarticle_mjx.bench import mj_step_rate, sample_lanes
 from smarticle_mjx.gait import GaitSpec
-
-
-_POOL = {}
-
-
-def sample_lanes(n, params, gait, seed=0, pool=16384):
-    """The first ``n`` of one fixed sample of valid pair configurations, so that
-    every batch size (and backend) runs a prefix of the same workload."""
-    key = (id(params), gait.amplitude, seed)
-    if key not in _POOL or _POOL[key].size < n:
-        a0 = gait.setpoints(0.0, params.robot.servo_speed)
-        poses = C.sample_valid_pairs(max(n, pool), np.random.default_rng(seed), (0.8, 2.0), a0[0], a0[1])
-        _POOL[key] = Lanes.from_gait(poses, gait)
-    return _POOL[key].take(np.arange(n))
-
-
-def mj_step_rate(model, seconds=3.0):
-    import mujoco
-    d = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, d, 0)
-    n, t = 0, time.perf_counter()
-    while time.perf_counter() - t < seconds:
-        for _ in range(1000):
-            mujoco.mj_step(model, d)
-        n += 1000
-    return n / (time.perf_counter() - t)
 
 
 def main():

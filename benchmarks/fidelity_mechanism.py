@@ -18,12 +18,10 @@ import argparse
 import json
 import math
 import pathlib
-import sys
 
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(ROOT.parent))
 
 from smarticle_mjx import configs as C, plots, presets  # noqa: E402
 from smarticle_mjx.engine.core import Record  # noqa: E402

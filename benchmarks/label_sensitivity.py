@@ -14,15 +14,13 @@ import argparse
 import json
 import pathlib
 
-import sys
 
 ROOT = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(ROOT.parent))
 
 from smarticle_mjx import presets  # noqa: E402
+from smarticle_mjx.bench import fixed_starts  # noqa: E402
 from smarticle_mjx.engine import Lanes, Scene, make_backend  # noqa: E402
 from smarticle_mjx.gait import GaitSpec  # noqa: E402
-from timestep_candidates import sample  # noqa: E402
 
 
 def main():
@@ -38,7 +36,7 @@ def main():
     if args.dt is not None:
         params = params.replace(timestep=args.dt)
     args.dt = params.timestep
-    poses = sample(args.configs, args.model)
+    poses = fixed_starts(presets.params(args.model), args.configs)
     moved = poses.copy()
     moved[:, 1, 0] += args.shift
     be = make_backend("native", Scene.build(params, 2))

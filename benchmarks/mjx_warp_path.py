@@ -35,8 +35,8 @@ import time
 import mujoco
 import numpy as np
 
-from engine import sample_lanes  # benchmarks/engine.py: the same lanes as the throughput benchmark
 from smarticle_mjx import presets
+from smarticle_mjx.bench import sample_lanes  # the same lanes as the throughput benchmark
 from smarticle_mjx.engine import Scene
 from smarticle_mjx.engine.core import lane_controls, on_step_grid
 from smarticle_mjx.gait import GaitSpec

@@ -21,13 +21,11 @@ import datetime
 import json
 import os
 import pathlib
-import sys
 import tempfile
 import time
 
 import numpy as np
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 from smarticle_mjx import presets, specs, studies  # noqa: E402
 from smarticle_mjx.relax import RelaxConfig, run_relax  # noqa: E402
 from smarticle_mjx.store import Store  # noqa: E402

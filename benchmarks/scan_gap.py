@@ -33,11 +33,11 @@ import time
 import numpy as np
 
 from smarticle_mjx import presets
+from smarticle_mjx.bench import mj_step_rate, sample_lanes
 from smarticle_mjx.engine import Lanes, Scene, make_backend, steps_per_period
 from smarticle_mjx.engine.batch import RetireRule, run_lanes
 from smarticle_mjx.scan import RunInputs, ScanConfig
 
-from engine import mj_step_rate, sample_lanes  # noqa: E402  (benchmarks/ is the script's folder)
 
 
 def _cpu() -> str:

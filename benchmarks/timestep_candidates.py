@@ -37,36 +37,21 @@ import json
 import os
 import pathlib
 import platform
-import sys
 import time
 
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(ROOT.parent))
 
 from smarticle_mjx import presets  # noqa: E402
+from smarticle_mjx.bench import NUMERICS, NUMERICS_REFERENCE, fixed_starts, save_json  # noqa: E402
 from smarticle_mjx.engine import Lanes, Scene, make_backend  # noqa: E402
 from smarticle_mjx.engine.simulate import simulate  # noqa: E402
 from smarticle_mjx.gait import GaitSpec  # noqa: E402
 from smarticle_mjx.reduce.binding import binomial_interval  # noqa: E402
-from fidelity_screen import _save, pair_starts  # noqa: E402
 
-REFERENCE = "ref"
-# name -> SceneParams changes (numerics only)
-CANDIDATES: dict[str, dict] = {
-    REFERENCE: dict(timestep=6.25e-5),
-    "implicitfast-0.25ms": dict(timestep=2.5e-4),  # the default before this study
-    "implicitfast-0.5ms": dict(timestep=5e-4),
-    "implicitfast-1ms": dict(timestep=1e-3),
-    "implicit-0.5ms": dict(timestep=5e-4, integrator="implicit"),
-    "implicit-1ms": dict(timestep=1e-3, integrator="implicit"),
-    "discrete-0.5ms": dict(timestep=5e-4, integrator="discrete"),
-    "discrete-1ms": dict(timestep=1e-3, integrator="discrete"),
-    "Euler-0.5ms": dict(timestep=5e-4, integrator="Euler"),
-    "implicitfast-0.5ms-tol1e-6": dict(timestep=5e-4, tolerance=1e-6),
-    "implicitfast-0.5ms-iter5": dict(timestep=5e-4, iterations=5, ls_iterations=20),
-}
+REFERENCE = NUMERICS_REFERENCE
+CANDIDATES = NUMERICS  # name -> SceneParams changes (numerics only): smarticle_mjx/bench.py
 BASELINE = "implicitfast-0.25ms"
 CONFIRM = 400  # configurations a pass needs
 PASS = dict(agree_lo=0.93, bound_diff=0.02, drift_rel=0.2, drift_floor=1.5e-5)
@@ -78,11 +63,8 @@ def params_of(name: str, model: str | None):
     return p
 
 
-POOL = 400  # the sampler draws in batches of 4n: the first n of a fixed pool are the same for every n <= POOL
-
-
 def sample(n: int, model: str | None, seed: int = 0) -> np.ndarray:
-    return pair_starts(presets.params(model), max(n, POOL), seed, 90.0)[:n]
+    return fixed_starts(presets.params(model), n, seed)
 
 
 def run_block(params, poses, periods: int) -> dict:
@@ -165,7 +147,7 @@ def drifts(names, args, res):
         p = params_of(name, args.model)
         res[key] = {f"{a:g}": lone_drift(p, a) for a in (90.0, 10.0)}
         print(f"{name} lone drift (W/cycle): {res[key]}", flush=True)
-        _save(pathlib.Path(args.out), res)
+        save_json(pathlib.Path(args.out), res)
 
 
 def timing(names, args, res, repeats: int = 3, lanes: int = 32, periods: int = 2):
@@ -188,7 +170,7 @@ def timing(names, args, res, repeats: int = 3, lanes: int = 32, periods: int = 2
             row["cost_vs_baseline"] = float(np.median(w / base))
         res[f"timing:{name}"] = row
         print(f"{name}: {row}", flush=True)
-    _save(pathlib.Path(args.out), res)
+    save_json(pathlib.Path(args.out), res)
 
 
 def _glider_tracks(path: pathlib.Path, burn_in: int = 10):
@@ -237,7 +219,7 @@ def fidelity(names, args, res, n_boot: int = 400):
         print(f"{name}: " + "; ".join(f"{k} {v['candidate']:.4g} vs {v['default']:.4g} "
                                       f"[{v['diff_lo']:+.3g}, {v['diff_hi']:+.3g}]" for k, v in row.items()
                                       if isinstance(v, dict)), flush=True)
-    _save(pathlib.Path(args.out), res)
+    save_json(pathlib.Path(args.out), res)
 
 
 def passes(row: dict, d: dict, d_ref: dict) -> dict:
@@ -333,7 +315,7 @@ def main():
         row = compare(name, ref, args)
         if row is not None:
             res[f"labels:{name}"] = row
-    _save(out, res)
+    save_json(out, res)
     print(table(res, names))
 
 

@@ -18,11 +18,9 @@ import argparse
 import dataclasses
 import json
 import pathlib
-import sys
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(ROOT.parent))
 from smarticle_mjx import presets  # noqa: E402
 from smarticle_mjx.report import analyse_run  # noqa: E402
 from smarticle_mjx.scan import run_scan  # noqa: E402
