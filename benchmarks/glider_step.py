@@ -23,17 +23,14 @@ import argparse
 import dataclasses
 import json
 import pathlib
-import sys
 import time
 
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(ROOT.parent))
-sys.path.insert(0, str(ROOT))
-from fidelity_screen import gliding, pair_starts  # noqa: E402
+from smarticle_mjx.bench import gliding, pair_starts  # noqa: E402
 from smarticle_mjx import presets  # noqa: E402
-from timestep_candidates import _glide_quantities  # noqa: E402
+from smarticle_mjx.reduce.gliders import glider_transport, steady_gliders  # noqa: E402
 
 TRACKS = ROOT / "results" / "fidelity_tracks"
 STEPS = (2.5e-4, 5e-4)  # the default before version 0.3.0, and since
@@ -45,10 +42,10 @@ def quantities(com: np.ndarray, touched: np.ndarray) -> dict:
     """beta (centred MSD, delays 5-15), net speed and direction persistence of the gliders
     (bound in every period after the burn-in) among these starts, as the time-step study
     measures them (timestep_candidates.py)."""
-    glide = touched[:, BURN_IN:].all(1)
+    glide = steady_gliders(touched, BURN_IN)
     if glide.sum() < 3:
         return dict(gliders=int(glide.sum()), beta=np.nan, net_speed=np.nan, persistence=np.nan)
-    return dict(gliders=int(glide.sum()), **_glide_quantities(com[glide, BURN_IN:].astype(float)))
+    return dict(gliders=int(glide.sum()), **glider_transport(com[glide, BURN_IN:].astype(float)))
 
 
 def tracks(poses: np.ndarray, dt: float) -> pathlib.Path:

@@ -44,6 +44,7 @@ import numpy as np
 ROOT = pathlib.Path(__file__).resolve().parent
 
 from smarticle_mjx import presets  # noqa: E402
+from smarticle_mjx.reduce.gliders import glider_transport, steady_gliders  # noqa: E402
 from smarticle_mjx.bench import NUMERICS, NUMERICS_REFERENCE, fixed_starts, save_json  # noqa: E402
 from smarticle_mjx.engine import Lanes, Scene, make_backend  # noqa: E402
 from smarticle_mjx.engine.simulate import simulate  # noqa: E402
@@ -175,14 +176,7 @@ def timing(names, args, res, repeats: int = 3, lanes: int = 32, periods: int = 2
 
 def _glider_tracks(path: pathlib.Path, burn_in: int = 10):
     z = np.load(path)
-    glide = z["touched"][:, burn_in:].all(1)
-    return z["com"][glide, burn_in:].astype(float)
-
-
-def _glide_quantities(g):
-    from smarticle_mjx.reduce import transport
-    return dict(net_speed=float(np.nanmean(transport.net_speed(g))), persistence=transport.direction_persistence(g),
-                beta=transport.msd_exponent(g, lag_range=(5, 15), centered=True, n_boot=0).beta)
+    return z["com"][steady_gliders(z["touched"], burn_in), burn_in:].astype(float)
 
 
 def fidelity(names, args, res, n_boot: int = 400):
@@ -196,18 +190,18 @@ def fidelity(names, args, res, n_boot: int = 400):
         raise SystemExit(f"no confirmation tracks of {model}: run benchmarks/fidelity_screen.py --models {model} "
                          "--pairs 128 --periods 100 --pb 0")
     g_ref = _glider_tracks(ref_path)
-    q_ref = _glide_quantities(g_ref)
+    q_ref = glider_transport(g_ref)
     rng = np.random.default_rng(0)
     for name in names:
         path = tracks / f"{model}~{name}_glide_128x100_s1.npz"
         if name == REFERENCE or not path.exists():
             continue
         g = _glider_tracks(path)
-        q = _glide_quantities(g)
+        q = glider_transport(g)
         diffs = {k: [] for k in q}
         for _ in range(n_boot):
-            a = _glide_quantities(g[rng.integers(0, len(g), len(g))])
-            b = _glide_quantities(g_ref[rng.integers(0, len(g_ref), len(g_ref))])
+            a = glider_transport(g[rng.integers(0, len(g), len(g))])
+            b = glider_transport(g_ref[rng.integers(0, len(g_ref), len(g_ref))])
             for k in q:
                 diffs[k].append(a[k] - b[k])
         row = dict(gliders=len(g), gliders_default=len(g_ref))

@@ -5,6 +5,7 @@ rest), never one another, so each script reads on its own and measures with the 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import pathlib
@@ -13,8 +14,10 @@ import time
 import numpy as np
 
 from . import configs as C
-from .engine import Lanes
+from .engine import Lanes, Scene, make_backend, steps_per_period
+from .engine.batch import RetireRule, run_lanes
 from .gait import GaitSpec
+from .reduce import binding, gliders, transport
 
 # Candidate numerics of the time-step study (docs/timestep.md): name -> SceneParams changes.
 NUMERICS_REFERENCE = "ref"
@@ -82,3 +85,122 @@ def mj_step_rate(model, seconds: float = 3.0) -> float:
             mujoco.mj_step(model, d)
         n += 1000
     return n / (time.perf_counter() - t)
+
+
+# ---------------------------------------------------------------- the fidelity measures
+# (benchmarks/fidelity_screen.py, glider_step.py; docs/fidelity.md, docs/model.md)
+
+def run_pairs(params, gait: GaitSpec, poses, periods: int, quiet: int, robots=None):
+    """Per-period poses [M, K, N, 5] and touches [M, K] of every lane, and the wall time.
+
+    ``robots``: an ``imperfections.Draw`` of the scene's robots (lane i takes the phase jitter of row i)."""
+    if robots is not None:
+        params = robots.scene(params)
+    scene = Scene.build(params, poses.shape[1])
+    be = make_backend("native", scene)
+    lanes = Lanes.from_gait(poses, gait)
+    if robots is not None:
+        lanes = robots.lanes(lanes, np.arange(len(poses)))
+    m = len(poses)
+    out_p = np.full((m, periods, poses.shape[1], 5), np.nan)
+    out_t = np.zeros((m, periods), bool)
+
+    def on_lanes(res):
+        out_p[res.index] = res.poses
+        if res.touched.shape[-1]:
+            out_t[res.index] = res.touched[..., 0]
+
+    t = time.perf_counter()
+    try:
+        info = run_lanes(be, lanes, periods, batch_size=64, chunk_periods=5,
+                         rule=RetireRule(quiet_periods=quiet), on_lanes=on_lanes)
+    finally:
+        be.close()
+    wall = time.perf_counter() - t
+    steps = info["lane_periods"] * steps_per_period(lanes.period, params.timestep)
+    return out_p, out_t, wall, steps
+
+
+def lone_drift(params, amplitude: float, periods: int, imperfections: str | None = None, robots: int = 8,
+               seed: int = 1) -> dict:
+    """Net displacement per cycle of one robot (W), at dt and dt/4.
+
+    With ``imperfections``: ``robots`` robots drawn from that set (seed ``seed``), each alone on the
+    plate; the net drift per cycle is their mean (and every robot's value is kept)."""
+    out = {}
+    gait = GaitSpec(amplitude)
+    a0 = gait.setpoints(0.0, params.robot.servo_speed)
+    W = params.robot.body_length
+    draws = [None]
+    if imperfections:
+        from . import imperfections as imp
+        d = imp.draw(imperfections, robots, seed)
+        draws = [dataclasses.replace(d, arm_speed=d.arm_speed[i:i + 1], clock=d.clock[i:i + 1],
+                                     quirks=d.quirks[i:i + 1]) for i in range(robots)]
+    for label, dt in (("dt", params.timestep), ("dt/4", params.timestep / 4)):
+        p = dataclasses.replace(params, timestep=dt)
+        poses = np.array([[[0.0, 0.0, 0.0, a0[0], a0[1]]]])
+        net, step, turn, wall = [], [], [], 0.0
+        for robot in draws:
+            tr, _, w, _ = run_pairs(p, gait, poses, periods, quiet=0, robots=robot)
+            xy = np.concatenate([poses[:, None, 0, :2], tr[:, :, 0, :2]], 1)[0]
+            heading = np.concatenate([[0.0], tr[0, :, 0, 2]])
+            net.append(float(np.linalg.norm(xy[-1] - xy[0]) / periods / W))
+            step.append(float(np.linalg.norm(np.diff(xy, axis=0), axis=1).mean() / W))
+            turn.append(float(np.degrees(np.abs(transport.turning(heading)).mean())))
+            wall += w
+        out[label] = {"net_per_cycle_W": float(np.mean(net)), "step_per_cycle_W": float(np.mean(step)),
+                      "turn_per_cycle_deg": float(np.mean(turn)), "wall_s": wall}
+        if imperfections:
+            out[label]["net_per_robot_W"] = net
+    return out
+
+
+def gliding(params, n: int, periods: int, seed: int, burn_in: int, save: pathlib.Path | None = None,
+            robots=None) -> dict:
+    """Glider quantities at 90 deg from ``n`` random valid starts; the
+    per-period tracks go to ``save`` (.npz) so that metrics can be recomputed
+    (:func:`glide_metrics`) without simulating again."""
+    W = params.robot.body_length
+    gait = GaitSpec(90.0)
+    poses = pair_starts(params, n, seed, 90.0)
+    tr, touched, wall, steps = run_pairs(params, gait, poses, periods, quiet=2, robots=robots)
+    com = (tr[:, :, 0, :2] + tr[:, :, 1, :2]) / 2 / W
+    r, th, ph = C.relative_coordinates(tr[:, :, 0], tr[:, :, 1], W)
+    rel = np.stack([r, th, ph], -1)
+    if save is not None:
+        save.parent.mkdir(parents=True, exist_ok=True)
+        # float64: a glider's centre moves ~1e-3 W in some periods, which float32 positions of ~1 W blur
+        # into zero or random steps (direction persistence 0.25 instead of 0.38 for lab-lag)
+        np.savez_compressed(save, com=com, rel=rel, touched=touched,
+                            poses=poses)
+    out = {"starts": n, "periods": periods, "burn_in": burn_in, "wall_s": wall, "steps": int(steps),
+           "sim_s_per_wall_s": float(steps * params.timestep / wall)}
+    out.update(gliders.glide_summary(com, rel, touched, burn_in))
+    return out
+
+
+def pb(params, amplitude: float, n: int, periods: int, seed: int, robots=None) -> dict:
+    poses = pair_starts(params, n, seed, amplitude, r_range=(0.5, 2.5))
+    _, touched, wall, steps = run_pairs(params, GaitSpec(amplitude), poses, periods, quiet=2, robots=robots)
+    p = binding.binding_probability(touched, np.ones(n, bool))
+    return {"n": n, "periods": periods, "end": p["end"], "throughout": p["throughout"], "wall_s": wall}
+
+
+def relaxation(name: str, trials: int, seed: int, imperfections: str | None, store: pathlib.Path) -> dict:
+    """The relaxation experiment (docs/relax.md) with ``trials`` trials of 7 robots x 300 periods at
+    90 deg, seed ``seed`` (also the seed of the robots' imperfections); the store is kept at ``store``
+    and resumed if it exists."""
+    from .reduce import relaxation as R
+    from .relax import run_relax
+    from .specs import RelaxConfig
+    from .store import read_relax
+    store.parent.mkdir(parents=True, exist_ok=True)
+    config = RelaxConfig(trials=trials, seed=seed, model=name, imperfections=imperfections or "none")
+    t = time.perf_counter()
+    run_relax(config, store, mode="resume" if store.exists() else "new")
+    wall = time.perf_counter() - t
+    a = R.analyse(read_relax([store]))
+    return {"trials": a["valid"], "emerged": a["emerged"], "fraction": a["fraction"],
+            "interval": list(a["interval"]), "distance_W": a["distance"],
+            "relaxation_periods": a["relaxation_periods"], "kinds": a["glider_kinds"], "wall_s": wall}

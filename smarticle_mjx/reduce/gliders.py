@@ -266,6 +266,25 @@ def repeatability(rel_tracks) -> dict:
     return {k: float(np.median(v)) if v else np.nan for k, v in out.items()}
 
 
+def steady_gliders(touched, burn_in: int) -> np.ndarray:
+    """[M] bool: pairs bound (touching) in every period after ``burn_in`` of their [M, K] record.
+
+    The gliders of the fidelity, twin and time-step studies (a fixed window, so that runs of one
+    length compare). The validation page and ``smx report`` count instead each lane's longest bound
+    run of at least N periods (the paper's "> 30 cycles"; ``report.ReportOptions``), which also
+    admits pairs that bind late or part before the end."""
+    return np.asarray(touched)[:, burn_in:].all(1)
+
+
+def glider_transport(tracks) -> dict:
+    """Net speed (mean over gliders, W/period), direction persistence and beta (centred MSD over
+    delays 5-15, no bootstrap) of gliders' [G, K, 2] centre tracks: the quantities the time-step
+    study compares between steps."""
+    return dict(net_speed=float(np.nanmean(_transport.net_speed(tracks))),
+                persistence=_transport.direction_persistence(tracks),
+                beta=_transport.msd_exponent(tracks, lag_range=(5, 15), centered=True, n_boot=0).beta)
+
+
 def glide_summary(com, rel, touched, burn_in: int) -> dict:
     """The glider quantities of pairs' per-period tracks, as docs/fidelity.md
     and docs/twin.md report them.
@@ -288,7 +307,7 @@ def glide_summary(com, rel, touched, burn_in: int) -> dict:
       and for C1 gliders their median |phi - 180 deg|.
     """
     periods = touched.shape[1]
-    glide = touched[:, burn_in:].all(1)
+    glide = steady_gliders(touched, burn_in)
     g_com, g_rel = com[glide, burn_in:], rel[glide, burn_in:]
     out = {"gliders": int(glide.sum()), "bound_end": int(touched[:, -1].sum())}
     if glide.sum() == 0:
