@@ -30,136 +30,16 @@ import json
 import math
 import os
 import pathlib
-import sys
 import time
 
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(ROOT.parent))
 
-from smarticle_mjx import configs as C  # noqa: E402
 from smarticle_mjx import presets  # noqa: E402
-from smarticle_mjx.engine import Lanes, Scene, make_backend, steps_per_period  # noqa: E402
-from smarticle_mjx.engine.batch import RetireRule, run_lanes  # noqa: E402
-from smarticle_mjx.gait import GaitSpec  # noqa: E402
-from smarticle_mjx.reduce import binding, gliders, transport  # noqa: E402
+from smarticle_mjx.bench import NUMERICS, gliding, lone_drift, pb, relaxation, save_json  # noqa: E402
 
 PAPER = {"drift90_W": 1.5e-3, "beta": 1.8, "persistence": None, "straightness": None}
-
-
-def _save(path: pathlib.Path, data: dict):
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1, default=float))
-    os.replace(tmp, path)
-
-
-def _run(params, gait: GaitSpec, poses, periods: int, quiet: int, robots=None):
-    """Per-period poses [M, K, N, 5] and touches [M, K] of every lane, and the wall time.
-
-    ``robots``: an ``imperfections.Draw`` of the scene's robots (lane i takes the phase jitter of row i)."""
-    if robots is not None:
-        params = robots.scene(params)
-    scene = Scene.build(params, poses.shape[1])
-    be = make_backend("native", scene)
-    lanes = Lanes.from_gait(poses, gait)
-    if robots is not None:
-        lanes = robots.lanes(lanes, np.arange(len(poses)))
-    m = len(poses)
-    out_p = np.full((m, periods, poses.shape[1], 5), np.nan)
-    out_t = np.zeros((m, periods), bool)
-
-    def on_lanes(res):
-        out_p[res.index] = res.poses
-        if res.touched.shape[-1]:
-            out_t[res.index] = res.touched[..., 0]
-
-    t = time.perf_counter()
-    try:
-        info = run_lanes(be, lanes, periods, batch_size=64, chunk_periods=5,
-                         rule=RetireRule(quiet_periods=quiet), on_lanes=on_lanes)
-    finally:
-        be.close()
-    wall = time.perf_counter() - t
-    steps = info["lane_periods"] * steps_per_period(lanes.period, params.timestep)
-    return out_p, out_t, wall, steps
-
-
-def lone_drift(params, amplitude: float, periods: int, imperfections: str | None = None, robots: int = 8,
-               seed: int = 1) -> dict:
-    """Net displacement per cycle of one robot (W), at dt and dt/4.
-
-    With ``imperfections``: ``robots`` robots drawn from that set (seed ``seed``), each alone on the
-    plate; the net drift per cycle is their mean (and every robot's value is kept)."""
-    out = {}
-    gait = GaitSpec(amplitude)
-    a0 = gait.setpoints(0.0, params.robot.servo_speed)
-    W = params.robot.body_length
-    draws = [None]
-    if imperfections:
-        from smarticle_mjx import imperfections as imp
-        d = imp.draw(imperfections, robots, seed)
-        draws = [dataclasses.replace(d, arm_speed=d.arm_speed[i:i + 1], clock=d.clock[i:i + 1],
-                                     quirks=d.quirks[i:i + 1]) for i in range(robots)]
-    for label, dt in (("dt", params.timestep), ("dt/4", params.timestep / 4)):
-        p = dataclasses.replace(params, timestep=dt)
-        poses = np.array([[[0.0, 0.0, 0.0, a0[0], a0[1]]]])
-        net, step, turn, wall = [], [], [], 0.0
-        for robot in draws:
-            tr, _, w, _ = _run(p, gait, poses, periods, quiet=0, robots=robot)
-            xy = np.concatenate([poses[:, None, 0, :2], tr[:, :, 0, :2]], 1)[0]
-            heading = np.concatenate([[0.0], tr[0, :, 0, 2]])
-            net.append(float(np.linalg.norm(xy[-1] - xy[0]) / periods / W))
-            step.append(float(np.linalg.norm(np.diff(xy, axis=0), axis=1).mean() / W))
-            turn.append(float(np.degrees(np.abs(transport.turning(heading)).mean())))
-            wall += w
-        out[label] = {"net_per_cycle_W": float(np.mean(net)), "step_per_cycle_W": float(np.mean(step)),
-                      "turn_per_cycle_deg": float(np.mean(turn)), "wall_s": wall}
-        if imperfections:
-            out[label]["net_per_robot_W"] = net
-    return out
-
-
-def pair_starts(params, n: int, seed: int, amplitude: float, r_range=(0.8, 2.0)):
-    gait = GaitSpec(amplitude)
-    a0 = gait.setpoints(0.0, params.robot.servo_speed)
-    return C.sample_valid_pairs(n, np.random.default_rng(seed), r_range, a0[0], a0[1], params.robot)
-
-
-def gliding(params, n: int, periods: int, seed: int, burn_in: int, save: pathlib.Path | None = None,
-            robots=None) -> dict:
-    """Glider quantities at 90 deg from ``n`` random valid starts; the
-    per-period tracks go to ``save`` (.npz) so that metrics can be recomputed
-    (:func:`glide_metrics`) without simulating again."""
-    W = params.robot.body_length
-    gait = GaitSpec(90.0)
-    poses = pair_starts(params, n, seed, 90.0)
-    tr, touched, wall, steps = _run(params, gait, poses, periods, quiet=2, robots=robots)
-    com = (tr[:, :, 0, :2] + tr[:, :, 1, :2]) / 2 / W
-    r, th, ph = C.relative_coordinates(tr[:, :, 0], tr[:, :, 1], W)
-    rel = np.stack([r, th, ph], -1)
-    if save is not None:
-        save.parent.mkdir(parents=True, exist_ok=True)
-        # float64: a glider's centre moves ~1e-3 W in some periods, which float32 positions of ~1 W blur
-        # into zero or random steps (direction persistence 0.25 instead of 0.38 for lab-lag)
-        np.savez_compressed(save, com=com, rel=rel, touched=touched,
-                            poses=poses)
-    out = {"starts": n, "periods": periods, "burn_in": burn_in, "wall_s": wall, "steps": int(steps),
-           "sim_s_per_wall_s": float(steps * params.timestep / wall)}
-    out.update(glide_metrics(com, rel, touched, burn_in))
-    return out
-
-
-def glide_metrics(com, rel, touched, burn_in: int) -> dict:
-    """The glider quantities of per-period tracks (:func:`smarticle_mjx.reduce.gliders.glide_summary`)."""
-    return gliders.glide_summary(com, rel, touched, burn_in)
-
-
-def pb(params, amplitude: float, n: int, periods: int, seed: int, robots=None) -> dict:
-    poses = pair_starts(params, n, seed, amplitude, r_range=(0.5, 2.5))
-    _, touched, wall, steps = _run(params, GaitSpec(amplitude), poses, periods, quiet=2, robots=robots)
-    p = binding.binding_probability(touched, np.ones(n, bool))
-    return {"n": n, "periods": periods, "end": p["end"], "throughout": p["throughout"], "wall_s": wall}
 
 
 def main():
@@ -170,13 +50,15 @@ def main():
     ap.add_argument("--burn-in", type=int, default=10)
     ap.add_argument("--pb", type=int, default=80, help="random starts per P_b amplitude (0: skip)")
     ap.add_argument("--pb-periods", type=int, default=30)
+    ap.add_argument("--relax", type=int, default=0,
+                    help="relaxation trials (7 robots x 300 periods at 90 deg, seed --seed; 0: skip)")
     ap.add_argument("--drift-periods", type=int, default=20)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--dt-divisor", type=int, default=1,
                     help="run the glide and P_b parts at the preset's time step / this (convergence check); "
                          "results are stored under the preset name + '@dt/N'")
     ap.add_argument("--numerics", default=None,
-                    help="run the glide and P_b parts with a candidate of benchmarks/timestep_candidates.py "
+                    help="run the glide and P_b parts with a candidate of smarticle_mjx/bench.py NUMERICS "
                          "(its time step, integrator, solver settings); stored under the preset name + '~NAME'")
     ap.add_argument("--imperfections", default=None,
                     help="draw the robots' imperfections from this set (smarticle_mjx/imperfections.py, seed "
@@ -184,6 +66,7 @@ def main():
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "fidelity_screen.json")
     ap.add_argument("--tables", action="store_true", help="only print the tables of docs/fidelity.md from the JSON")
     args = ap.parse_args()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
     data = json.loads(args.out.read_text()) if args.out.exists() else {}
     if args.tables:
         print(doc_tables(data))
@@ -194,10 +77,9 @@ def main():
             params = dataclasses.replace(params, timestep=params.timestep / args.dt_divisor)
             name = f"{name}@dt/{args.dt_divisor}"
         if args.numerics:
-            from timestep_candidates import CANDIDATES
-            if args.numerics not in CANDIDATES:
-                raise SystemExit(f"unknown numerics {args.numerics!r}; known: {', '.join(CANDIDATES)}")
-            params = dataclasses.replace(params, **CANDIDATES[args.numerics])
+            if args.numerics not in NUMERICS:
+                raise SystemExit(f"unknown numerics {args.numerics!r}; known: {', '.join(NUMERICS)}")
+            params = dataclasses.replace(params, **NUMERICS[args.numerics])
             params.validate()
             name = f"{name}~{args.numerics}"
         robots = None
@@ -219,13 +101,18 @@ def main():
             for a in (30.0, 50.0, 70.0, 90.0):
                 parts[f"pb{a:g}_{args.pb}x{args.pb_periods}_s{args.seed}"] = \
                     (lambda a=a: pb(params, a, args.pb, args.pb_periods, args.seed, robots=robots))
+        if args.relax and not (args.dt_divisor > 1 or args.numerics):
+            base = name.split("+")[0]
+            parts[f"relax_{args.relax}_s{args.seed}"] = lambda: relaxation(
+                base, args.relax, args.seed, args.imperfections,
+                args.out.parent / "fidelity_relax" / f"{name}_relax_{args.relax}_s{args.seed}.h5")
         for key, fn in parts.items():
             if key in entry:
                 continue
             t = time.perf_counter()
             entry[key] = fn()
             print(f"{name} {key}: {time.perf_counter() - t:.0f} s", flush=True)
-            _save(args.out, data)
+            save_json(args.out, data)
     names = args.models.split(",")
     if args.imperfections:
         names = [f"{n}+{args.imperfections}" for n in names]
