@@ -187,6 +187,10 @@ def test_relaxation_emergence_agrees_with_the_lab_by_fisher_once_the_interval_is
     assert verdict("relax_emergence", relax_ev(50, 100)) == "holds"  # 0.50 against 77/151
     assert verdict("relax_emergence", relax_ev(7, 100)) == "does not hold"  # the model's 0.07
     assert verdict("relax_emergence", relax_ev(1, 4)) == "not measurable"  # interval wider than 0.3
+    # trials the engine flagged are left out, and the row says how many
+    note = K.get("relax_emergence").row({**relax_ev(11, 57), "trials": 100})["note"]
+    assert "43 of 100 trials were flagged" in note
+    assert "flagged" not in K.get("relax_emergence").row({**relax_ev(7, 100), "trials": 100})["note"]
 
 
 def test_the_glider_travels_about_2_9_widths():

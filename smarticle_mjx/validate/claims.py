@@ -367,7 +367,9 @@ def relax_emergence(a: dict) -> Outcome:
                    f"away. Relaxation (last period with a robot touching two others): median "
                    f"{f(rt['median'], '.0f')} periods [IQR {f(rt['q25'], '.0f')}–{f(rt['q75'], '.0f')}] (paper: "
                    f"about 30); {a['stopped_early']} trials stopped early, all robots apart and quiet for "
-                   f"{s['quiet_periods']} periods.")
+                   f"{s['quiet_periods']} periods."
+                   + (f" {a['trials'] - n} of {a['trials']} trials were flagged by the engine (penetration or a "
+                      "non-finite state) and are left out." if a.get("trials", n) > n else ""))
 
 
 @claim("relax_distance", "the glider travels 2.9 ± 0.2 W on average", "2.9 ± 0.2 W (text)",
