@@ -108,6 +108,9 @@ SETS: dict[str, ImperfectionSet] = {s.name: s for s in (
     ImperfectionSet("lab", "every imperfection below, at its stated prior: the lab's robots as public sources "
                     "bound them", speed_sd=0.05, backlash_deg=(1.0, 2.0), com_sd_m=1e-3, clock_halfwidth=5e-3,
                     phase_sd=0.02, sources=(_SPEED, _BACKLASH, _COM, _CLOCK, _PHASE)),
+    ImperfectionSet("drivetrain", "each robot's own servos and gears (speed per arm and backlash), with one "
+                    "shared clock and start: what the robot is, without how it is run", speed_sd=0.05,
+                    backlash_deg=(1.0, 2.0), sources=(_SPEED, _BACKLASH)),
     ImperfectionSet("servo-speed", "only the two servos' speeds differ", speed_sd=0.05, sources=(_SPEED,)),
     ImperfectionSet("backlash", "only gear backlash", backlash_deg=(1.0, 2.0), sources=(_BACKLASH,)),
     ImperfectionSet("com-offset", "only an off-centre centre of mass", com_sd_m=1e-3, sources=(_COM,)),
