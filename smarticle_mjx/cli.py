@@ -232,8 +232,8 @@ def _scan_common(cfg, out: pathlib.Path, resume: bool, overwrite: bool, quiet: b
                  executor=None):
     """Run a scan/sweep with a progress bar and print the summary."""
     from .executors import ExecutorError
-    from .scan import run_scan
     from .store import StoreError
+    from .studies import run_study
 
     if resume and overwrite:
         _fail("--resume and --overwrite exclude each other")
@@ -243,7 +243,7 @@ def _scan_common(cfg, out: pathlib.Path, resume: bool, overwrite: bool, quiet: b
             raise ValueError("--flush-rows must be positive")
         bar, progress = _progress(quiet)
         with bar:
-            summary = run_scan(cfg, out, mode=mode, on_progress=progress, flush_rows=flush_rows, executor=executor)
+            summary = run_study(cfg, out, mode=mode, executor=executor, on_progress=progress, flush_rows=flush_rows)
     except (ValueError, StoreError, ExecutorError) as e:
         _fail(str(e))
     for name, r in summary["runs"].items():
@@ -330,8 +330,9 @@ def relax(
 ):
     """The relaxation experiment: N robots start compressed and in phase; do gliders emerge? (smx report reads it)"""
     from .executors import ExecutorError
-    from .relax import RelaxConfig, run_relax
+    from .specs import RelaxConfig
     from .store import StoreError
+    from .studies import run_study
     if resume and overwrite:
         _fail("--resume and --overwrite exclude each other")
     try:
@@ -344,7 +345,7 @@ def relax(
         mode = "resume" if resume else "overwrite" if overwrite else "new"
         bar, progress = _progress(quiet)
         with bar:
-            summary = run_relax(cfg, out, mode=mode, on_progress=progress, executor=executor)
+            summary = run_study(cfg, out, mode=mode, executor=executor, on_progress=progress)
     except (UserError, ValueError, StoreError, ExecutorError) as e:
         _fail(str(e))
     typer.echo(f"{summary['trials']} trials, {summary['stopped_early']} stopped early (no contact for "

@@ -27,7 +27,7 @@ from . import __version__
 from .reduce import gliders as GL
 from .report import analyse_run
 from .scan import run_scan
-from .specs import BoundStudy, RelaxStudy, ScanConfig, params_json
+from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, params_json
 from .scene import SceneParams
 from .store import Store, journal_path
 
@@ -221,3 +221,21 @@ def ensure(spec: ScanConfig | BoundStudy | RelaxStudy, data: pathlib.Path, stem:
     got = ensure_scan(dataclasses.replace(spec, model=model, imperfections=imperfections), data / f"{stem}.h5",
                       on_progress, notes, run=run)
     return [got] if got is not None else []
+
+
+def run_study(spec: ScanConfig | RelaxConfig, out, mode: str = "new", executor=None,
+              on_progress: Callable[[dict], None] | None = None, **options) -> dict:
+    """Run one study spec into the store ``out`` through its runner and ``executor`` (None: this
+    machine): a scan or sweep (``scan.run_scan``; ``options``: ``flush_rows``, ``params``) or a
+    relaxation (``relax.run_relax``; ``options``: ``params``, ``nthread``). Staged studies
+    (:class:`BoundStudy`, :class:`RelaxStudy`) are several stores: :func:`ensure` runs them.
+
+    Raises:
+      ValueError: a spec that is not one store's study (one line).
+    """
+    if isinstance(spec, ScanConfig):
+        return run_scan(spec, out, mode=mode, executor=executor, on_progress=on_progress, **options)
+    if isinstance(spec, RelaxConfig):
+        from .relax import run_relax
+        return run_relax(spec, out, mode=mode, executor=executor, on_progress=on_progress, **options)
+    raise ValueError(f"a {type(spec).__name__} is a staged study of several stores; ensure() runs it")

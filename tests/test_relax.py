@@ -249,3 +249,23 @@ def test_robots_leaving_a_small_plate_are_recorded(tmp_path):
     got = read_relax(small)
     np.testing.assert_array_equal(got["poses"], ref["poses"])
     np.testing.assert_array_equal(got["left_plate"][0], want)
+
+
+def test_run_study_runs_a_scan_or_a_relaxation_and_refuses_a_staged_study(tmp_path):
+    """One entry point for a study of one store: the same store as the runner called directly;
+    a staged study (several stores) is refused in one line."""
+    from storecmp import assert_same_store
+    from smarticle_mjx.relax import run_relax
+    from smarticle_mjx.specs import RelaxConfig, RelaxStudy, ScanConfig
+    from smarticle_mjx.scan import run_scan
+    from smarticle_mjx.studies import run_study
+    cfg = RelaxConfig(n_robots=3, trials=2, periods=3)
+    run_relax(cfg, tmp_path / "a.h5")
+    run_study(cfg, tmp_path / "b.h5")
+    assert_same_store(tmp_path / "a.h5", tmp_path / "b.h5")
+    sc = ScanConfig(n=6, periods=2)
+    run_scan(sc, tmp_path / "c.h5")
+    run_study(sc, tmp_path / "d.h5", flush_rows=2)
+    assert_same_store(tmp_path / "c.h5", tmp_path / "d.h5")
+    with pytest.raises(ValueError, match="staged study"):
+        run_study(RelaxStudy(stages=2, trials=1), tmp_path / "e.h5")
