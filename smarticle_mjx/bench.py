@@ -135,8 +135,7 @@ def lone_drift(params, amplitude: float, periods: int, imperfections: str | None
     if imperfections:
         from . import imperfections as imp
         d = imp.draw(imperfections, robots, seed)
-        draws = [dataclasses.replace(d, arm_speed=d.arm_speed[i:i + 1], clock=d.clock[i:i + 1],
-                                     quirks=d.quirks[i:i + 1]) for i in range(robots)]
+        draws = [d.robot(i) for i in range(robots)]
     for label, dt in (("dt", params.timestep), ("dt/4", params.timestep / 4)):
         p = dataclasses.replace(params, timestep=dt)
         poses = np.array([[[0.0, 0.0, 0.0, a0[0], a0[1]]]])

@@ -143,6 +143,11 @@ class Draw:
     clock: np.ndarray
     quirks: tuple[RobotQuirk, ...]
 
+    def robot(self, i: int) -> "Draw":
+        """Robot ``i`` alone: a one-robot draw (a lone robot on the plate)."""
+        return dataclasses.replace(self, arm_speed=self.arm_speed[i:i + 1], clock=self.clock[i:i + 1],
+                                   quirks=self.quirks[i:i + 1])
+
     def scene(self, params: SceneParams) -> SceneParams:
         """``params`` with these robots' scene-level quirks (unchanged for a set without any)."""
         if not self.set.changes_scene:

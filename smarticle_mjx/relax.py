@@ -137,7 +137,7 @@ class RelaxJob:
 
     def open_backend(self, nthread: int | None = None):
         return open_backend(self.config.backend, self.params, self.config.n_robots,
-                            nthread=nthread if self.config.backend == "native" else None,
+                            nthread=nthread,
                             **self.config.backend_options())
 
     def rows(self, backend, run: str, lo: int, hi: int, on_rows) -> dict:

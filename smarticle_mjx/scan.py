@@ -94,7 +94,7 @@ class ScanJob:
 
     def open_backend(self, nthread: int | None = None):
         return open_backend(self.config.backend, self.params, 2, collisions=self.config.collisions,
-                            nthread=nthread if self.config.backend == "native" else None,
+                            nthread=nthread,
                             **self.config.backend_options())
 
     def rows(self, backend, run: str, lo: int, hi: int, on_rows) -> dict:

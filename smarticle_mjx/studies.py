@@ -52,17 +52,13 @@ def _normalised(config: dict, want: dict, params: SceneParams) -> dict:
     return have
 
 
-def _wanted(cfg: ScanConfig) -> tuple[SceneParams, dict]:
-    """The scene parameters of scan ``cfg`` and the configuration its store must hold."""
-    return _recorded(cfg, cfg.to_json(), "scan")
-
-
-def _recorded(cfg, config_json: dict, kind: str) -> tuple[SceneParams, dict]:
+def _recorded(cfg: ScanConfig | RelaxConfig) -> tuple[SceneParams, dict]:
     """The scene parameters (with the drawn robots' quirks) and the configuration a store of study
-    ``cfg`` (a ScanConfig or RelaxConfig) records, as run_scan and run_relax write them."""
+    ``cfg`` records, as run_scan and run_relax write them."""
     robots = cfg.robots()
     params = robots.scene(cfg.scene_params())
-    want = {"model": cfg.model, kind: config_json, "scene": params_json(params)}
+    kind = "scan" if isinstance(cfg, ScanConfig) else "relax"
+    want = {"model": cfg.model, kind: cfg.to_json(), "scene": params_json(params)}
     if not robots.set.ideal:
         want["imperfections"] = robots.to_json()
     return params, json.loads(json.dumps(want))
@@ -71,7 +67,7 @@ def _recorded(cfg, config_json: dict, kind: str) -> tuple[SceneParams, dict]:
 def stale_reason(cfg: ScanConfig, path: pathlib.Path) -> str | None:
     """Why the complete store at ``path`` cannot stand for scan ``cfg``
     (another model, package version or configuration), or None if it can."""
-    params, want = _wanted(cfg)
+    params, want = _recorded(cfg)
     st = Store(path)
     have = _normalised(st.config, want, params)
     if have["model"] != cfg.model:
@@ -99,7 +95,7 @@ def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict
     if interrupted; else run (or, with ``run=False``, None). A store (or
     journal) made otherwise is moved aside, never deleted, and the scan is
     rerun."""
-    params, want = _wanted(cfg)
+    params, want = _recorded(cfg)
     package = f"smarticle-mjx {__version__}"
     journal = journal_path(path)
 
@@ -179,7 +175,7 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
     paths = []
     for stage in range(rs.stages):
         cfg = rs.stage_config(stage, model, imperfections)
-        want = _recorded(cfg, cfg.to_json(), "relax")[1]
+        want = _recorded(cfg)[1]
         path = relax_stage_path(data, stem, stage)
         journal = journal_path(path)
         if path.exists():

@@ -35,8 +35,6 @@ def single_robots(params: SceneParams, amplitudes=SINGLE_AMPLITUDES, periods: in
     """Lone robots, one per amplitude: per-period positions (W) and headings. With ``imperfections``,
     :data:`LONE_ROBOTS_DRAWN` robots drawn from that set (``seed``) per amplitude, each alone on the
     plate: ``xy`` [R, T+1, 2] and ``heading`` [R, T+1]."""
-    import dataclasses
-
     from .. import imperfections as imp
     from ..engine.simulate import simulate
     from ..gait import GaitSpec
@@ -49,8 +47,7 @@ def single_robots(params: SceneParams, amplitudes=SINGLE_AMPLITUDES, periods: in
         a0 = g.setpoints(0.0, params.robot.servo_speed)
         xy, heading = [], []
         for i in range(n):
-            robot = None if ideal else dataclasses.replace(draw, arm_speed=draw.arm_speed[i:i + 1],
-                                                           clock=draw.clock[i:i + 1], quirks=draw.quirks[i:i + 1])
+            robot = None if ideal else draw.robot(i)
             p = params if robot is None else robot.scene(params)
             res = simulate(p, [[0.0, 0.0, 0.0, float(a0[0]), float(a0[1])]], g, periods, imperfections=robot)
             xy.append(res.poses[:, 0, :2] / params.robot.body_length)

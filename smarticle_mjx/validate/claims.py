@@ -121,19 +121,19 @@ def lone_drift(ev: dict) -> Outcome:
 # ----------------------------------------------------- the random study at 90 deg
 # evidence: report.analyse_run of the store ({"summary": ..., "arrays": ...})
 
-def _both_typed(a90: dict) -> str | None:
+def _untyped(a90: dict) -> Outcome | None:
+    """Not measurable (nothing tested) when the study has too few steady samples of both glider types."""
     s90 = a90["summary"]
     if s90.get("C1") and s90.get("C2"):
         return None
-    return f"too few steady bound samples of both types to cluster ({s90['steady_samples']})"
+    return Outcome(None, f"too few steady bound samples of both types to cluster ({s90['steady_samples']})", "", "–")
 
 
 @claim("both_types", "both C1 (φ ≈ 180°) and C2 (φ ≈ 0°) gliders form", "Fig. 2C–D, 4D",
        "each type holds > 5 % of the steady bound samples (k-means, named by φ)", ("random_90",))
 def both_types(a90: dict) -> Outcome:
-    why = _both_typed(a90)
-    if why:
-        return Outcome(None, why, "", "–")
+    if untyped := _untyped(a90):
+        return untyped
     s90 = a90["summary"]
     c1, c2, tot = s90["C1"], s90["C2"], s90["steady_samples"]
     both = c1["steady_samples"] > TYPE_SHARE * tot and c2["steady_samples"] > TYPE_SHARE * tot
@@ -149,9 +149,8 @@ def both_types(a90: dict) -> Outcome:
 @claim("c1_basin", "C1's basin is larger than C2's", "Fig. 4C–D (text)",
        "95 % intervals of the two basin fractions do not overlap, C1 above", ("random_90",))
 def c1_basin(a90: dict) -> Outcome:
-    why = _both_typed(a90)
-    if why:
-        return Outcome(None, why, "", "–")
+    if untyped := _untyped(a90):
+        return untyped
     s90 = a90["summary"]
     c1, c2, n = s90["C1"], s90["C2"], s90["valid"]
     lo1, hi1 = binding.binomial_interval(c1["basin_configs"], n)
@@ -167,9 +166,8 @@ def c1_basin(a90: dict) -> Outcome:
        "mean C1 lifetime > mean C2 lifetime, and C1 longer by a one-sided Mann–Whitney test at p < 0.05 "
        "(stricter than before)", ("random_90",))
 def c1_lifetime(a90: dict) -> Outcome:
-    why = _both_typed(a90)
-    if why:
-        return Outcome(None, why, "", "–")
+    if untyped := _untyped(a90):
+        return untyped
     s90 = a90["summary"]
     c1, c2 = s90["C1"], s90["C2"]
     typed = a90["arrays"]["typed"]

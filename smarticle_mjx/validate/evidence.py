@@ -141,11 +141,8 @@ def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | Non
 
     sing = lone_robots(singles)
     extra["single"] = sing
-    extra["single_periods"] = len(next(iter(singles.values()))["xy"]) - 1
+    extra["single_periods"] = np.shape(next(iter(singles.values()))["xy"])[-2] - 1  # [(R,) T+1, 2]
     ev["lone_drift"] = {**sing[90.0], "cycles": extra["single_periods"]}
-    if np.asarray(singles[90.0]["xy"]).ndim == 3:
-        extra["single_periods"] = np.asarray(singles[90.0]["xy"]).shape[1] - 1
-        ev["lone_drift"]["cycles"] = extra["single_periods"]
     amps = sorted(sing)
     made += fig(plots.versus_amplitude(
         amps, {"net drift (W/cycle)": ([sing[a]["net_W_per_cycle"] for a in amps], None),
