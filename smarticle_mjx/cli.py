@@ -1,23 +1,26 @@
-"""``smx``: the command line. Thin: parse, build a config, call the library."""
+"""``smx``: the command line. Thin: parse options, call the library, print what it returns.
+
+The library checks its inputs (specs, option values, output paths) and raises ValueError (or
+StoreError, ExecutorError) with one line; every command turns those into ``error: ...`` and exit 2.
+"""
 
 from __future__ import annotations
 
 import functools
 import inspect
-import math
 import pathlib
 import sys
 from typing import Optional
 
-import numpy as np
 import typer
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Batched simulation of smarticles and the gliders they form.")
 
-
-class UserError(Exception):
-    """Bad input: reported as one line, exit code 2."""
+_MODEL_HELP = "model preset (smx models --list; default: the default preset, docs/model.md)"
+_IMPERFECTIONS_HELP = ("the robots' imperfections, drawn per robot from the seed (smx models --list; "
+                       "default none: ideal robots)")
+_CONFIGS_HELP = "random (uniform |r|, theta, phi) or polar (fixed |r| grid)"
 
 
 def _fail(msg: str) -> None:
@@ -25,121 +28,31 @@ def _fail(msg: str) -> None:
     raise typer.Exit(2)
 
 
-_MODEL_HELP = "model preset (smx models --list; default: the default preset, docs/model.md)"
-_IMPERFECTIONS_HELP = ("the robots' imperfections, drawn per robot from the seed (smx models --list; "
-                       "default none: ideal robots)")
-
-
-def _preset(name: Optional[str]):
-    """The named preset, or UserError with the known names."""
-    from . import presets
-    try:
-        return presets.get(name)
-    except ValueError as e:
-        raise UserError(str(e)) from None
-
-
-def _gait(amplitude: float, chirality: str, gait: str, period: Optional[float]):
-    from .gait import GaitSpec
-    return GaitSpec(amplitude_deg=amplitude, chirality=chirality, kind=gait, period_s=period)
-
-
-@app.command()
-def simulate(
-    scene: str = typer.Option("pair", help="single, pair or seven (the scenes in models/)"),
-    config: Optional[str] = typer.Option(None, help="pair start as '|r|,theta,phi' (|r| in W, angles in deg)"),
-    amplitude: float = typer.Option(90.0, help="alpha_max in degrees"),
-    chirality: str = typer.Option("ccw", help="ccw or cw"),
-    gait: str = typer.Option("square", help="square or diagonal (time-symmetric)"),
-    period: Optional[float] = typer.Option(None, help="gait period in s (default: 1.6 s x amplitude / 90)"),
-    periods: int = typer.Option(10, help="number of gait periods"),
-    track_stride: int = typer.Option(20, help="write every this many time steps (of the backend's step)"),
-    backend: str = typer.Option("native", help="native, or dart (the DART twin at 0.1 ms steps; needs the dart extra)"),
-    out: pathlib.Path = typer.Option(pathlib.Path("track.csv"), help="output .csv (+ .json sidecar) or .h5"),
-    overwrite: bool = typer.Option(False, help="replace an existing output file"),
-    model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
-):
-    """Simulate one scene and write its track (the measured-data format)."""
-    from . import configs, scene as scene_mod, tracks
-    from .engine.simulate import simulate as run
-
-    try:
-        preset = _preset(model)
-        params = preset.params
-        g = _gait(amplitude, chirality, gait, period)
-        g.validate(params.robot.servo_speed, params.robot.arm_limit_deg)
-        if periods < 1 or track_stride < 1:
-            raise UserError("--periods and --track-stride must be positive")
-        if backend not in ("native", "dart"):
-            raise UserError(f"--backend must be native or dart (the backends that record tracks), got {backend!r}")
-        from .engine.dart import check_study, study_timestep
-        check_study(backend, None)  # dart: installed
-        dt = study_timestep(backend, None, params.timestep)
-        if out.exists() and not overwrite:
-            raise UserError(f"{out} exists; pass --overwrite to replace it")
-        tracks.check_output(out)  # before simulating, not after
-        a0 = g.setpoints(0.0, params.robot.servo_speed)
-        if config is not None:
+def _command(name: str | None = None):
+    """``app.command`` whose bad input (the library's ValueError, StoreError, ExecutorError) is one line
+    on stderr and exit code 2."""
+    def wrap(fn):
+        @functools.wraps(fn)
+        def run(*args, **kw):
+            from .executors import ExecutorError
+            from .store import StoreError
             try:
-                r, th, ph = (float(v) for v in config.split(","))
-            except ValueError:
-                raise UserError(f"--config must be three numbers '|r|,theta,phi', got {config!r}") from None
-            poses = configs.pair_poses(r, math.radians(th), math.radians(ph), a0[0], a0[1], params.robot)
-        else:
-            poses = [(x, y, h, a0[0], a0[1]) for x, y, h, _, _ in scene_mod.standard_poses(scene, params.robot)]
-        res = run(params, poses, g, periods, track_stride=track_stride, backend=backend)
-        meta = tracks.sidecar(len(poses), g, params.plate_friction, 1.0 / (track_stride * dt), model=preset.name)
-        t = [0.0, *res.track_t]
-        track = [res.poses[0], *res.track]
-        written = tracks.write_track(out, t, track, meta,
-                                     records={"touched": res.touched, "poses": res.poses, "min_dist": res.min_dist})
-    except (UserError, ValueError) as e:
-        _fail(str(e))
-    n_touch = int(res.touched.any(1).sum()) if res.touched.size else 0
-    typer.echo(f"{len(poses)} robots, {periods} periods of {res.period:.3g} s; "
-               f"pairs touched in {n_touch}/{periods} periods; wrote {', '.join(map(str, written))}")
+                return fn(*args, **kw)
+            except (ValueError, StoreError, ExecutorError) as e:
+                _fail(str(e))
+        return app.command(name)(run)
+    return wrap
 
 
-@app.command()
-def models(
-    out: pathlib.Path = typer.Option(pathlib.Path("models"), help="directory for the reference scenes"),
-    check: bool = typer.Option(False, help="only report whether the stored scenes are up to date"),
-    model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
-    list_: bool = typer.Option(False, "--list", help="list the model presets and where their values come from"),
-):
-    """Regenerate (or --check) the reference MJCF scenes in models/ (made by the default preset)."""
+def _model(name: Optional[str]) -> str:
+    """The preset's name (the default preset for None); ValueError with the known names."""
     from . import presets
-    from .scene import reference_models
+    return presets.get(name).name
 
-    if list_:
-        from . import imperfections
-        for p in presets.PRESETS.values():
-            typer.echo(f"{p.name}{' (default)' if p.name == presets.DEFAULT else ''}: {p.summary}")
-            for field, source in p.sources:
-                typer.echo(f"    {field}: {source}")
-        typer.echo("\nimperfections (--imperfections NAME):")
-        for s in imperfections.SETS.values():
-            typer.echo(f"{s.name}: {s.summary}")
-            for prior, source in s.sources:
-                typer.echo(f"    {prior}: {source}")
-        return
-    try:
-        preset = _preset(model)
-    except UserError as e:
-        _fail(str(e))
-    stale = []
-    for name, xml in reference_models(preset.params).items():
-        path = out / name
-        if path.exists() and path.read_text() == xml:
-            continue
-        stale.append(name)
-        if not check:
-            if not out.is_dir():
-                _fail(f"directory {out} does not exist")
-            path.write_text(xml)
-    if check and stale:
-        _fail(f"stale models: {', '.join(stale)}; run `smx models`")
-    typer.echo(("updated: " + ", ".join(stale)) if stale and not check else "models up to date")
+
+def _echo(lines) -> None:
+    for line in lines:
+        typer.echo(line)
 
 
 def _progress(quiet: bool):
@@ -161,27 +74,10 @@ def _progress(quiet: bool):
     return bar, progress
 
 
-def _executor(executor: str, scheduler: Optional[str], workers: Optional[int], threads_per_worker: int,
-              shard_size: int, dashboard: bool, slurm: Optional[dict] = None):
-    """None (run here) or a DaskExecutor from the command line's options (ValueError on bad ones)."""
-    if executor == "local":
-        if scheduler is not None:
-            raise ValueError("--scheduler needs --executor dask")
-        return None
-    if executor not in ("dask", "slurm"):
-        raise ValueError(f"--executor must be local, dask or slurm, got {executor!r}")
-    from .executors import DaskExecutor, SlurmSpec
-    spec = None
-    if executor == "slurm":
-        if not slurm or not slurm.get("memory"):
-            raise ValueError("--executor slurm needs --jobs, --job-cores and --job-memory")
-        spec = SlurmSpec(**slurm)
-    return DaskExecutor(scheduler=scheduler, workers=workers, threads_per_worker=threads_per_worker,
-                        shard_size=shard_size, dashboard=dashboard, slurm=spec)
-
 
 _EXECUTOR_HELP = ("local (this machine), dask (a Dask cluster: --scheduler ADDRESS, or a local one) or slurm "
                   "(Slurm jobs as Dask workers, docs/cluster.md)")
+
 
 
 def _option(name: str, annotation, default, help: str) -> inspect.Parameter:
@@ -207,57 +103,103 @@ _EXECUTOR_OPTIONS = (
 )
 
 
-def _executor_options(command):
-    """Give ``command`` the executor options; it is called with ``executor`` = the executor they name
-    (one line and exit 2 on bad ones, before the command runs)."""
-    names = [p.name for p in _EXECUTOR_OPTIONS]
 
-    @functools.wraps(command)
-    def run(**kw):
-        o = {n: kw.pop(n) for n in names}
-        try:
-            ex = _executor(o["executor"], o["scheduler"], o["workers"], o["threads_per_worker"], o["shard_size"],
-                           o["dashboard"], dict(jobs=o["jobs"], cores=o["job_cores"], memory=o["job_memory"],
-                                                walltime=o["walltime"], queue=o["queue"], account=o["account"]))
-        except ValueError as e:
-            _fail(str(e))
-        return command(**kw, executor=ex)
-
-    own = [p for p in inspect.signature(command).parameters.values() if p.name != "executor"]
-    run.__signature__ = inspect.Signature(own + list(_EXECUTOR_OPTIONS))
-    return run
+# The gait and the store options, also defined once (simulate, scan, relax; scan, sweep-amplitude, relax).
+_GAIT_OPTIONS = (
+    _option("amplitude", float, 90.0, "alpha_max in degrees"),
+    _option("chirality", str, "ccw", "ccw or cw"),
+    _option("gait", str, "square", "square or diagonal (time-symmetric)"),
+    _option("period", Optional[float], None, "gait period in s (default: 1.6 s x amplitude / 90)"),
+)
+_STORE_OPTIONS = (
+    _option("resume", bool, False, "continue an interrupted study into the same store"),
+    _option("overwrite", bool, False, "replace an existing store"),
+    _option("quiet", bool, False, "no progress bar"),
+)
 
 
-def _scan_common(cfg, out: pathlib.Path, resume: bool, overwrite: bool, quiet: bool, flush_rows: int = 64,
-                 executor=None):
-    """Run a scan/sweep with a progress bar and print the summary."""
-    from .executors import ExecutorError
-    from .store import StoreError
-    from .studies import run_study
+def _group(param: str, options: tuple, make=dict):
+    """Give a command the option group ``options``; it receives them as one argument ``param`` =
+    ``make(**values)`` (bad values: the library's one-line error, before the command runs)."""
+    names = [p.name for p in options]
 
-    if resume and overwrite:
-        _fail("--resume and --overwrite exclude each other")
-    mode = "resume" if resume else "overwrite" if overwrite else "new"
-    try:
-        if flush_rows < 1:
-            raise ValueError("--flush-rows must be positive")
-        bar, progress = _progress(quiet)
-        with bar:
-            summary = run_study(cfg, out, mode=mode, executor=executor, on_progress=progress, flush_rows=flush_rows)
-    except (ValueError, StoreError, ExecutorError) as e:
-        _fail(str(e))
-    for name, r in summary["runs"].items():
-        typer.echo(f"{name}: {r['valid']}/{summary['configs']} valid configurations, "
-                   f"bound at the end: {r['bound_end_fraction']:.1%}")
-    typer.echo(f"wall {summary['wall_s']:.1f} s, {summary['steps']:,} steps simulated "
-               f"({summary['steps_per_s']:,.0f} steps/s); wrote {out}")
+    def decorate(command):
+        @functools.wraps(command)
+        def run(**kw):
+            made = make(**{n: kw.pop(n) for n in names})
+            return command(**kw, **{param: made})
+
+        own = [p for p in inspect.signature(command).parameters.values() if p.name != param]
+        run.__signature__ = inspect.Signature(own + list(options))
+        return run
+    return decorate
 
 
-_CONFIGS_HELP = "random (uniform |r|, theta, phi) or polar (fixed |r| grid)"
+def _executor(**options):
+    from .executors import from_options
+    return from_options(**options)
 
 
-@app.command()
+def _gait(amplitude: float, chirality: str, gait: str, period: Optional[float]):
+    from .gait import GaitSpec
+    return GaitSpec(amplitude_deg=amplitude, chirality=chirality, kind=gait, period_s=period)
+
+
+_executor_options = _group("executor", _EXECUTOR_OPTIONS, _executor)
+_gait_options = _group("gait_spec", _GAIT_OPTIONS, _gait)
+_store_options = _group("store", _STORE_OPTIONS)
+
+
+def _run_study(cfg, out: pathlib.Path, store: dict, executor, **options) -> None:
+    """Run one study into ``out`` with a progress bar and print its summary."""
+    from .studies import run_study, store_mode, summary_lines
+    mode = store_mode(store["resume"], store["overwrite"])
+    bar, progress = _progress(store["quiet"])
+    with bar:
+        summary = run_study(cfg, out, mode=mode, executor=executor, on_progress=progress, **options)
+    _echo(summary_lines(summary, out))
+
+
+@_command()
+@_gait_options
+def simulate(
+    scene: str = typer.Option("pair", help="single, pair or seven (the scenes in models/)"),
+    config: Optional[str] = typer.Option(None, help="pair start as '|r|,theta,phi' (|r| in W, angles in deg)"),
+    periods: int = typer.Option(10, help="number of gait periods"),
+    track_stride: int = typer.Option(20, help="write every this many time steps (of the backend's step)"),
+    backend: str = typer.Option("native", help="native, or dart (the DART twin at 0.1 ms steps; needs the dart extra)"),
+    out: pathlib.Path = typer.Option(pathlib.Path("track.csv"), help="output .csv (+ .json sidecar) or .h5"),
+    overwrite: bool = typer.Option(False, help="replace an existing output file"),
+    model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
+    gait_spec=None,
+):
+    """Simulate one scene and write its track (the measured-data format)."""
+    from .replay import simulate_track
+    r = simulate_track(out, scene, config, gait_spec, periods, track_stride, backend, overwrite, model)
+    typer.echo(f"{r['robots']} robots, {periods} periods of {r['period_s']:.3g} s; pairs touched in "
+               f"{r['touched_periods']}/{periods} periods; wrote {', '.join(map(str, r['written']))}")
+
+
+@_command()
+def models(
+    out: pathlib.Path = typer.Option(pathlib.Path("models"), help="directory for the reference scenes"),
+    check: bool = typer.Option(False, help="only report whether the stored scenes are up to date"),
+    model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
+    list_: bool = typer.Option(False, "--list", help="list the model presets and where their values come from"),
+):
+    """Regenerate (or --check) the reference MJCF scenes in models/ (made by the default preset)."""
+    from . import imperfections, presets
+    from .scene import write_reference_models
+    if list_:
+        return _echo(imperfections.catalogue())
+    stale = write_reference_models(out, presets.get(model).params, check=check)
+    typer.echo(("updated: " + ", ".join(stale)) if stale else "models up to date")
+
+
+@_command()
 @_executor_options
+@_gait_options
+@_store_options
 def scan(
     configs: str = typer.Option("random", help=_CONFIGS_HELP),
     n: int = typer.Option(5000, help="random: number of configurations"),
@@ -266,51 +208,40 @@ def scan(
     radius: float = typer.Option(1.3, help="polar: |r| in W"),
     positions: int = typer.Option(1000, help="polar: number of theta values"),
     orientations: int = typer.Option(1, help="polar: number of phi values per position"),
-    amplitude: float = typer.Option(90.0, help="alpha_max in degrees"),
     periods: int = typer.Option(75, help="gait periods per configuration"),
-    chirality: str = typer.Option("ccw", help="ccw or cw"),
-    gait: str = typer.Option("square", help="square or diagonal"),
-    period: Optional[float] = typer.Option(None, help="gait period in s (default: 1.6 s x amplitude / 90)"),
     backend: str = typer.Option("native", help="native (MuJoCo C, all cores), mjx (JAX), warp "
                                  "(MuJoCo Warp: GPU, needs the gpu extra) or dart (the DART twin: "
                                  "the paper's engine, one core per lane; needs the dart extra)"),
     seed: int = typer.Option(0, help="seed of the random configurations"),
     batch_size: int = typer.Option(256, help="lanes simulated together"),
     out: pathlib.Path = typer.Option(pathlib.Path("scan.h5"), help="output store (.h5)"),
-    resume: bool = typer.Option(False, help="continue an interrupted scan into the same store"),
-    overwrite: bool = typer.Option(False, help="replace an existing store"),
-    quiet: bool = typer.Option(False, help="no progress bar"),
     flush_rows: int = typer.Option(64, help="journal finished configurations in blocks of this many"),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
     collisions: bool = typer.Option(False, help="store the per-period collision record (native and dart backends)"),
     collision_bins: int = typer.Option(16, help="collision record: bins per gait period"),
     imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP),
-    executor=None,
+    executor=None, gait_spec=None, store=None,
 ):
     """One basin scan at one amplitude into an HDF5 store."""
     from .specs import ScanConfig
-    try:
-        name = _preset(model).name
-    except (UserError, ValueError) as e:
-        _fail(str(e))
     cfg = ScanConfig(configs=configs, n=n, r_range_W=(r_min, r_max), radius_W=radius, positions=positions,
-                     orientations=orientations, amplitudes_deg=(amplitude,), periods=periods, chirality=chirality,
-                     gait=gait, period_s=period, backend=backend, seed=seed, batch_size=batch_size, model=name,
-                     collisions=collisions, collision_bins=collision_bins, imperfections=imperfections)
-    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows, executor=executor)
+                     orientations=orientations, amplitudes_deg=(gait_spec.amplitude_deg,), periods=periods,
+                     chirality=gait_spec.chirality, gait=gait_spec.kind, period_s=gait_spec.period_s,
+                     backend=backend, seed=seed, batch_size=batch_size,
+                     model=_model(model), collisions=collisions, collision_bins=collision_bins,
+                     imperfections=imperfections)
+    _run_study(cfg, out, store, executor, flush_rows=flush_rows)
 
 
-@app.command("relax")
+@_command("relax")
 @_executor_options
+@_gait_options
+@_store_options
 def relax(
     robots: int = typer.Option(7, help="robots per trial (the paper: 7)"),
     trials: int = typer.Option(20, help="trials (perturbed copies of the compressed start)"),
     first_trial: int = typer.Option(0, help="index of the first trial (a later stage of one study)"),
     periods: int = typer.Option(300, help="gait periods per trial (the lab: 300)"),
-    amplitude: float = typer.Option(90.0, help="alpha_max in degrees"),
-    chirality: str = typer.Option("ccw", help="ccw or cw"),
-    gait: str = typer.Option("square", help="square or diagonal"),
-    period: Optional[float] = typer.Option(None, help="gait period in s (default: 1.6 s x amplitude / 90)"),
     seed: int = typer.Option(0, help="seed of the per-trial perturbations"),
     gap_mm: float = typer.Option(2.0, help="gap between neighbours' bounding boxes in the packing (mm)"),
     jitter_mm: float = typer.Option(1.0, help="s.d. of each robot's start position per axis (mm)"),
@@ -321,40 +252,24 @@ def relax(
     backend: str = typer.Option("native", help="native, mjx, warp or dart (the DART twin; needs the dart extra)"),
     batch_size: int = typer.Option(4, help="trials simulated together"),
     out: pathlib.Path = typer.Option(pathlib.Path("relax.h5"), help="output store (.h5)"),
-    resume: bool = typer.Option(False, help="continue an interrupted run into the same store"),
-    overwrite: bool = typer.Option(False, help="replace an existing store"),
-    quiet: bool = typer.Option(False, help="no progress bar"),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
     imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP),
-    executor=None,
+    executor=None, gait_spec=None, store=None,
 ):
     """The relaxation experiment: N robots start compressed and in phase; do gliders emerge? (smx report reads it)"""
-    from .executors import ExecutorError
     from .specs import RelaxConfig
-    from .store import StoreError
-    from .studies import run_study
-    if resume and overwrite:
-        _fail("--resume and --overwrite exclude each other")
-    try:
-        name = _preset(model).name
-        cfg = RelaxConfig(n_robots=robots, trials=trials, first_trial=first_trial, periods=periods,
-                          amplitude_deg=amplitude, chirality=chirality, gait=gait, period_s=period, seed=seed,
-                          gap_mm=gap_mm, jitter_mm=jitter_mm, jitter_deg=jitter_deg, phase_jitter=phase_jitter,
-                          plate_m=plate, quiet_periods=quiet_periods, backend=backend, batch_size=batch_size,
-                          model=name, imperfections=imperfections)
-        mode = "resume" if resume else "overwrite" if overwrite else "new"
-        bar, progress = _progress(quiet)
-        with bar:
-            summary = run_study(cfg, out, mode=mode, executor=executor, on_progress=progress)
-    except (UserError, ValueError, StoreError, ExecutorError) as e:
-        _fail(str(e))
-    typer.echo(f"{summary['trials']} trials, {summary['stopped_early']} stopped early (no contact for "
-               f"{quiet_periods} periods); wall {summary['wall_s']:.1f} s, {summary['steps']:,} steps "
-               f"({summary['steps_per_s']:,.0f} steps/s); wrote {out}")
+    cfg = RelaxConfig(n_robots=robots, trials=trials, first_trial=first_trial, periods=periods,
+                      amplitude_deg=gait_spec.amplitude_deg, chirality=gait_spec.chirality, gait=gait_spec.kind,
+                      period_s=gait_spec.period_s, seed=seed,
+                      gap_mm=gap_mm, jitter_mm=jitter_mm, jitter_deg=jitter_deg, phase_jitter=phase_jitter,
+                      plate_m=plate, quiet_periods=quiet_periods, backend=backend, batch_size=batch_size,
+                      model=_model(model), imperfections=imperfections)
+    _run_study(cfg, out, store, executor)
 
 
-@app.command("sweep-amplitude")
+@_command("sweep-amplitude")
 @_executor_options
+@_store_options
 def sweep_amplitude(
     amplitudes: Optional[str] = typer.Option(None, help="'10:90:10' (inclusive) or '10,40,90' degrees"),
     study: Optional[pathlib.Path] = typer.Option(None, help="study file (TOML) from sweeps/; flags below override"),
@@ -364,35 +279,20 @@ def sweep_amplitude(
     backend: Optional[str] = typer.Option(None, help="native, mjx, warp or dart"),
     seed: Optional[int] = typer.Option(None, help="seed of the random configurations"),
     out: pathlib.Path = typer.Option(pathlib.Path("sweep.h5"), help="output store (.h5)"),
-    resume: bool = typer.Option(False, help="continue an interrupted sweep"),
-    overwrite: bool = typer.Option(False, help="replace an existing store"),
-    quiet: bool = typer.Option(False, help="no progress bar"),
     flush_rows: int = typer.Option(64, help="journal finished configurations in blocks of this many"),
     model: Optional[str] = typer.Option(None, help="model preset (default: the study file's, else the default preset)"),
     imperfections: Optional[str] = typer.Option(None, help="the robots' imperfections (default: the study "
                                                 "file's, else none)"),
-    executor=None,
+    executor=None, store=None,
 ):
     """The same scan over several amplitudes, one store, one group per amplitude."""
-    import dataclasses
-
-    from .specs import ScanConfig, load_study, parse_amplitudes
-    try:
-        cfg = load_study(study) if study is not None else ScanConfig()
-        changes = {k: v for k, v in dict(configs=configs, n=n, periods=periods, backend=backend, seed=seed,
-                                         model=model, imperfections=imperfections).items() if v is not None}
-        if amplitudes is not None:
-            changes["amplitudes_deg"] = parse_amplitudes(amplitudes)
-        elif study is None:
-            raise UserError("give --amplitudes or --study")
-        cfg = dataclasses.replace(cfg, **changes)
-        _preset(cfg.model)
-    except (UserError, ValueError) as e:
-        _fail(str(e))
-    _scan_common(cfg, out, resume, overwrite, quiet, flush_rows, executor=executor)
+    from .specs import sweep_config
+    cfg = sweep_config(study, amplitudes, configs=configs, n=n, periods=periods, backend=backend, seed=seed,
+                       model=model, imperfections=imperfections)
+    _run_study(cfg, out, store, executor, flush_rows=flush_rows)
 
 
-@app.command("phase-diagram")
+@_command("phase-diagram")
 def phase_diagram(
     store: pathlib.Path = typer.Argument(..., help="a scan or sweep store (.h5)"),
     out: pathlib.Path = typer.Option(pathlib.Path("figures"), help="output folder"),
@@ -400,47 +300,25 @@ def phase_diagram(
 ):
     """(theta, phi) phase diagram: attracted red, repelled cyan, invalid white (PNG + SVG)."""
     from .plots import phase_diagram as draw
-    from .store import Store, StoreError
-    try:
-        runs = [run] if run else Store(store).runs
-        if out.exists() and not out.is_dir():
-            raise UserError(f"{out} is not a directory")
-        written = [p for r in runs for p in draw(store, out, r)]
-    except (UserError, StoreError) as e:
-        _fail(str(e))
-    typer.echo("wrote " + ", ".join(map(str, written)))
-
-
-def _out_dir(out: pathlib.Path) -> None:
+    from .store import Store
+    runs = [run] if run else Store(store).runs
     if out.exists() and not out.is_dir():
-        raise UserError(f"{out} exists and is not a directory")
+        raise ValueError(f"{out} is not a directory")
+    typer.echo("wrote " + ", ".join(str(p) for r in runs for p in draw(store, out, r)))
 
 
-@app.command("pb")
+@_command("pb")
 def pb(
     store: pathlib.Path = typer.Argument(..., help="a sweep store (.h5), one run per amplitude"),
     out: pathlib.Path = typer.Option(pathlib.Path("figures"), help="output folder"),
 ):
     """P_b(alpha_max): bound at the end and bound throughout, 95% Clopper-Pearson intervals (PNG + SVG)."""
-    from . import plots
-    from .report import pb_by_amplitude
-    from .store import StoreError
-    try:
-        _out_dir(out)
-        rows = pb_by_amplitude(store)
-    except (UserError, StoreError) as e:
-        _fail(str(e))
-    typer.echo(f"{'alpha_max':>9}  {'valid':>6}  {'P_b end [95% CI]':>24}  {'P_b throughout [95% CI]':>24}")
-    for a, p in rows:
-        e, t = p["end"], p["throughout"]
-        typer.echo(f"{a:>9g}  {p['n']:>6}  {e[0]:.3f} [{e[1]:.3f}, {e[2]:.3f}]".ljust(44)
-                   + f"  {t[0]:.3f} [{t[1]:.3f}, {t[2]:.3f}]")
-    written = plots.pb_curve([a for a, _ in rows], [p["end"][:3] for _, p in rows],
-                             [p["throughout"][:3] for _, p in rows], out)
-    typer.echo("wrote " + ", ".join(map(str, written)))
+    from .report import pb_table
+    lines, written = pb_table(store, out)
+    _echo(lines + ["wrote " + ", ".join(map(str, written))])
 
 
-@app.command("report")
+@_command("report")
 def report(
     stores: list[pathlib.Path] = typer.Argument(..., help="a scan or sweep store (.h5); or relaxation stores "
                                                 "(smx relax), several if they are stages of one study"),
@@ -451,38 +329,11 @@ def report(
     apart: float = typer.Option(2.0, help="relaxation: closest a third robot may come to a glider (W)"),
 ):
     """Every figure and the summary table of a store: report.md, report.json and PNGs in one folder."""
-    from .report import ReportOptions, write_relax_report, write_report
-    from .store import Store, StoreError
-    try:
-        kinds = {Store(s).kind for s in stores}
-        _out_dir(out)
-        if (burn_in is not None and burn_in < 0) or (glider_min_periods is not None and glider_min_periods < 2):
-            raise UserError("--burn-in must be >= 0 and --glider-min-periods >= 2")
-        if not apart > 0:
-            raise UserError("--apart must be positive")
-        if kinds == {"relax"}:
-            rep = write_relax_report(stores, out, min_periods=glider_min_periods or 100, apart_W=apart)
-        elif len(stores) > 1:
-            raise UserError("several stores are read only as stages of one relaxation study; "
-                            "report scan stores one at a time")
-        else:
-            rep = write_report(stores[0], out, ReportOptions(burn_in=burn_in, glider_min_periods=glider_min_periods))
-    except (UserError, StoreError) as e:
-        _fail(str(e))
-    if rep.get("kind") == "relax":
-        lo, hi = rep["interval"]
-        typer.echo(f"{rep['emerged']}/{rep['valid']} trials formed a glider ({rep['fraction']:.2f}, 95% CI "
-                   f"{lo:.2f}-{hi:.2f}; lab 77/151); distance {rep['distance']['mean']:.2f} W "
-                   f"(n = {rep['distance']['n']}; lab 2.9 W)")
-    else:
-        for s in rep["runs"]:
-            b = (s.get("beta") or {}).get("value")
-            typer.echo(f"{s['run']}: P_b end {s['pb_end'][0]}, C1 basin {(s.get('C1') or {}).get('basin_fraction')}, "
-                       f"C2 basin {(s.get('C2') or {}).get('basin_fraction')}, gliders {s['gliders']}, beta {b}")
-    typer.echo(f"wrote {out / 'report.md'}")
+    from .report import headline, write_any
+    _echo(headline(write_any(stores, out, burn_in, glider_min_periods, apart)) + [f"wrote {out / 'report.md'}"])
 
 
-@app.command("validate")
+@_command("validate")
 def validate(
     data: pathlib.Path = typer.Option(pathlib.Path("validation-data"), help="folder of the studies' stores, one "
                                       "subfolder per model (complete ones are reused, interrupted ones resumed)"),
@@ -497,42 +348,18 @@ def validate(
     imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP + "; stores go to DATA/MODEL+NAME"),
 ):
     """Measure the paper's claims from the studies in sweeps/ and write docs/validation.md."""
-    from .store import StoreError
-    from .validate import STUDIES, SWEEPS, run_validation
-    sweeps = sweeps or SWEEPS
-    try:
-        preset = _preset(model)
-        missing = [f for f in STUDIES.values() if not (sweeps / f).is_file()]
-        if missing:
-            raise UserError(f"study files missing in {sweeps}: {', '.join(missing)}")
-        chosen = None
-        if studies is not None:
-            chosen = [x.strip() for x in studies.split(",") if x.strip()]
-            bad = [x for x in chosen if x not in STUDIES]
-            if bad or not chosen:
-                raise UserError(f"--studies: unknown {', '.join(bad) or '(none given)'}; known: {', '.join(STUDIES)}")
-        if not out.parent.is_dir():
-            raise UserError(f"output directory {out.parent} does not exist")
-        if data.exists() and not data.is_dir():
-            raise UserError(f"{data} exists and is not a directory")
-        if single_periods < 2:
-            raise UserError("--single-periods must be >= 2")
-        from . import imperfections as imp
-        imp.get(imperfections)
-        bar, progress = _progress(quiet)
-        with bar:
-            res = run_validation(data, out, sweeps, model=preset.name, on_progress=progress,
-                                 single_periods=single_periods, studies=chosen, imperfections=imperfections)
-    except (UserError, ValueError, StoreError) as e:
-        _fail(str(e))
-    for r in res["rows"]:
-        typer.echo(f"{r['verdict']:>16}: {r['claim']}")
-    for n in res["extra"].get("notes", []):
-        typer.echo(f"note: {n}")
-    typer.echo(f"wrote {out}")
+    from .validate import SWEEPS, check_inputs, parse_studies, run_validation
+    chosen = parse_studies(studies)
+    check_inputs(data, out, sweeps or SWEEPS, single_periods, chosen)
+    bar, progress = _progress(quiet)
+    with bar:
+        res = run_validation(data, out, sweeps or SWEEPS, model=_model(model), on_progress=progress,
+                             single_periods=single_periods, studies=chosen, imperfections=imperfections)
+    _echo([f"{r['verdict']:>16}: {r['claim']}" for r in res["rows"]]
+          + [f"note: {n}" for n in res["extra"].get("notes", [])] + [f"wrote {out}"])
 
 
-@app.command("movie")
+@_command("movie")
 def movie(
     source: pathlib.Path = typer.Argument(..., help="a scan store (.h5, with --lane) or a track from smx simulate "
                                                      "(.csv with its .json sidecar, or .h5)"),
@@ -547,53 +374,29 @@ def movie(
     trail: float = typer.Option(5.0, help="trail of the body centres, in gait periods"),
 ):
     """Top-view movie of a simulated track, or of one lane of a scan store simulated again exactly."""
-    from .movie import MovieOptions, load_track, render
-    from .store import StoreError
+    from .movie import MovieOptions, check_output, load_track, render
+    from .store import is_scan_store
     opts = MovieOptions(fps=fps, speed=speed, duration=duration, trail_periods=trail, size_px=size)
-    try:
-        opts.validate()
-        if not source.exists():
-            raise UserError(f"{source} does not exist")
-        if out.suffix.lower() not in (".mp4", ".gif"):
-            raise UserError(f"movie must end in .mp4 or .gif, got {out.name!r}")
-        if not out.parent.is_dir():
-            raise UserError(f"output directory {out.parent} does not exist")
-        if _is_scan_store(source):
-            from .scan import resimulate_lane
-            if lane is None:
-                raise UserError("a scan store needs --lane (the configuration index to show)")
-            t, poses, res, params, gait, rows = resimulate_lane(source, run, lane,
-                                                                frame_interval=min(0.05, speed / fps))
-            k = int(rows["periods_run"])
-            same = np.array_equal(res.poses[1:k + 1].astype(np.float32), rows["poses"][:k])
-            title = f"{source.name} lane {lane}, {gait.amplitude_deg:g} deg" + ("" if same else " (differs from store!)")
-            robot, period = params.robot, gait.period()
-            if not same:
-                typer.echo("warning: the re-simulation differs from the stored records "
-                           "(another package or MuJoCo version made the store)", err=True)
-        else:
-            if lane is not None:
-                raise UserError("--lane is for scan stores; this is a track")
-            t, poses, robot, period, title = load_track(source)
-        info = render(t, poses, robot, period, out, opts, title=title)
-    except (UserError, ValueError, StoreError) as e:
-        _fail(str(e))
+    opts.validate()
+    if not source.exists():
+        raise ValueError(f"{source} does not exist")
+    check_output(out)
+    if is_scan_store(source):
+        from .replay import lane_track
+        t, poses, robot, period, title, same = lane_track(source, run, lane, frame_interval=min(0.05, speed / fps))
+        if not same:
+            typer.echo("warning: the re-simulation differs from the stored records "
+                       "(another package or MuJoCo version made the store)", err=True)
+    elif lane is not None:
+        raise ValueError("--lane is for scan stores; this is a track")
+    else:
+        t, poses, robot, period, title = load_track(source)
+    info = render(t, poses, robot, period, out, opts, title=title)
     typer.echo(f"wrote {info['path']} ({info['format']}, {info['frames']} frames at {info['fps']:g} fps, "
                f"{info['size'][0]}x{info['size'][1]})")
 
 
-def _is_scan_store(path: pathlib.Path) -> bool:
-    if path.suffix.lower() not in (".h5", ".hdf5"):
-        return False
-    import h5py
-    try:
-        with h5py.File(path, "r") as f:
-            return "runs" in f
-    except OSError:
-        raise UserError(f"{path} is not a readable HDF5 file") from None
-
-
-@app.command("synth")
+@_command("synth")
 def synth(
     out: pathlib.Path = typer.Argument(..., help="output folder (one CSV + JSON sidecar per amplitude)"),
     robots: int = typer.Option(1, help="robots per trial"),
@@ -615,26 +418,15 @@ def synth(
     """Measured-like data from the model with hidden effects, in the interchange format."""
     from .calibrate.synth import parse_effect, synth as make
     from .specs import parse_amplitudes
-    try:
-        name = _preset(model).name
-        effects = dict(parse_effect(e) for e in effect)
-        amps = parse_amplitudes(amplitudes)
-        if "tracking_noise" in effects:
-            noise_xy_mm = effects["tracking_noise"]["noise_xy_mm"]
-            noise_theta_deg = effects["tracking_noise"]["noise_theta_deg"]
-        if out.exists() and any(out.glob("*.csv")):
-            raise UserError(f"{out} already holds data; choose an empty folder")
-        written = make(out, robots=robots, trials=trials, periods=periods, amplitudes=amps,
-                       effects=effects, noise_xy_mm=noise_xy_mm, noise_theta_deg=noise_theta_deg,
-                       arm_noise_deg=arm_noise_deg, arms_tracked=not no_arms, frame_rate_hz=frame_rate,
-                       occlusion=occlusion, arm_bias_deg=arm_bias_deg, separation_w=separation, seed=seed,
-                       model=name)
-    except (UserError, ValueError) as e:
-        _fail(str(e))
+    written = make(out, robots=robots, trials=trials, periods=periods, amplitudes=parse_amplitudes(amplitudes),
+                   effects=dict(parse_effect(e) for e in effect), noise_xy_mm=noise_xy_mm,
+                   noise_theta_deg=noise_theta_deg, arm_noise_deg=arm_noise_deg, arms_tracked=not no_arms,
+                   frame_rate_hz=frame_rate, occlusion=occlusion, arm_bias_deg=arm_bias_deg,
+                   separation_w=separation, seed=seed, model=_model(model))
     typer.echo("wrote " + ", ".join(map(str, written)))
 
 
-@app.command("calibrate")
+@_command("calibrate")
 def calibrate(
     data: pathlib.Path = typer.Argument(..., help="a CSV with its JSON sidecar, or a folder of them"),
     out: pathlib.Path = typer.Option(pathlib.Path("calibration"), help="report folder"),
@@ -647,20 +439,12 @@ def calibrate(
     """Residuals of the model against measured tracks, ranked candidate effects, the fit, before/after."""
     from .calibrate import fit, report
     from .calibrate.data import load
-    try:
-        if model is not None:
-            _preset(model)
-        if out.exists() and not out.is_dir():
-            raise UserError(f"{out} exists and is not a directory")
-        if (out / "report.md").exists() and not overwrite:
-            raise UserError(f"{out} already holds a report; pass --overwrite to replace it")
-        if not out.exists() and not out.parent.is_dir():
-            raise UserError(f"output directory {out.parent} does not exist")
-        trials = load(data, model)
-        result = fit.calibrate(trials, on_step=typer.echo, nominal=nominal)
-        report.write(result, trials, out)
-    except (UserError, ValueError) as e:
-        _fail(str(e))
+    if model is not None:
+        _model(model)
+    report.check_output(out, overwrite)
+    trials = load(data, model)
+    result = fit.calibrate(trials, on_step=typer.echo, nominal=nominal)
+    report.write(result, trials, out)
     typer.echo(f"{result['verdict']}; wrote {out / 'report.md'}")
 
 

@@ -376,3 +376,25 @@ def _failure(shard: Shard, e: Exception, address) -> str:
     else:
         why = f"{name}: {str(e).splitlines()[0] if str(e) else ''}".rstrip(": ")
     return f"shard {shard} failed: {why}; --resume continues from the journal"
+
+
+def from_options(executor: str = "local", scheduler: str | None = None, workers: int | None = None,
+                 threads_per_worker: int = 1, shard_size: int = 64, dashboard: bool = False, jobs: int = 4,
+                 job_cores: int = 16, job_memory: str | None = None, walltime: str = "02:00:00",
+                 queue: str | None = None, account: str | None = None) -> "DaskExecutor | None":
+    """The executor the command line's options name: None (run here) or a ``DaskExecutor``, on a Dask
+    cluster or on Slurm jobs. Raises ValueError on options that do not fit together."""
+    if executor == "local":
+        if scheduler is not None:
+            raise ValueError("--scheduler needs --executor dask")
+        return None
+    if executor not in ("dask", "slurm"):
+        raise ValueError(f"--executor must be local, dask or slurm, got {executor!r}")
+    slurm = None
+    if executor == "slurm":
+        if not job_memory:
+            raise ValueError("--executor slurm needs --jobs, --job-cores and --job-memory")
+        slurm = SlurmSpec(jobs=jobs, cores=job_cores, memory=job_memory, walltime=walltime, queue=queue,
+                          account=account)
+    return DaskExecutor(scheduler=scheduler, workers=workers, threads_per_worker=threads_per_worker,
+                        shard_size=shard_size, dashboard=dashboard, slurm=slurm)

@@ -210,3 +210,17 @@ def from_json(d: dict | None) -> Draw | None:
     if not d:
         return None
     return draw(d["name"], len(d["clock"]), int(d["seed"]))
+
+
+def catalogue() -> list[str]:
+    """Every model preset and imperfection set with the sources of their values (``smx models --list``)."""
+    from . import presets
+    lines = []
+    for p in presets.PRESETS.values():
+        lines.append(f"{p.name}{' (default)' if p.name == presets.DEFAULT else ''}: {p.summary}")
+        lines += [f"    {field}: {source}" for field, source in p.sources]
+    lines.append("\nimperfections (--imperfections NAME):")
+    for st in SETS.values():
+        lines.append(f"{st.name}: {st.summary}")
+        lines += [f"    {prior}: {source}" for prior, source in st.sources]
+    return lines

@@ -5,7 +5,7 @@ plate or capsule), an arrow along the body normal n (the paper's reference
 direction, -y in the body frame), a fading trail of the body centres, the
 gait period reached and, for a pair, (|r|, theta, phi). Input is a track
 [S, N, 5] of poses sampled at times t: from ``smx simulate``, or a lane of a
-scan store simulated again (``scan.resimulate_lane``). No engine here.
+scan store simulated again (``replay.resimulate_lane``). No engine here.
 
 MP4 goes through the ffmpeg that ``imageio-ffmpeg`` ships (``pip install -e
 '.[movie]'``); without it, or for a ``.gif`` name, the movie is a GIF (Pillow).
@@ -50,6 +50,15 @@ class MovieOptions:
             raise ValueError(f"--size must be even (video encoders need it), got {self.size_px}")
         if self.duration is not None and not self.duration > 0:
             raise ValueError(f"--duration must be positive, got {self.duration}")
+
+
+def check_output(out) -> None:
+    """ValueError unless ``out`` is a .mp4 or .gif in an existing folder."""
+    out = pathlib.Path(out)
+    if out.suffix.lower() not in (".mp4", ".gif"):
+        raise ValueError(f"movie must end in .mp4 or .gif, got {out.name!r}")
+    if not out.parent.is_dir():
+        raise ValueError(f"output directory {out.parent} does not exist")
 
 
 def load_track(path) -> tuple:

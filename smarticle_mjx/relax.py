@@ -36,17 +36,18 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from typing import Callable
 
 import numpy as np
 
 from . import configs as C
-from .engine import Lanes, open_backend, steps_per_period
+from .engine import Lanes, open_backend
 from .engine.batch import RetireRule, run_lanes
 from .scene import RobotParams, SceneParams
 from .specs import RelaxConfig
-from .store import RELAX_FIELDS, Store, Writer
+from .executors import LocalExecutor
+from .runner import prepare, run_attrs, write_rows
+from .store import RELAX_FIELDS, Store
 
 RUN = "trials"  # the one run group of a relaxation store
 
@@ -166,51 +167,14 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
     Returns:
       summary: trials, trials stopped early, steps, wall time.
     """
-    from .executors import LocalExecutor
-    from .specs import params_json
-    model = config.model if params is None else "custom"
-    params = config.scene_params() if params is None else params
-    params.validate()
-    config.validate(params)
-    robots = config.robots()
-    params = robots.scene(params)  # the drawn robots' backlash and centres of mass, recorded with the scene
-    starts, phase = start_poses(config, params)
-    g = config.gait_spec()
-    from .engine.dart import study_timestep
-    dt = study_timestep(config.backend, config.dart_numerics, params.timestep)  # the engine's own step
-    nsteps = steps_per_period(g.period(), dt)
-    runs = {RUN: {"amplitude_deg": float(config.amplitude_deg), "period_s": nsteps * dt,
-                  "chirality": g.chirality, "gait": g.kind, "periods": config.periods,
-                  "n_configs": config.trials, "n_robots": config.n_robots, "rows": "trials"}}
-    full = {"model": model, "relax": config.to_json(), "scene": params_json(params)}
-    if not robots.set.ideal:
-        full["imperfections"] = robots.to_json()
-    if executor is not None and executor.describe() is not None:
-        full["executor"] = executor.describe()
-    t0 = time.perf_counter()
-    summary = {"trials": config.trials, "steps": 0}
-    with Writer(out, full, runs, mode=mode, fields=RELAX_FIELDS) as w:
-        todo = w.missing(RUN, config.trials)
-        done = config.trials - sum(b - a for a, b in todo)
-
-        def progress():
-            if on_progress:
-                on_progress({"run": RUN, "done": done, "total": config.trials,
-                             "elapsed": time.perf_counter() - t0, "steps": summary["steps"]})
-
-        def on_rows(run, lo, rows):  # trials finish in any order: one journal part each (local executor)
-            nonlocal done
-            w.append(run, lo, rows)
-            done += len(rows["valid"])
-            summary["steps"] += int(rows["periods_run"].sum()) * nsteps
-            progress()
-
-        progress()
-        job = RelaxJob(config, params, starts, phase)
-        (executor or LocalExecutor(flush_rows=None, nthread=nthread)).run(job, {RUN: todo}, on_rows)
-        w.finalize()
-    summary["wall_s"] = time.perf_counter() - t0
-    summary["steps_per_s"] = summary["steps"] / max(summary["wall_s"], 1e-9)
+    prep = prepare(config, "relax", params, executor)
+    starts, phase = start_poses(config, prep.params)
+    runs = {RUN: run_attrs(config.gait_spec(), prep.dt, config.periods, config.trials,
+                           n_robots=config.n_robots, rows="trials")}
+    job = RelaxJob(config, prep.params, starts, phase)
+    summary = {"trials": config.trials, "quiet_periods": config.quiet_periods, **write_rows(job, out, prep, runs, config.trials, mode, executor,
+                                                     LocalExecutor(flush_rows=None, nthread=nthread),
+                                                     on_progress, fields=RELAX_FIELDS)}
     st = Store(out)  # every trial, including those a resumed run found in the journal
     summary["stopped_early"] = int((st.run(RUN, fields=("periods_run",))["periods_run"] < config.periods).sum())
     return summary

@@ -222,6 +222,22 @@ def pb_by_amplitude(path) -> list[tuple[float, dict]]:
     return rows
 
 
+def pb_table(store_path, out_dir) -> tuple[list[str], list]:
+    """P_b(alpha_max) of a sweep store as a printed table and its figure in ``out_dir`` (``smx pb``)."""
+    out = pathlib.Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"{out} exists and is not a directory")
+    rows = pb_by_amplitude(store_path)
+    lines = [f"{'alpha_max':>9}  {'valid':>6}  {'P_b end [95% CI]':>24}  {'P_b throughout [95% CI]':>24}"]
+    for a, p in rows:
+        e, t = p["end"], p["throughout"]
+        lines.append(f"{a:>9g}  {p['n']:>6}  {e[0]:.3f} [{e[1]:.3f}, {e[2]:.3f}]".ljust(44)
+                     + f"  {t[0]:.3f} [{t[1]:.3f}, {t[2]:.3f}]")
+    written = plots.pb_curve([a for a, _ in rows], [p["end"][:3] for _, p in rows],
+                             [p["throughout"][:3] for _, p in rows], out)
+    return lines, written
+
+
 def amplitude_panels(summaries: list[dict]) -> dict:
     """beta, V_com and steady |r| of run summaries, as ``plots.versus_amplitude`` panels (NaN if missing)."""
     nan = float("nan")
@@ -390,6 +406,39 @@ def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 
     (out / "report.json").write_text(json.dumps(rep, indent=1, default=json_default))
     (out / "report.md").write_text(relax_markdown(rep))
     return rep
+
+
+def write_any(stores, out_dir, burn_in: int | None = None, glider_min_periods: int | None = None,
+              apart_W: float = 2.0) -> dict:
+    """The report of one scan or sweep store, or of relaxation stores (one, or the stages of one study),
+    after checking the options. Raises ValueError or StoreError on bad input before writing anything."""
+    from .store import Store
+    kinds = {Store(s).kind for s in stores}
+    out = pathlib.Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"{out} exists and is not a directory")
+    if (burn_in is not None and burn_in < 0) or (glider_min_periods is not None and glider_min_periods < 2):
+        raise ValueError("--burn-in must be >= 0 and --glider-min-periods >= 2")
+    if not apart_W > 0:
+        raise ValueError("--apart must be positive")
+    if kinds == {"relax"}:
+        return write_relax_report(stores, out, min_periods=glider_min_periods or 100, apart_W=apart_W)
+    if len(stores) > 1:
+        raise ValueError("several stores are read only as stages of one relaxation study; "
+                         "report scan stores one at a time")
+    return write_report(stores[0], out, ReportOptions(burn_in=burn_in, glider_min_periods=glider_min_periods))
+
+
+def headline(rep: dict) -> list[str]:
+    """A report's numbers in a few lines (what ``smx report`` prints)."""
+    if rep.get("kind") == "relax":
+        lo, hi = rep["interval"]
+        return [f"{rep['emerged']}/{rep['valid']} trials formed a glider ({rep['fraction']:.2f}, 95% CI "
+                f"{lo:.2f}-{hi:.2f}; lab 77/151); distance {rep['distance']['mean']:.2f} W "
+                f"(n = {rep['distance']['n']}; lab 2.9 W)"]
+    return [f"{s['run']}: P_b end {s['pb_end'][0]}, C1 basin {(s.get('C1') or {}).get('basin_fraction')}, "
+            f"C2 basin {(s.get('C2') or {}).get('basin_fraction')}, gliders {s['gliders']}, "
+            f"beta {(s.get('beta') or {}).get('value')}" for s in rep["runs"]]
 
 
 def relax_markdown(rep: dict) -> str:

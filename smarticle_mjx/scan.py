@@ -3,20 +3,20 @@
 from __future__ import annotations
 
 import dataclasses
-import time
 from typing import Callable
 
 import numpy as np
 
 from . import configs as C
-from .engine import Lanes, open_backend, steps_per_period
+from .engine import Lanes, open_backend
 from .engine.batch import RetireRule, run_lanes
 from .engine.core import Record
 from .executors import LocalExecutor
 from .gait import GaitSpec
 from .scene import SceneParams
-from .specs import ScanConfig, config_from_json, params_from_json, params_json, run_name
-from .store import Writer, longest_run
+from .runner import prepare, run_attrs, write_rows
+from .specs import ScanConfig, run_name
+from .store import Store, longest_run
 
 
 def _rows(cfg: np.ndarray, valid: np.ndarray, res, body_length: float) -> dict:
@@ -104,7 +104,7 @@ class ScanJob:
 
 def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | None = None,
              flush_rows: int = 64, on_progress: Callable[[dict], None] | None = None, executor=None) -> dict:
-    """Run a scan or sweep into the store ``out``.
+    """Run a scan or sweep into the store ``out`` (``runner``: the path every study takes).
 
     Args:
       config: what to scan.
@@ -125,99 +125,15 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
       time, simulated steps and steps per second; with the local executor
       also ``backend_s``, the seconds spent inside the engine's advance.
     """
-    model = config.model if params is None else "custom"
-    params = config.scene_params() if params is None else params
-    config.validate(params)
-    robots = config.robots()
-    params = robots.scene(params)  # the drawn robots' backlash and centres of mass, recorded with the scene
-    params.validate()
-    cfg = config.initial_configs()
-    from .engine.dart import study_timestep
-    dt = study_timestep(config.backend, config.dart_numerics, params.timestep)  # the engine's own step
-    runs = {}
-    for a in config.amplitudes_deg:
-        g = config.gait_spec(a)
-        period = steps_per_period(g.period(), dt) * dt
-        runs[run_name(a)] = {"amplitude_deg": float(a), "period_s": period, "chirality": g.chirality,
-                             "gait": g.kind, "periods": config.periods, "n_configs": len(cfg)}
-    full = {"model": model, "scan": config.to_json(), "scene": params_json(params)}
-    if not robots.set.ideal:
-        full["imperfections"] = robots.to_json()
-    if executor is not None:
-        full["executor"] = executor.describe()
-    t0 = time.perf_counter()
-    summary = {"configs": len(cfg), "runs": {}, "steps": 0}
-    nsteps = {name: steps_per_period(config.gait_spec(a["amplitude_deg"]).period(), dt) for name, a in runs.items()}
-    with Writer(out, full, runs, mode=mode) as w:
-        done = {name: len(cfg) - sum(b - a for a, b in w.missing(name, len(cfg))) for name in runs}
-
-        def progress(name):
-            if on_progress:
-                on_progress({"run": name, "done": done[name], "total": len(cfg),
-                             "elapsed": time.perf_counter() - t0, "steps": summary["steps"]})
-
-        for name in runs:
-            progress(name)
-
-        def on_rows(name, lo, rows):
-            w.append(name, lo, rows)
-            done[name] += len(rows["config"])
-            summary["steps"] += int(rows["periods_run"].sum()) * nsteps[name]
-            progress(name)
-
-        job = ScanJob(config, params, {name: a["amplitude_deg"] for name, a in runs.items()})
-        ran = (executor or LocalExecutor(flush_rows)).run(job, {name: w.missing(name, len(cfg)) for name in runs},
-                                                           on_rows)
-        if "backend_s" in ran:
-            summary["backend_s"] = ran["backend_s"]
-        w.finalize()
-    from .store import Store
+    prep = prepare(config, "scan", params, executor)
+    n = len(config.initial_configs())
+    runs = {run_name(a): run_attrs(config.gait_spec(a), prep.dt, config.periods, n) for a in config.amplitudes_deg}
+    job = ScanJob(config, prep.params, {name: a["amplitude_deg"] for name, a in runs.items()})
+    summary = {"configs": n, "runs": {},
+               **write_rows(job, out, prep, runs, n, mode, executor, LocalExecutor(flush_rows), on_progress)}
     st = Store(out)
     for name in st.runs:
-        d = st.run(name, fields=("valid", "touched"))
-        v = d["valid"]
+        v, touched = (st.run(name, fields=("valid", "touched"))[k] for k in ("valid", "touched"))
         summary["runs"][name] = {"valid": int(v.sum()),
-                                 "bound_end_fraction": float(d["touched"][v, -1, 0].mean()) if v.any() else 0.0}
-    summary["wall_s"] = time.perf_counter() - t0
-    summary["steps_per_s"] = summary["steps"] / max(summary["wall_s"], 1e-9)
+                                 "bound_end_fraction": float(touched[v, -1, 0].mean()) if v.any() else 0.0}
     return summary
-
-
-def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 40,
-                    frame_interval: float | None = None):
-    """Simulate lane ``lane`` of a scan store again, from its stored start, amplitude, gait and model.
-
-    ``frame_interval`` (s), when given, sets the track stride from the stored
-    model's own time step instead of ``track_stride``.
-
-    Returns (times [S], poses [S, N, 5]: the start, then the full-rate track
-    every ``track_stride`` steps; the period records ``SimResult``, params, gait,
-    the stored rows of that lane). Raises ValueError for a lane out of
-    range or one that was never simulated (overlapping start).
-    """
-    from .engine.simulate import simulate
-    from .store import Store
-    st = Store(store_path)
-    run = run or st.runs[0]
-    if run not in st.runs:
-        raise ValueError(f"{store_path} has no run {run!r} (runs: {', '.join(st.runs)})")
-    config = config_from_json(st.config["scan"])
-    params = params_from_json(st.config["scene"])
-    m = int(st.run_attrs[run]["n_configs"])
-    if not 0 <= lane < m:
-        raise ValueError(f"lane {lane} is out of range: run {run} has lanes 0..{m - 1}")
-    rows = st.run(run, fields=("config", "valid", "touched", "poses", "periods_run", "status"))
-    rows = {k: v[lane] for k, v in rows.items()}
-    if not rows["valid"]:
-        raise ValueError(f"lane {lane} of run {run} starts with the robots overlapping; it was never simulated")
-    inputs = RunInputs.of(config, params, float(st.run_attrs[run]["amplitude_deg"]))
-    if frame_interval is not None:
-        track_stride = max(1, int(round(frame_interval / params.timestep)))
-    res = simulate(params, inputs.poses[lane], inputs.gait, int(config.periods), track_stride=track_stride,
-                   imperfections=config.robots(), row=lane)
-    # the track starts after its first stride: put the start in front
-    t = np.concatenate([[0.0], res.track_t])
-    track = np.concatenate([inputs.poses[lane][None], res.track], 0)
-    return t, track, res, params, inputs.gait, rows
-
-

@@ -614,3 +614,21 @@ def reference_models(params: SceneParams = SceneParams()) -> dict[str, str]:
     """MJCF text of the reference scenes stored in ``models/``, by file name."""
     return {f"{k}.xml": build_mjcf(params, standard_poses(k, params.robot), name=f"smarticles_{k}")
             for k in REFERENCE_SCENES}
+
+
+def write_reference_models(out, params: SceneParams = SceneParams(), check: bool = False) -> list[str]:
+    """Write the reference scenes into the folder ``out`` where they differ (``check``: write nothing);
+    returns the names that were stale. Raises ValueError for a missing folder, or with ``check``
+    for stale scenes."""
+    import pathlib
+    out = pathlib.Path(out)
+    stale = [name for name, xml in reference_models(params).items()
+             if not ((out / name).exists() and (out / name).read_text() == xml)]
+    if check and stale:
+        raise ValueError(f"stale models: {', '.join(stale)}; run `smx models`")
+    if stale and not out.is_dir():
+        raise ValueError(f"directory {out} does not exist")
+    for name, xml in reference_models(params).items():
+        if name in stale:
+            (out / name).write_text(xml)
+    return stale

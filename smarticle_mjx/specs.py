@@ -166,6 +166,20 @@ def parse_amplitudes(text: str) -> tuple[float, ...]:
         raise ValueError(f"amplitudes must look like '10:90:10' or '10,40,90', got {text!r}") from None
 
 
+def sweep_config(study=None, amplitudes: str | None = None, **overrides) -> ScanConfig:
+    """A sweep's spec: the study file ``study`` (or the default scan) with ``amplitudes``
+    ('10:90:10' or '10,40,90') and the non-None ``overrides`` (ScanConfig fields) applied."""
+    cfg = load_study(study) if study is not None else ScanConfig()
+    changes = {k: v for k, v in overrides.items() if v is not None}
+    if amplitudes is not None:
+        changes["amplitudes_deg"] = parse_amplitudes(amplitudes)
+    elif study is None:
+        raise ValueError("give --amplitudes or --study")
+    cfg = dataclasses.replace(cfg, **changes)
+    presets.get(cfg.model)
+    return cfg
+
+
 def load_study(path) -> ScanConfig:
     """A study file (TOML) from sweeps/: keys are ScanConfig fields."""
     path = pathlib.Path(path)

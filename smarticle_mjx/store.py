@@ -558,3 +558,16 @@ def read_relax(paths) -> dict:
                period_s=float(st0.run_attrs["trials"]["period_s"]), model=st0.model,
                body_length=float(st0.config["scene"]["robot"]["body_length"]), paths=[str(p) for p in paths])
     return out
+
+
+def is_scan_store(path) -> bool:
+    """Whether ``path`` is an HDF5 store of runs (a scan, sweep or relaxation), not a track file.
+    Raises StoreError for a .h5 file that HDF5 cannot read."""
+    path = pathlib.Path(path)
+    if path.suffix.lower() not in (".h5", ".hdf5"):
+        return False
+    try:
+        with h5py.File(path, "r") as f:
+            return "runs" in f
+    except OSError:
+        raise StoreError(f"{path} is not a readable HDF5 file") from None

@@ -235,3 +235,21 @@ def run_study(spec: ScanConfig | RelaxConfig, out, mode: str = "new", executor=N
         from .relax import run_relax
         return run_relax(spec, out, mode=mode, executor=executor, on_progress=on_progress, **options)
     raise ValueError(f"a {type(spec).__name__} is a staged study of several stores; ensure() runs it")
+
+
+def store_mode(resume: bool, overwrite: bool) -> str:
+    """The store's writing mode from the command line's --resume and --overwrite."""
+    if resume and overwrite:
+        raise ValueError("--resume and --overwrite exclude each other")
+    return "resume" if resume else "overwrite" if overwrite else "new"
+
+
+def summary_lines(summary: dict, out) -> list[str]:
+    """What a study's run reports: bound fractions per run (scans) or early stops (relaxations), and speed."""
+    speed = (f"wall {summary['wall_s']:.1f} s, {summary['steps']:,} steps simulated "
+             f"({summary['steps_per_s']:,.0f} steps/s); wrote {out}")
+    if "trials" in summary:
+        return [f"{summary['trials']} trials, {summary['stopped_early']} stopped early (no contact for "
+                f"{summary['quiet_periods']} periods); " + speed]
+    return [f"{name}: {r['valid']}/{summary['configs']} valid configurations, "
+            f"bound at the end: {r['bound_end_fraction']:.1%}" for name, r in summary["runs"].items()] + [speed]

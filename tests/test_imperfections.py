@@ -19,7 +19,8 @@ from smarticle_mjx.cli import app
 from smarticle_mjx.engine import Lanes, Scene
 from smarticle_mjx.engine.core import lane_controls
 from smarticle_mjx.engine.native import NativeBackend
-from smarticle_mjx.scan import ScanConfig, resimulate_lane, run_scan
+from smarticle_mjx.replay import resimulate_lane
+from smarticle_mjx.scan import ScanConfig, run_scan
 from smarticle_mjx.scene import RobotQuirk, compile_model, build_mjcf
 from smarticle_mjx.store import Store
 

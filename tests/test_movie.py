@@ -8,7 +8,8 @@ from typer.testing import CliRunner
 from smarticle_mjx import presets
 from smarticle_mjx.cli import app
 from smarticle_mjx.movie import MovieOptions, frame_times, render
-from smarticle_mjx.scan import ScanConfig, resimulate_lane, run_scan
+from smarticle_mjx.replay import resimulate_lane
+from smarticle_mjx.scan import ScanConfig, run_scan
 
 ROBOT = presets.params().robot
 

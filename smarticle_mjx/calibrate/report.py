@@ -76,6 +76,17 @@ def _figures(result, heldout: list[Trial], tracks_before, tracks_after, out: pat
     return names
 
 
+def check_output(out, overwrite: bool = False) -> None:
+    """ValueError unless the report folder ``out`` can be written (an existing report only with ``overwrite``)."""
+    out = pathlib.Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"{out} exists and is not a directory")
+    if (out / "report.md").exists() and not overwrite:
+        raise ValueError(f"{out} already holds a report; pass --overwrite to replace it")
+    if not out.exists() and not out.parent.is_dir():
+        raise ValueError(f"output directory {out.parent} does not exist")
+
+
 def write(result: dict, trials: list[Trial], out_dir) -> dict:
     """Write the report of a ``fit.calibrate`` result; returns the JSON written."""
     out = pathlib.Path(out_dir)

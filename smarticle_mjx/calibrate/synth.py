@@ -78,6 +78,9 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
     that a held-out split sees every amplitude.
     """
     out_dir = pathlib.Path(out_dir)
+    noise = (effects or {}).get("tracking_noise")  # the effect sets the noise levels
+    if noise:
+        noise_xy_mm, noise_theta_deg = noise["noise_xy_mm"], noise["noise_theta_deg"]
     preset = presets.get(model)
     params = preset.params
     if robots < 1 or trials < 1 or periods < 1:
@@ -93,6 +96,8 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
         raise ValueError(f"output directory {out_dir.parent} does not exist")
     if out_dir.exists() and not out_dir.is_dir():
         raise ValueError(f"{out_dir} exists and is not a directory")
+    if out_dir.exists() and any(out_dir.glob("*.csv")):
+        raise ValueError(f"{out_dir} already holds data; choose an empty folder")
     out_dir.mkdir(exist_ok=True)  # only once every input is known to be good
     rng = np.random.default_rng(seed)
     eff = EffectSet.of({k: v for k, v in (effects or {}).items() if k != "tracking_noise"})

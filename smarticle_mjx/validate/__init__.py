@@ -14,9 +14,8 @@ import pathlib
 import numpy as np
 
 from .. import presets
-from ..specs import ScanConfig
 from ..scene import SceneParams
-from ..specs import STUDIES, SWEEPS, read_study
+from ..specs import STUDIES, SWEEPS, ScanConfig, read_study
 from ..studies import ensure
 from . import claims, evidence, page
 from .claims import CLAIMS
@@ -67,6 +66,34 @@ def evaluate(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | N
     return {"rows": [c.row(ev.get(c.key), stores) for c in CLAIMS], "extra": extra, "figures": made}
 
 
+def parse_studies(text: str | None) -> list[str] | None:
+    """'random_90, relax' -> the named studies (None: all); ValueError naming the unknown ones."""
+    if text is None:
+        return None
+    chosen = [x.strip() for x in text.split(",") if x.strip()]
+    bad = [x for x in chosen if x not in STUDIES]
+    if bad or not chosen:
+        raise ValueError(f"--studies: unknown {', '.join(bad) or '(none given)'}; known: {', '.join(STUDIES)}")
+    return chosen
+
+
+def check_inputs(data, out_md, sweeps, single_periods: int, studies=None) -> None:
+    """ValueError, before anything runs, for missing study files, unknown studies or unusable paths."""
+    data, out_md, sweeps = pathlib.Path(data), pathlib.Path(out_md), pathlib.Path(sweeps)
+    missing = [f for f in STUDIES.values() if not (sweeps / f).is_file()]
+    if missing:
+        raise ValueError(f"study files missing in {sweeps}: {', '.join(missing)}")
+    unknown = [s_ for s_ in (studies or []) if s_ not in STUDIES]
+    if unknown:
+        raise ValueError(f"unknown studies {unknown}; known: {', '.join(STUDIES)}")
+    if not out_md.parent.is_dir():
+        raise ValueError(f"output directory {out_md.parent} does not exist")
+    if data.exists() and not data.is_dir():
+        raise ValueError(f"{data} exists and is not a directory")
+    if single_periods < 2:
+        raise ValueError("--single-periods must be >= 2")
+
+
 def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Path = SWEEPS,
                    model: str = presets.DEFAULT, on_progress=None, command: str | None = None,
                    single_periods: int = SINGLE_PERIODS, studies: list[str] | None = None,
@@ -77,15 +104,13 @@ def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Pat
     ``imperfections``: run every study with the robots' imperfections of that set (drawn from each
     study's seed; smarticle_mjx/imperfections.py), in ``data/<model>+<set>/``."""
     from .. import imperfections as imp
+    check_inputs(data, out_md, sweeps, single_periods, studies)
     ideal = imp.get(imperfections).ideal
     params = presets.params(model)
     label = model if ideal else f"{model}+{imperfections}"
     data = pathlib.Path(data) / label
     data.mkdir(parents=True, exist_ok=True)
     wanted = list(STUDIES) if studies is None else list(studies)
-    unknown = [s_ for s_ in wanted if s_ not in STUDIES]
-    if unknown:
-        raise ValueError(f"unknown studies {unknown}; known: {', '.join(STUDIES)}")
     specs = {name: read_study(sweeps / f) for name, f in STUDIES.items()}
     stores: dict = {}
     notes: list[str] = []

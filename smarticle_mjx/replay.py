@@ -1,0 +1,102 @@
+"""Full-rate tracks: one scene simulated and written in the track format (``smx simulate``), or one lane of
+a scan store simulated again exactly (``smx movie``)."""
+
+from __future__ import annotations
+
+import math
+import pathlib
+
+import numpy as np
+
+from .scan import RunInputs
+from .specs import config_from_json, params_from_json
+
+
+def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 40,
+                    frame_interval: float | None = None):
+    """Simulate lane ``lane`` of a scan store again, from its stored start, amplitude, gait and model.
+
+    ``frame_interval`` (s), when given, sets the track stride from the stored
+    model's own time step instead of ``track_stride``.
+
+    Returns (times [S], poses [S, N, 5]: the start, then the full-rate track
+    every ``track_stride`` steps; the period records ``SimResult``, params, gait,
+    the stored rows of that lane). Raises ValueError for a lane out of
+    range or one that was never simulated (overlapping start).
+    """
+    from .engine.simulate import simulate
+    from .store import Store
+    st = Store(store_path)
+    run = run or st.runs[0]
+    if run not in st.runs:
+        raise ValueError(f"{store_path} has no run {run!r} (runs: {', '.join(st.runs)})")
+    config = config_from_json(st.config["scan"])
+    params = params_from_json(st.config["scene"])
+    m = int(st.run_attrs[run]["n_configs"])
+    if not 0 <= lane < m:
+        raise ValueError(f"lane {lane} is out of range: run {run} has lanes 0..{m - 1}")
+    rows = st.run(run, fields=("config", "valid", "touched", "poses", "periods_run", "status"))
+    rows = {k: v[lane] for k, v in rows.items()}
+    if not rows["valid"]:
+        raise ValueError(f"lane {lane} of run {run} starts with the robots overlapping; it was never simulated")
+    inputs = RunInputs.of(config, params, float(st.run_attrs[run]["amplitude_deg"]))
+    if frame_interval is not None:
+        track_stride = max(1, int(round(frame_interval / params.timestep)))
+    res = simulate(params, inputs.poses[lane], inputs.gait, int(config.periods), track_stride=track_stride,
+                   imperfections=config.robots(), row=lane)
+    # the track starts after its first stride: put the start in front
+    t = np.concatenate([[0.0], res.track_t])
+    track = np.concatenate([inputs.poses[lane][None], res.track], 0)
+    return t, track, res, params, inputs.gait, rows
+
+
+def simulate_track(out, scene: str = "pair", config: str | None = None, gait=None, periods: int = 10,
+                   track_stride: int = 20, backend: str = "native", overwrite: bool = False,
+                   model: str | None = None) -> dict:
+    """Simulate one scene (a standard scene, or a pair started at ``config`` = '|r|,theta,phi' in W and
+    degrees) and write its track to ``out`` (.csv with a .json sidecar, or .h5). Every input is checked
+    before anything is simulated. Returns robots, periods, the period, touched periods, files written."""
+    from . import configs, presets, scene as scene_mod, tracks
+    from .engine.dart import check_study, study_timestep
+    from .engine.simulate import simulate
+    from .gait import GaitSpec
+    preset = presets.get(model)
+    params, g = preset.params, gait or GaitSpec()
+    g.validate(params.robot.servo_speed, params.robot.arm_limit_deg)
+    if periods < 1 or track_stride < 1:
+        raise ValueError("--periods and --track-stride must be positive")
+    if backend not in ("native", "dart"):
+        raise ValueError(f"--backend must be native or dart (the backends that record tracks), got {backend!r}")
+    check_study(backend, None)  # dart: installed
+    dt = study_timestep(backend, None, params.timestep)
+    if pathlib.Path(out).exists() and not overwrite:
+        raise ValueError(f"{out} exists; pass --overwrite to replace it")
+    tracks.check_output(out)
+    a0 = g.setpoints(0.0, params.robot.servo_speed)
+    if config is not None:
+        try:
+            r, th, ph = (float(v) for v in config.split(","))
+        except ValueError:
+            raise ValueError(f"--config must be three numbers '|r|,theta,phi', got {config!r}") from None
+        poses = configs.pair_poses(r, math.radians(th), math.radians(ph), a0[0], a0[1], params.robot)
+    else:
+        poses = [(x, y, h, a0[0], a0[1]) for x, y, h, _, _ in scene_mod.standard_poses(scene, params.robot)]
+    res = simulate(params, poses, g, periods, track_stride=track_stride, backend=backend)
+    meta = tracks.sidecar(len(poses), g, params.plate_friction, 1.0 / (track_stride * dt), model=preset.name)
+    written = tracks.write_track(out, [0.0, *res.track_t], [res.poses[0], *res.track], meta,
+                                 records={"touched": res.touched, "poses": res.poses, "min_dist": res.min_dist})
+    return {"robots": len(poses), "periods": periods, "period_s": res.period, "written": written,
+            "touched_periods": int(res.touched.any(1).sum()) if res.touched.size else 0}
+
+
+def lane_track(store_path, run: str | None, lane: int | None, frame_interval: float) -> tuple:
+    """A scan store's lane simulated again for a movie: (times, poses, robot, period, title, same),
+    ``same`` telling whether the re-simulation reproduces the stored records."""
+    if lane is None:
+        raise ValueError("a scan store needs --lane (the configuration index to show)")
+    t, poses, res, params, gait, rows = resimulate_lane(store_path, run, lane, frame_interval=frame_interval)
+    k = int(rows["periods_run"])
+    same = bool(np.array_equal(res.poses[1:k + 1].astype(np.float32), rows["poses"][:k]))
+    title = (f"{pathlib.Path(store_path).name} lane {lane}, {gait.amplitude_deg:g} deg"
+             + ("" if same else " (differs from store!)"))
+    return t, poses, params.robot, gait.period(), title, same
