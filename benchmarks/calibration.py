@@ -6,7 +6,7 @@ Two suites:
 * ``synth``: data the library's own model made (``smx synth``), calibrated
   with ``--no-nominal`` (the structural stage alone);
 * ``mismatch``: data an independent MuJoCo smarticle made
-  (tests/independent_smarticle.py: other arm shape, masses, hinge, servo law,
+  (smarticle_mjx/calibrate/independent.py: other arm shape, masses, hinge, servo law,
   time step), calibrated as a user would (nominal parameters first).
 
     python benchmarks/calibration.py                          # both suites
@@ -21,18 +21,15 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
-import sys
 import tempfile
 import time
 
+from smarticle_mjx.calibrate import independent as IND
 from smarticle_mjx.calibrate.data import load
-from smarticle_mjx.calibrate.fit import calibrate
+from smarticle_mjx.calibrate.stages import calibrate
 from smarticle_mjx.calibrate.observables import LABELS, observables, reproduced
 from smarticle_mjx.calibrate.synth import CASES, case_truth, make_case
 
-
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
-import independent_smarticle as IND  # noqa: E402
 
 # mismatch cases: generator keywords per amplitude series, and the library effect that should be named
 # (None: no structural effect; "nominal:<param>": a nominal finding)
@@ -109,7 +106,7 @@ def run_mismatch(name: str, seed: int) -> dict:
         make_mismatch(name, tmp, seed)
         trials = load(tmp)
         t = time.perf_counter()
-        res = calibrate(trials)
+        res = calibrate(trials).summary
         wall = time.perf_counter() - t
     twin = clean_twin(name, seed) if any(k in MISMATCH[name][0] for k in EFFECT_KEYS) else None
     _, want = MISMATCH[name]
@@ -137,7 +134,7 @@ def run_case(name: str, seed: int) -> dict:
         make_case(name, tmp, seed=seed)
         trials = load(tmp)
         t = time.perf_counter()
-        res = calibrate(trials, nominal=False)
+        res = calibrate(trials, nominal=False).summary
         wall = time.perf_counter() - t
     truth = case_truth(name)
     added = [a["effect"] for a in res["added"]]

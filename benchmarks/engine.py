@@ -22,11 +22,10 @@ import platform
 import resource
 import time
 
-import numpy as np
 
 from smarticle_mjx import configs as C
 from smarticle_mjx import scene as S
-from smarticle_mjx.engine import Lanes, Scene, make_backend
+from smarticle_mjx.engine import Scene, make_backend
 from smarticle_mjx.engine.simulate import simulate
 from smarticle_mjx.bench import mj_step_rate, sample_lanes
 from smarticle_mjx.gait import GaitSpec

@@ -23,11 +23,11 @@ import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent
 
-from smarticle_mjx import configs as C, plots, presets  # noqa: E402
-from smarticle_mjx.engine.core import Record  # noqa: E402
-from smarticle_mjx.engine.simulate import simulate  # noqa: E402
-from smarticle_mjx.gait import GaitSpec  # noqa: E402
-from smarticle_mjx.reduce import collisions as RC  # noqa: E402
+from smarticle_mjx import configs as C, plots, presets
+from smarticle_mjx.engine.core import Record
+from smarticle_mjx.engine.simulate import simulate
+from smarticle_mjx.gait import GaitSpec
+from smarticle_mjx.reduce import collisions as RC
 
 
 def run(model: str, start, periods: int, bins: int = 16) -> dict:
@@ -97,7 +97,7 @@ def return_maps(track_dir: pathlib.Path, models, out_dir: pathlib.Path, burn_in:
                   "swapped sign": float((~same & ~small).mean()) if x.size else float("nan")}
     for row in axes:
         row[0].set_ylabel("φ−180° in period n+1")
-    plots._save(fig, out_dir, "return_map", ("png",))
+    plots.save_figure(fig, out_dir, "return_map", ("png",))
     return out
 
 

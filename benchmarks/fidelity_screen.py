@@ -28,16 +28,14 @@ import argparse
 import dataclasses
 import json
 import math
-import os
 import pathlib
 import time
 
-import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent
 
-from smarticle_mjx import presets  # noqa: E402
-from smarticle_mjx.bench import NUMERICS, gliding, lone_drift, pb, relaxation, save_json  # noqa: E402
+from smarticle_mjx import presets
+from smarticle_mjx.bench import NUMERICS, gliding, lone_drift, pb, relaxation, save_json
 
 PAPER = {"drift90_W": 1.5e-3, "beta": 1.8, "persistence": None, "straightness": None}
 

@@ -28,9 +28,9 @@ import time
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent
-from smarticle_mjx.bench import gliding, pair_starts  # noqa: E402
-from smarticle_mjx import presets  # noqa: E402
-from smarticle_mjx.reduce.gliders import glider_transport, steady_gliders  # noqa: E402
+from smarticle_mjx.bench import gliding, pair_starts
+from smarticle_mjx import presets
+from smarticle_mjx.reduce.gliders import glider_transport, steady_gliders
 
 TRACKS = ROOT / "results" / "fidelity_tracks"
 STEPS = (2.5e-4, 5e-4)  # the default before version 0.3.0, and since

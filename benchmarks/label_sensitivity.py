@@ -17,10 +17,10 @@ import pathlib
 
 ROOT = pathlib.Path(__file__).resolve().parent
 
-from smarticle_mjx import presets  # noqa: E402
-from smarticle_mjx.bench import fixed_starts  # noqa: E402
-from smarticle_mjx.engine import Lanes, Scene, make_backend  # noqa: E402
-from smarticle_mjx.gait import GaitSpec  # noqa: E402
+from smarticle_mjx import presets
+from smarticle_mjx.bench import fixed_starts
+from smarticle_mjx.engine import Lanes, Scene, make_backend
+from smarticle_mjx.gait import GaitSpec
 
 
 def main():

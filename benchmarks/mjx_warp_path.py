@@ -221,7 +221,7 @@ def main():
     nconmax, njmax = buffer_sizes(model)
     device = wp.get_device("cuda:0" if wp.is_cuda_available() else "cpu")
     be = WarpBackend(scene, device=str(device))
-    cuts = be._cuts
+    cuts = be.cuts
     out = dict(machine=platform.platform(), warp_device=str(device.name), jax_device=str(jax.devices()[0].device_kind),
                model=args.model, timestep=dt, amplitude=args.amplitude, steps=args.steps,
                mujoco=mujoco.__version__, mujoco_warp=getattr(mjw, "__version__", "?"),

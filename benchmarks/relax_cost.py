@@ -26,9 +26,9 @@ import time
 
 import numpy as np
 
-from smarticle_mjx import presets, specs, studies  # noqa: E402
-from smarticle_mjx.relax import RelaxConfig, run_relax  # noqa: E402
-from smarticle_mjx.store import Store  # noqa: E402
+from smarticle_mjx import presets, specs, studies
+from smarticle_mjx.relax import RelaxConfig, run_relax
+from smarticle_mjx.store import Store
 
 
 def timed(trials: int, periods: int, model: str) -> dict:

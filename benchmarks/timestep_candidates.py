@@ -43,13 +43,13 @@ import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent
 
-from smarticle_mjx import presets  # noqa: E402
-from smarticle_mjx.reduce.gliders import glider_transport, steady_gliders  # noqa: E402
-from smarticle_mjx.bench import NUMERICS, NUMERICS_REFERENCE, fixed_starts, save_json  # noqa: E402
-from smarticle_mjx.engine import Lanes, Scene, make_backend  # noqa: E402
-from smarticle_mjx.engine.simulate import simulate  # noqa: E402
-from smarticle_mjx.gait import GaitSpec  # noqa: E402
-from smarticle_mjx.reduce.binding import binomial_interval  # noqa: E402
+from smarticle_mjx import presets
+from smarticle_mjx.reduce.gliders import glider_transport, steady_gliders
+from smarticle_mjx.bench import NUMERICS, NUMERICS_REFERENCE, fixed_starts, save_json
+from smarticle_mjx.engine import Lanes, Scene, make_backend
+from smarticle_mjx.engine.simulate import simulate
+from smarticle_mjx.gait import GaitSpec
+from smarticle_mjx.reduce.binding import binomial_interval
 
 REFERENCE = NUMERICS_REFERENCE
 CANDIDATES = NUMERICS  # name -> SceneParams changes (numerics only): smarticle_mjx/bench.py

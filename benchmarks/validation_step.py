@@ -21,11 +21,11 @@ import pathlib
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parent
-from smarticle_mjx import presets  # noqa: E402
-from smarticle_mjx.report import analyse_run  # noqa: E402
-from smarticle_mjx.scan import run_scan  # noqa: E402
-from smarticle_mjx.specs import load_study  # noqa: E402
-from smarticle_mjx.store import Store  # noqa: E402
+from smarticle_mjx import presets
+from smarticle_mjx.report import analyse_run
+from smarticle_mjx.scan import run_scan
+from smarticle_mjx.specs import load_study
+from smarticle_mjx.store import Store
 
 STUDY = ROOT.parent / "sweeps" / "validation_random.toml"
 

@@ -437,15 +437,16 @@ def calibrate(
                                              "masses, plate μ); --no-nominal takes the preset's as exact"),
 ):
     """Residuals of the model against measured tracks, ranked candidate effects, the fit, before/after."""
-    from .calibrate import fit, report
+    from .calibrate import report
     from .calibrate.data import load
+    from .calibrate.stages import calibrate as run
     if model is not None:
         _model(model)
     report.check_output(out, overwrite)
     trials = load(data, model)
-    result = fit.calibrate(trials, on_step=typer.echo, nominal=nominal)
+    result = run(trials, on_step=typer.echo, nominal=nominal)
     report.write(result, trials, out)
-    typer.echo(f"{result['verdict']}; wrote {out / 'report.md'}")
+    typer.echo(f"{result.verdict}; wrote {out / 'report.md'}")
 
 
 def main():  # pragma: no cover

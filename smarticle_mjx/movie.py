@@ -64,30 +64,16 @@ def check_output(out) -> None:
 def load_track(path) -> tuple:
     """(t [S], poses [S, N, 5], robot, period_s, title) of a track written by ``smx simulate``
     (.csv with its .json sidecar, or .h5); the first trial of a multi-trial CSV."""
-    import json
-    from . import presets
-    from .gait import GaitSpec
+    from . import tracks
     path = pathlib.Path(path)
     if path.suffix.lower() == ".csv":
-        from .calibrate.data import load_csv
-        trial = load_csv(path)[0]
-        if trial.arms is None:
+        trial = tracks.read_csv(path)[0]
+        if not trial.arms_tracked:
             raise ValueError(f"{path} has no arm angles; a movie needs them")
-        poses = np.concatenate([trial.pose, trial.arms], -1)
-        return trial.t, poses, trial.params.robot, trial.gait.period(), path.name
+        return trial.t, trial.poses, trial.params.robot, trial.gaits[0].period(), path.name
     if path.suffix.lower() in (".h5", ".hdf5"):
-        import h5py
-        with h5py.File(path, "r") as f:
-            if "t" not in f or "meta" not in f.attrs:
-                raise ValueError(f"{path} is neither a scan store nor a track from smx simulate")
-            meta = json.loads(f.attrs["meta"])
-            t = f["t"][()]
-            poses = np.stack([f[k][()] for k in ("x", "y", "theta", "alpha1", "alpha2")], -1)
-        g = meta["gait"]
-        gait = GaitSpec(g["amplitude_deg"], chirality=g.get("chirality", "ccw"),
-                        kind="diagonal" if g.get("kind") == "symmetric" else g.get("kind", "square"),
-                        period_s=g.get("period_s"))
-        return t, poses, presets.params(meta.get("model")).robot, gait.period(), path.name
+        t, poses, gait, robot = tracks.read_h5(path)
+        return t, poses, robot, gait.period(), path.name
     raise ValueError(f"{path}: a track is .csv or .h5")
 
 

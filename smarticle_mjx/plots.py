@@ -60,13 +60,13 @@ def phase_diagram(store_path, out_dir, run: str | None = None, formats=("png", "
                          color=COLOURS[code], alpha=0.7, label="attracted" if code == 1 else "repelled")
             ax2.set(xlabel=xl, ylabel="initial conditions")
             ax2.legend(fontsize=7)
-    return _save(fig, out_dir, stem or f"phase_diagram_{run}", formats, dpi=150)
+    return save_figure(fig, out_dir, stem or f"phase_diagram_{run}", formats, dpi=150)
 
 
 KIND_COLOURS = {"C1": "#1f77b4", "C2": "#ff7f0e"}
 
 
-def _save(fig, out_dir, stem, formats=("png",), dpi=130) -> list[pathlib.Path]:
+def save_figure(fig, out_dir, stem, formats=("png",), dpi=130) -> list[pathlib.Path]:
     plt = pyplot()
     out_dir = pathlib.Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -95,7 +95,7 @@ def pb_curve(amplitudes, end, throughout, out_dir, stem="pb", formats=("png", "s
     ax.set(xlabel=r"$\alpha_{max}$ (deg)", ylabel=r"$P_b$", ylim=(0, 1), xlim=(0, 95))
     ax.legend(fontsize=8)
     ax.set_title("probability to bind (95% Clopper–Pearson)", fontsize=9)
-    return _save(fig, out_dir, stem, formats)
+    return save_figure(fig, out_dir, stem, formats)
 
 
 def msd_curves(curves: dict, out_dir, stem="msd", formats=("png",)):
@@ -108,7 +108,7 @@ def msd_curves(curves: dict, out_dir, stem="msd", formats=("png",)):
     ax.set(xlabel="delay (gait periods)", ylabel=r"$\langle\sigma^2\rangle$ (W$^2$)")
     if curves:
         ax.legend(fontsize=7)
-    return _save(fig, out_dir, stem, formats)
+    return save_figure(fig, out_dir, stem, formats)
 
 
 def relative_coordinates(rel, kinds, clusters, out_dir, stem, title="", formats=("png",)):
@@ -137,7 +137,7 @@ def relative_coordinates(rel, kinds, clusters, out_dir, stem, title="", formats=
     ax.set(xlim=(0, 360), ylim=(0, 360), xlabel=r"$\theta$ (deg)", ylabel=r"$\phi$ (deg)")
     ax.legend(fontsize=7)
     fig.suptitle(title, fontsize=9)
-    return _save(fig, out_dir, stem, formats)
+    return save_figure(fig, out_dir, stem, formats)
 
 
 def lifetimes(runs: dict, periods: int, out_dir, stem, title="", formats=("png",)):
@@ -153,7 +153,7 @@ def lifetimes(runs: dict, periods: int, out_dir, stem, title="", formats=("png",
     ax.set(xlabel="lifetime (consecutive bound periods)", ylabel="bound runs", yscale="log")
     ax.legend(fontsize=7)
     ax.set_title(title, fontsize=9)
-    return _save(fig, out_dir, stem, formats)
+    return save_figure(fig, out_dir, stem, formats)
 
 
 def versus_amplitude(amplitudes, panels: dict, out_dir, stem="vs_amplitude", formats=("png",)):
@@ -167,7 +167,7 @@ def versus_amplitude(amplitudes, panels: dict, out_dir, stem="vs_amplitude", for
             e = np.nan_to_num(e.T if e.ndim == 2 else e, nan=0.0)
         ax.errorbar(amplitudes, v, yerr=e, marker="o", ms=4, capsize=3)
         ax.set(xlabel=r"$\alpha_{max}$ (deg)", ylabel=yl)
-    return _save(fig, out_dir, stem, formats)
+    return save_figure(fig, out_dir, stem, formats)
 
 
 def tracks(xy_list, labels, out_dir, stem, title="", formats=("png",)):
@@ -180,7 +180,7 @@ def tracks(xy_list, labels, out_dir, stem, title="", formats=("png",)):
     ax.set(xlabel="x (W)", ylabel="y (W)", aspect="equal")
     ax.legend(fontsize=6)
     ax.set_title(title, fontsize=9)
-    return _save(fig, out_dir, stem, formats)
+    return save_figure(fig, out_dir, stem, formats)
 
 
 def collision_sequence(coll: dict, lane: int, periods, out_dir, stem, title="", formats=("png",)):
@@ -217,7 +217,7 @@ def collision_sequence(coll: dict, lane: int, periods, out_dir, stem, title="", 
     fig.colorbar(im, ax=axes[0, -1], label="impulse along r on robot i (mN·s); > 0 attracts")
     if title:
         fig.suptitle(title, fontsize=9)
-    return _save(fig, out_dir, stem, formats)
+    return save_figure(fig, out_dir, stem, formats)
 
 
 def relaxation_trial(xy, episodes, plate_half_W, out_dir, stem, title="", formats=("png",)):
@@ -260,7 +260,7 @@ def relaxation_trial(xy, episodes, plate_half_W, out_dir, stem, title="", format
     if shown:
         ax.legend(fontsize=6, loc="best")
     ax.set_title(title, fontsize=9)
-    return _save(fig, out_dir, stem, formats)
+    return save_figure(fig, out_dir, stem, formats)
 
 
 def lifetime_contour(episodes, fit, min_periods, out_dir, stem="lifetime_contour", title="", formats=("png",)):
@@ -298,4 +298,4 @@ def lifetime_contour(episodes, fit, min_periods, out_dir, stem="lifetime_contour
     if ax2.get_legend_handles_labels()[0]:
         ax2.legend(fontsize=7)
     ax2.set_title("lifetimes by type", fontsize=9)
-    return _save(fig, out_dir, stem, formats)
+    return save_figure(fig, out_dir, stem, formats)

@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 from smarticle_mjx.calibrate import residuals as R
 from smarticle_mjx.calibrate.data import DataError, load
-from smarticle_mjx.calibrate.fit import calibrate
+from smarticle_mjx.calibrate.stages import calibrate
 from smarticle_mjx.calibrate.synth import CASES, case_truth, make_case
 from smarticle_mjx.cli import app
 
@@ -89,7 +89,7 @@ def _check_case(tmp_path, name, seed=1):
     # data the library's own model made: its nominal parameters are the preset's by construction, so
     # these cases test the structural stage alone (tests/test_calibrate_mismatch.py fits nominal ones)
     make_case(name, tmp_path, seed=seed)
-    res = calibrate(load(tmp_path), nominal=False)
+    res = calibrate(load(tmp_path), nominal=False).summary
     truth = case_truth(name)
     added = [a["effect"] for a in res["added"]]
     return res, truth, added

@@ -1,28 +1,27 @@
 """Calibration on data the library's model did not make: an independent MuJoCo smarticle
-(tests/independent_smarticle.py), plus the data checks that come before any simulation."""
+(smarticle_mjx/calibrate/independent.py), plus the data checks that come before any simulation."""
 
 import ast
 import json
 import math
 import pathlib
-import sys
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from smarticle_mjx.calibrate import independent as I
 from smarticle_mjx.calibrate import nominal as N
 from smarticle_mjx.calibrate.data import load
-from smarticle_mjx.calibrate.fit import Problem, calibrate, conventions, split
+from smarticle_mjx.calibrate.fit import Problem, conventions, split
+from smarticle_mjx.calibrate.stages import calibrate
 from smarticle_mjx.cli import app
 from smarticle_mjx.gait import GaitSpec
 
-sys.path.insert(0, str(pathlib.Path(__file__).parent))
-import independent_smarticle as I  # noqa: E402
 
 
 def test_the_independent_generator_imports_nothing_from_the_library():
-    tree = ast.parse((pathlib.Path(__file__).parent / "independent_smarticle.py").read_text())
+    tree = ast.parse(pathlib.Path(I.__file__).read_text())
     names = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
     names |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
     assert not any("smarticle_mjx" in x for x in names) and {"mujoco", "numpy"} <= names
@@ -209,7 +208,7 @@ def test_a_hidden_servo_lag_in_another_simulators_robot_is_named_through_smx_cal
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 2])
 def test_clean_data_from_another_simulator_get_no_structural_effect(tmp_path, seed):
-    res = calibrate(load(_two_amplitudes(tmp_path, trials=3, periods=5, seed=seed)))
+    res = calibrate(load(_two_amplitudes(tmp_path, trials=3, periods=5, seed=seed))).summary
     assert res["added"] == [], (res["verdict"], res["nominal_hypotheses"])
     # what the nominal fit did absorb: most of the preset's disagreement with this robot
     assert res["after_nominal"]["err_heldout"] < 0.25 * res["before"]["err_heldout"]
@@ -235,7 +234,7 @@ def test_a_phase_offset_between_two_independent_robots_is_named(tmp_path):
     after the nominal servo it came out at a third of that and was rejected
     (the servo had bent to split the difference between the robots); fitted
     jointly with the nominal parameters it is named, near the truth."""
-    res = calibrate(load(_two_amplitudes(tmp_path, trials=3, periods=5, seed=1, robots=2, phase_offset=0.1)))
+    res = calibrate(load(_two_amplitudes(tmp_path, trials=3, periods=5, seed=1, robots=2, phase_offset=0.1))).summary
     assert [a["effect"] for a in res["added"]][:1] == ["phase_offset"], (res["verdict"], res["nominal_hypotheses"])
     assert 0.08 < res["added"][0]["values"]["phase_offset"] < 0.12
     assert res["after"]["err_heldout"] <= 0.5 * res["after_nominal"]["err_heldout"]

@@ -3,18 +3,15 @@ an arm trajectory written by hand, and the independent simulator's robots with k
 offsets and tilts."""
 
 import math
-import pathlib
-import sys
 
 import numpy as np
 import pytest
 
+from smarticle_mjx.calibrate import independent as I
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.observables import crossings, observables, swing_delays
 from smarticle_mjx.gait import GaitSpec
 
-sys.path.insert(0, str(pathlib.Path(__file__).parent))
-import independent_smarticle as I  # noqa: E402
 
 
 def _slewed(t, amplitude_deg, period, rate, delay, chirality="ccw"):

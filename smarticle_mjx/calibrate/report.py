@@ -87,13 +87,14 @@ def check_output(out, overwrite: bool = False) -> None:
         raise ValueError(f"output directory {out.parent} does not exist")
 
 
-def write(result: dict, trials: list[Trial], out_dir) -> dict:
-    """Write the report of a ``fit.calibrate`` result; returns the JSON written."""
+def write(cal, trials: list[Trial], out_dir) -> dict:
+    """Write the report of a ``stages.calibrate`` result (a ``Calibration``); returns the JSON written."""
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    result = dict(cal.summary)
     held = [t for t in trials if t.name in set(result["trials"]["heldout"])]
-    final: EffectSet = result.pop("_effects")
-    nominal = result.pop("_nominal", {})
+    final: EffectSet = cal.effects
+    nominal = cal.nominal
     before_tracks = simulate_trials(held, scene_for=lambda tr: tr.params)
     after_tracks = simulate_trials(held, scene_for=lambda tr: final.scene(apply_nominal(tr.params, nominal)),
                                    phase_for=lambda tr: final.phases(tr.robots, tr.periods))

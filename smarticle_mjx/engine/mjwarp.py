@@ -172,8 +172,8 @@ class WarpBackend(BackendBase):
         self.graph = bool(graph) and self.device.is_cuda
         m = self.model
         # state vector: qpos, qvel, act, qacc_warmstart
-        self._cuts = np.cumsum([0, m.nq, m.nv, m.na, m.nv])
-        self.nstate = int(self._cuts[-1])
+        self.cuts = np.cumsum([0, m.nq, m.nv, m.na, m.nv])  # state layout: qpos | qvel | act | warm start
+        self.nstate = int(self.cuts[-1])
         self._adr = wp.array(np.asarray(m.sensor_adr[:scene.n_pairs], np.int32), dtype=wp.int32, device=self.device)
         self._kern = _kernels()
         self._batch: _Batch | None = None
@@ -190,7 +190,7 @@ class WarpBackend(BackendBase):
         """States [B, nstate] at t = 0: the lanes' poses at rest, no warm start."""
         m = self.model
         s = np.zeros((lanes.size, self.nstate))
-        c = self._cuts
+        c = self.cuts
         s[:, c[0]:c[1]] = self.scene.qpos_from_poses(lanes.poses)
         if m.na:
             s[:, c[2]:c[3]] = self.scene.initial_act(lanes)
@@ -201,7 +201,7 @@ class WarpBackend(BackendBase):
 
     def _upload(self, b: _Batch, state: np.ndarray):
         wp = self._wp
-        c = self._cuts
+        c = self.cuts
         for k, arr in enumerate(self._fields(b.data)):
             if c[k + 1] > c[k]:
                 arr.assign(wp.array(np.ascontiguousarray(state[:, c[k]:c[k + 1]], np.float32), device=self.device))
@@ -209,7 +209,7 @@ class WarpBackend(BackendBase):
         b.data.overflow.zero_()
 
     def _download(self, b: _Batch) -> np.ndarray:
-        c = self._cuts
+        c = self.cuts
         out = np.zeros((b.nworld, self.nstate))
         for k, arr in enumerate(self._fields(b.data)):
             if c[k + 1] > c[k]:

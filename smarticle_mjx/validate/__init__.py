@@ -17,7 +17,7 @@ from .. import presets
 from ..scene import SceneParams
 from ..specs import STUDIES, SWEEPS, ScanConfig, read_study
 from ..studies import ensure
-from . import claims, evidence, page
+from . import evidence, page
 from .claims import CLAIMS
 
 SINGLE_AMPLITUDES = (10, 20, 30, 40, 50, 60, 70, 80, 90)
