@@ -299,11 +299,10 @@ def phase_diagram(
     run: Optional[str] = typer.Option(None, help="run (amplitude group) to draw; default: all"),
 ):
     """(theta, phi) phase diagram: attracted red, repelled cyan, invalid white (PNG + SVG)."""
-    from .plots import phase_diagram as draw
+    from .plots import check_out_dir, phase_diagram as draw
     from .store import Store
     runs = [run] if run else Store(store).runs
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"{out} is not a directory")
+    check_out_dir(out)
     typer.echo("wrote " + ", ".join(str(p) for r in runs for p in draw(store, out, r)))
 
 
@@ -348,9 +347,8 @@ def validate(
     imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP + "; stores go to DATA/MODEL+NAME"),
 ):
     """Measure the paper's claims from the studies in sweeps/ and write docs/validation.md."""
-    from .validate import SWEEPS, check_inputs, parse_studies, run_validation
+    from .validate import SWEEPS, parse_studies, run_validation
     chosen = parse_studies(studies)
-    check_inputs(data, out, sweeps or SWEEPS, single_periods, chosen)
     bar, progress = _progress(quiet)
     with bar:
         res = run_validation(data, out, sweeps or SWEEPS, model=_model(model), on_progress=progress,

@@ -66,6 +66,13 @@ def phase_diagram(store_path, out_dir, run: str | None = None, formats=("png", "
 KIND_COLOURS = {"C1": "#1f77b4", "C2": "#ff7f0e"}
 
 
+def check_out_dir(out) -> None:
+    """ValueError if the output folder ``out`` exists and is not a folder (checked before anything is drawn)."""
+    out = pathlib.Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"{out} exists and is not a directory")
+
+
 def save_figure(fig, out_dir, stem, formats=("png",), dpi=130) -> list[pathlib.Path]:
     plt = pyplot()
     out_dir = pathlib.Path(out_dir)

@@ -225,8 +225,7 @@ def pb_by_amplitude(path) -> list[tuple[float, dict]]:
 def pb_table(store_path, out_dir) -> tuple[list[str], list]:
     """P_b(alpha_max) of a sweep store as a printed table and its figure in ``out_dir`` (``smx pb``)."""
     out = pathlib.Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"{out} exists and is not a directory")
+    plots.check_out_dir(out)
     rows = pb_by_amplitude(store_path)
     lines = [f"{'alpha_max':>9}  {'valid':>6}  {'P_b end [95% CI]':>24}  {'P_b throughout [95% CI]':>24}"]
     for a, p in rows:
@@ -415,8 +414,7 @@ def write_any(stores, out_dir, burn_in: int | None = None, glider_min_periods: i
     from .store import Store
     kinds = {Store(s).kind for s in stores}
     out = pathlib.Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"{out} exists and is not a directory")
+    plots.check_out_dir(out)
     if (burn_in is not None and burn_in < 0) or (glider_min_periods is not None and glider_min_periods < 2):
         raise ValueError("--burn-in must be >= 0 and --glider-min-periods >= 2")
     if not apart_W > 0:

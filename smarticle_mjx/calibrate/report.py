@@ -7,7 +7,7 @@ import pathlib
 
 import numpy as np
 
-from ..plots import pyplot
+from ..plots import check_out_dir, pyplot
 from ..report import json_default
 from .data import Trial
 from .effects import BY_NAME, EffectSet
@@ -79,8 +79,7 @@ def _figures(result, heldout: list[Trial], tracks_before, tracks_after, out: pat
 def check_output(out, overwrite: bool = False) -> None:
     """ValueError unless the report folder ``out`` can be written (an existing report only with ``overwrite``)."""
     out = pathlib.Path(out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"{out} exists and is not a directory")
+    check_out_dir(out)
     if (out / "report.md").exists() and not overwrite:
         raise ValueError(f"{out} already holds a report; pass --overwrite to replace it")
     if not out.exists() and not out.parent.is_dir():
