@@ -49,6 +49,7 @@ from smarticle_mjx.bench import NUMERICS, NUMERICS_REFERENCE, fixed_starts, save
 from smarticle_mjx.engine import Lanes, Scene, make_backend
 from smarticle_mjx.engine.simulate import simulate
 from smarticle_mjx.gait import GaitSpec
+from smarticle_mjx.reduce import transport
 from smarticle_mjx.reduce.binding import binomial_interval
 
 REFERENCE = NUMERICS_REFERENCE
@@ -85,8 +86,7 @@ def lone_drift(params, amplitude: float, cycles: int = 20) -> float:
     gait = GaitSpec(amplitude)
     a = gait.setpoints(0.0, params.robot.servo_speed)
     r = simulate(params, [(0, 0, 0, a[0], a[1])], gait, periods=cycles + 2)
-    xy = r.poses[2:, 0, :2]
-    return float(np.linalg.norm(xy[-1] - xy[0]) / (len(xy) - 1) / params.robot.body_length)
+    return transport.lone_robot(r.poses[:, 0, :2], skip_cycles=2, unit=params.robot.body_length)["net_W_per_cycle"]
 
 
 def ensure_runs(names, args):

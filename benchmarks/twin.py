@@ -33,17 +33,16 @@ import numpy as np
 from smarticle_mjx import presets
 from smarticle_mjx.engine.simulate import simulate
 from smarticle_mjx.gait import GaitSpec
+from smarticle_mjx.reduce import transport
 
 OUT = pathlib.Path(__file__).parent / "results" / "twin.json"
 
 
 def _measures(quarters: np.ndarray, body_length: float) -> dict:
     """From body centres at every quarter period [4K + 1, 2]: drift and slip per edge (W), skipping period 1."""
-    per_period = quarters[::4]
-    drift = np.linalg.norm(per_period[-1] - per_period[1]) / (len(per_period) - 2) / body_length
-    edges = np.linalg.norm(np.diff(quarters[4:], axis=0), axis=1) / body_length
-    return {"drift_W_per_cycle": float(drift), "slip_per_edge_W": float(edges.mean()),
-            "slip_per_edge_max_W": float(edges.max())}
+    m = transport.lone_robot(quarters, samples_per_cycle=4, skip_cycles=1, unit=body_length)
+    return {"drift_W_per_cycle": m["net_W_per_cycle"], "slip_per_edge_W": m["slip_per_edge_W"],
+            "slip_per_edge_max_W": m["slip_per_edge_max_W"]}
 
 
 def mujoco_row(params, gait: GaitSpec, periods: int) -> dict:

@@ -123,7 +123,8 @@ def run_pairs(params, gait: GaitSpec, poses, periods: int, quiet: int, robots=No
 
 def lone_drift(params, amplitude: float, periods: int, imperfections: str | None = None, robots: int = 8,
                seed: int = 1) -> dict:
-    """Net displacement per cycle of one robot (W), at dt and dt/4.
+    """One robot's drift, mean step and absolute heading turn per cycle (W, deg;
+    :func:`smarticle_mjx.reduce.transport.lone_robot`), at dt and dt/4.
 
     With ``imperfections``: ``robots`` robots drawn from that set (seed ``seed``), each alone on the
     plate; the net drift per cycle is their mean (and every robot's value is kept)."""
@@ -144,9 +145,10 @@ def lone_drift(params, amplitude: float, periods: int, imperfections: str | None
             tr, _, w, _ = run_pairs(p, gait, poses, periods, quiet=0, robots=robot)
             xy = np.concatenate([poses[:, None, 0, :2], tr[:, :, 0, :2]], 1)[0]
             heading = np.concatenate([[0.0], tr[0, :, 0, 2]])
-            net.append(float(np.linalg.norm(xy[-1] - xy[0]) / periods / W))
-            step.append(float(np.linalg.norm(np.diff(xy, axis=0), axis=1).mean() / W))
-            turn.append(float(np.degrees(np.abs(transport.turning(heading)).mean())))
+            m = transport.lone_robot(xy, heading, unit=W)
+            net.append(m["net_W_per_cycle"])
+            step.append(m["step_W_per_cycle"])
+            turn.append(m["abs_heading_deg_per_cycle"])
             wall += w
         out[label] = {"net_per_cycle_W": float(np.mean(net)), "step_per_cycle_W": float(np.mean(step)),
                       "turn_per_cycle_deg": float(np.mean(turn)), "wall_s": wall}

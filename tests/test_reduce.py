@@ -146,6 +146,51 @@ def test_signed_turn_per_track_and_bootstrap_interval():
     assert np.isnan(transport.bootstrap_interval([1.0, 2.0])[1])
 
 
+def test_lone_robot_measures_drift_slip_and_turn_of_built_tracks():
+    """A robot that moves 3 mm per cycle in a straight line, in four equal slips of 0.75 mm (one per arm
+    move), and turns 2 deg per cycle: drift = mean step = 3 mm per cycle, slip per edge 0.75 mm, beta 2
+    (ballistic); a start-up jump in cycle 1 counts unless that cycle is skipped."""
+    W, quarters, cycles = 0.05, 4, 20
+    q = np.arange(quarters * cycles + 1)
+    xy = np.stack([0.75e-3 * q, np.zeros_like(q, float)], -1)
+    heading = np.radians(2.0) * q / quarters
+    m = transport.lone_robot(xy, heading, 1.6, samples_per_cycle=quarters, unit=W)
+    assert m["net_W_per_cycle"] == pytest.approx(3e-3 / W)
+    assert m["step_W_per_cycle"] == pytest.approx(3e-3 / W)
+    assert m["speed_W_per_s"] == pytest.approx(3e-3 / W / 1.6)
+    assert m["slip_per_edge_W"] == pytest.approx(0.75e-3 / W) == m["slip_per_edge_max_W"]
+    assert m["beta"] == pytest.approx(2.0, abs=1e-9)
+    assert m["heading_deg_per_cycle"] == pytest.approx(2.0) == m["abs_heading_deg_per_cycle"]
+
+    kicked = xy.copy()
+    kicked[1:] += [0.0, 10e-3]  # a 10 mm jump in the first quarter, then the same straight line
+    first = transport.lone_robot(kicked, samples_per_cycle=quarters, unit=W)
+    assert first["slip_per_edge_max_W"] > 10e-3 / W > first["net_W_per_cycle"] > 3e-3 / W
+    later = transport.lone_robot(kicked, samples_per_cycle=quarters, skip_cycles=1, unit=W)
+    assert later["net_W_per_cycle"] == pytest.approx(3e-3 / W)
+    assert later["slip_per_edge_max_W"] == pytest.approx(0.75e-3 / W)
+    assert "speed_W_per_s" not in later and "heading_deg_per_cycle" not in later
+
+
+def test_a_lone_robot_that_jiggles_has_steps_and_slip_but_no_drift():
+    """Back and forth 1 mm every quarter, turning +5 then -5 deg per cycle: it slips 1 mm per edge,
+    steps 0 mm per cycle (it is back at each cycle's end), drifts 0 and turns 5 deg per cycle but 0 net."""
+    q = np.arange(4 * 10 + 1)
+    xy = np.stack([1e-3 * (q % 2), np.zeros(len(q))], -1)
+    heading = np.radians(5.0) * ((q // 4) % 2)
+    m = transport.lone_robot(xy, heading, samples_per_cycle=4)
+    assert m["slip_per_edge_W"] == pytest.approx(1e-3)
+    assert m["net_W_per_cycle"] == 0 == m["step_W_per_cycle"]
+    assert m["abs_heading_deg_per_cycle"] == pytest.approx(5.0)
+    assert abs(m["heading_deg_per_cycle"]) < 1e-12
+    once = transport.lone_robot(xy[::2], samples_per_cycle=2)  # the same robot seen at half periods
+    assert once["slip_per_edge_W"] == 0 and once["net_W_per_cycle"] == 0
+    with pytest.raises(ValueError, match="two cycle ends"):
+        transport.lone_robot(xy[:5], samples_per_cycle=4, skip_cycles=1)
+    with pytest.raises(ValueError, match="samples_per_cycle"):
+        transport.lone_robot(xy, samples_per_cycle=0)
+
+
 def test_mirror_tracks_turn_the_other_way():
     t = np.linspace(0, np.pi, 40)
     ccw = np.stack([np.cos(t), np.sin(t)], -1)

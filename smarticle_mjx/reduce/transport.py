@@ -279,15 +279,46 @@ def signed_turn_per_track(angles) -> np.ndarray:
         return np.array([np.nanmean(r) if np.isfinite(r).any() else np.nan for r in t])
 
 
-def lone_robot(xy, heading, period_s: float) -> dict:
-    """A lone robot's transport from its once-per-cycle track ``xy`` [T+1, 2] (W; the start first) and
-    body ``heading`` [T+1] (rad): net drift per cycle (|end − start| / cycles: a robot that jiggles in
-    place has a mean step but no drift), mean step per cycle, net speed (W/s), the plain MSD exponent
-    beta_single over delays 5..min(25, T/3 + 3) with its fit error, and the mean heading turn per cycle (deg).
+def lone_robot(xy, heading=None, period_s: float | None = None, *, samples_per_cycle: int = 1,
+               skip_cycles: int = 0, unit: float = 1.0) -> dict:
+    """A lone robot's transport: the package's one measure of lone drift (validation, reports, benchmarks).
+
+    Args:
+      xy: [T * s + 1, 2] body centre sampled ``s = samples_per_cycle`` times per gait cycle, the start
+        first (s = 4: at every quarter, i.e. after each arm move and its dwell).
+      heading: [T * s + 1] body heading (rad), or None.
+      period_s: the gait period (s), for the speed; None leaves it out.
+      skip_cycles: cycles left out at the start (the start-up transient).
+      unit: the length unit of the results in ``xy``'s units (the body length W: results in W).
+
+    Returns, over the cycles after ``skip_cycles``, per cycle and in ``unit``:
+      ``net_W_per_cycle``: |end − start| / cycles (a robot that jiggles in place has a mean step but
+      no drift); ``step_W_per_cycle``: the mean step between once-per-cycle samples; ``speed_W_per_s``:
+      the net drift over the period; ``beta``, ``beta_err``: the plain MSD exponent of the once-per-cycle
+      track over delays 5..min(25, T/3 + 3) (NaN for fewer than 3 delays); ``heading_deg_per_cycle``
+      and ``abs_heading_deg_per_cycle``: the mean signed and absolute heading turn per cycle; with
+      ``s > 1``, ``slip_per_edge_W`` and ``slip_per_edge_max_W``: the mean and largest displacement
+      between consecutive samples (s = 4: what one arm move and its start and stop kicks slip the body).
     """
-    xy = np.asarray(xy, float)
-    net = float(net_speed(xy)[0])
-    ex = msd_exponent(xy, (5, min(25, len(xy) // 3 + 3)), centered=False)  # one track: plain MSD
-    return {"net_W_per_cycle": net, "step_W_per_cycle": float(np.nanmean(step_lengths(xy))),
-            "speed_W_per_s": net / period_s, "beta": ex.beta, "beta_err": ex.err,
-            "heading_deg_per_cycle": float(np.degrees(np.mean(turning(heading))))}
+    s = int(samples_per_cycle)
+    if s < 1 or skip_cycles < 0:
+        raise ValueError("samples_per_cycle must be >= 1 and skip_cycles >= 0")
+    xy = np.asarray(xy, float)[s * skip_cycles:]
+    cycles = xy[::s]
+    if len(cycles) < 2:
+        raise ValueError(f"a lone robot's track needs two cycle ends after {skip_cycles} skipped cycles")
+    net = float(net_speed(cycles)[0] / unit)
+    ex = msd_exponent(cycles, (5, min(25, len(cycles) // 3 + 3)), centered=False)  # one track: plain MSD
+    out = {"net_W_per_cycle": net, "step_W_per_cycle": float(np.nanmean(step_lengths(cycles)) / unit)}
+    if period_s is not None:
+        out["speed_W_per_s"] = net / period_s
+    out.update(beta=ex.beta, beta_err=ex.err)
+    if heading is not None:
+        turn = turning(np.asarray(heading, float)[s * skip_cycles::s])
+        out["heading_deg_per_cycle"] = float(np.degrees(np.mean(turn)))
+        out["abs_heading_deg_per_cycle"] = float(np.degrees(np.mean(np.abs(turn))))
+    if s > 1:
+        edges = step_lengths(xy) / unit
+        out["slip_per_edge_W"] = float(edges.mean())
+        out["slip_per_edge_max_W"] = float(edges.max())
+    return out
