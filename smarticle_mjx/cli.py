@@ -372,23 +372,15 @@ def movie(
     trail: float = typer.Option(5.0, help="trail of the body centres, in gait periods"),
 ):
     """Top-view movie of a simulated track, or of one lane of a scan store simulated again exactly."""
-    from .movie import MovieOptions, check_output, load_track, render
-    from .store import is_scan_store
+    from .movie import MovieOptions, check_output, render
+    from .replay import movie_track
     opts = MovieOptions(fps=fps, speed=speed, duration=duration, trail_periods=trail, size_px=size)
     opts.validate()
-    if not source.exists():
-        raise ValueError(f"{source} does not exist")
     check_output(out)
-    if is_scan_store(source):
-        from .replay import lane_track
-        t, poses, robot, period, title, same = lane_track(source, run, lane, frame_interval=min(0.05, speed / fps))
-        if not same:
-            typer.echo("warning: the re-simulation differs from the stored records "
-                       "(another package or MuJoCo version made the store)", err=True)
-    elif lane is not None:
-        raise ValueError("--lane is for scan stores; this is a track")
-    else:
-        t, poses, robot, period, title = load_track(source)
+    t, poses, robot, period, title, same = movie_track(source, lane, run, frame_interval=min(0.05, speed / fps))
+    if not same:
+        typer.echo("warning: the re-simulation differs from the stored records "
+                   "(another package or MuJoCo version made the store)", err=True)
     info = render(t, poses, robot, period, out, opts, title=title)
     typer.echo(f"wrote {info['path']} ({info['format']}, {info['frames']} frames at {info['fps']:g} fps, "
                f"{info['size'][0]}x{info['size'][1]})")

@@ -100,3 +100,18 @@ def lane_track(store_path, run: str | None, lane: int | None, frame_interval: fl
     title = (f"{pathlib.Path(store_path).name} lane {lane}, {gait.amplitude_deg:g} deg"
              + ("" if same else " (differs from store!)"))
     return t, poses, params.robot, gait.period(), title, same
+
+
+def movie_track(source, lane: int | None, run: str | None, frame_interval: float) -> tuple:
+    """What ``smx movie`` shows: one lane of a scan store simulated again (:func:`lane_track`), or a track
+    written by ``smx simulate`` (:func:`smarticle_mjx.movie.load_track`, ``same`` True). ValueError for a
+    missing source or a ``lane`` given for a track."""
+    from .movie import load_track
+    from .store import is_scan_store
+    if not pathlib.Path(source).exists():
+        raise ValueError(f"{source} does not exist")
+    if is_scan_store(source):
+        return lane_track(source, run, lane, frame_interval)
+    if lane is not None:
+        raise ValueError("--lane is for scan stores; this is a track")
+    return (*load_track(source), True)

@@ -10,6 +10,7 @@ page. Nothing here reads a store or simulates, so each test can be checked on bu
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any, Callable
 
@@ -87,11 +88,14 @@ class Claim:
 CLAIMS: list[Claim] = []
 
 
-def claim(key: str, text: str, paper: str, test: str, studies: tuple[str, ...]):
-    """Register the decorated function as the measure of a claim (the page lists them in this order)."""
+def claim(key: str, text: str, paper: str, test: str, studies: tuple[str, ...],
+          needs: Callable[[Any], Outcome | None] | None = None):
+    """Register the decorated function as the measure of a claim (the page lists them in this order).
+    ``needs``: a precondition checked first; the Outcome it returns (not measurable) stands for the claim's."""
     def deco(fn):
-        CLAIMS.append(Claim(key, text, paper, test, studies, fn))
-        return fn
+        measure = fn if needs is None else functools.wraps(fn)(lambda ev: needs(ev) or fn(ev))
+        CLAIMS.append(Claim(key, text, paper, test, studies, measure))
+        return measure
     return deco
 
 
@@ -130,10 +134,8 @@ def _untyped(a90: dict) -> Outcome | None:
 
 
 @claim("both_types", "both C1 (φ ≈ 180°) and C2 (φ ≈ 0°) gliders form", "Fig. 2C–D, 4D",
-       "each type holds > 5 % of the steady bound samples (k-means, named by φ)", ("random_90",))
+       "each type holds > 5 % of the steady bound samples (k-means, named by φ)", ("random_90",), needs=_untyped)
 def both_types(a90: dict) -> Outcome:
-    if untyped := _untyped(a90):
-        return untyped
     s90 = a90["summary"]
     c1, c2, tot = s90["C1"], s90["C2"], s90["steady_samples"]
     both = c1["steady_samples"] > TYPE_SHARE * tot and c2["steady_samples"] > TYPE_SHARE * tot
@@ -147,10 +149,8 @@ def both_types(a90: dict) -> Outcome:
 
 
 @claim("c1_basin", "C1's basin is larger than C2's", "Fig. 4C–D (text)",
-       "95 % intervals of the two basin fractions do not overlap, C1 above", ("random_90",))
+       "95 % intervals of the two basin fractions do not overlap, C1 above", ("random_90",), needs=_untyped)
 def c1_basin(a90: dict) -> Outcome:
-    if untyped := _untyped(a90):
-        return untyped
     s90 = a90["summary"]
     c1, c2, n = s90["C1"], s90["C2"], s90["valid"]
     lo1, hi1 = binding.binomial_interval(c1["basin_configs"], n)
@@ -164,10 +164,8 @@ def c1_basin(a90: dict) -> Outcome:
 
 @claim("c1_lifetime", "C1 lives longer than C2", "Fig. 6B",
        "mean C1 lifetime > mean C2 lifetime, and C1 longer by a one-sided Mann–Whitney test at p < 0.05 "
-       "(stricter than before)", ("random_90",))
+       "(stricter than before)", ("random_90",), needs=_untyped)
 def c1_lifetime(a90: dict) -> Outcome:
-    if untyped := _untyped(a90):
-        return untyped
     s90 = a90["summary"]
     c1, c2 = s90["C1"], s90["C2"]
     typed = a90["arrays"]["typed"]
