@@ -180,9 +180,8 @@ def sweep_config(study=None, amplitudes: str | None = None, **overrides) -> Scan
     return cfg
 
 
-def load_study(path) -> ScanConfig:
-    """A study file (TOML) from sweeps/: keys are ScanConfig fields."""
-    path = pathlib.Path(path)
+def _study_table(path: pathlib.Path) -> dict:
+    """The ``[study]`` table of a study file (or its top level); ValueError for a missing or unreadable file."""
     try:
         raw = tomllib.loads(path.read_text())
     except FileNotFoundError:
@@ -191,11 +190,11 @@ def load_study(path) -> ScanConfig:
         raise ValueError(f"cannot read study file {path}: {e}") from None
     except tomllib.TOMLDecodeError as e:
         raise ValueError(f"study file {path} is not valid TOML: {e}") from None
-    study = raw.get("study", raw)
-    if study.get("configs") == "bound":
-        raise ValueError(f"study file {path} starts pairs from another study's gliders; smx validate runs it")
-    if study.get("configs") == "relax":
-        raise ValueError(f"study file {path} is a relaxation study (smx relax); smx validate runs it")
+    return raw.get("study", raw)
+
+
+def _scan_study(study: dict, path: pathlib.Path) -> ScanConfig:
+    """A scan study's table (keys are ScanConfig fields) as its spec."""
     fields = {f.name for f in dataclasses.fields(ScanConfig)}
     unknown = set(study) - fields - {"description", "figure"}
     if unknown:
@@ -205,6 +204,17 @@ def load_study(path) -> ScanConfig:
         return ScanConfig(**kw)
     except TypeError as e:
         raise ValueError(f"study file {path}: {e}") from None
+
+
+def load_study(path) -> ScanConfig:
+    """A study file (TOML) from sweeps/: keys are ScanConfig fields."""
+    path = pathlib.Path(path)
+    study = _study_table(path)
+    if study.get("configs") == "bound":
+        raise ValueError(f"study file {path} starts pairs from another study's gliders; smx validate runs it")
+    if study.get("configs") == "relax":
+        raise ValueError(f"study file {path} is a relaxation study (smx relax); smx validate runs it")
+    return _scan_study(study, path)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -374,15 +384,9 @@ class RelaxStudy:
 
 
 def read_study(path) -> ScanConfig | BoundStudy | RelaxStudy:
-    """A study file from sweeps/: a scan (``ScanConfig`` keys) or a started-bound study."""
+    """A study file from sweeps/: a scan (``ScanConfig`` keys), a started-bound or a relaxation study."""
     path = pathlib.Path(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"study file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise ValueError(f"cannot read study file {path}: {e}") from None
-    study = raw.get("study", raw)
+    study = _study_table(path)
     if study.get("configs") == "relax":
         known = {f.name for f in dataclasses.fields(RelaxConfig)} - {"trials", "first_trial", "model"}
         own = {"stages", "trials", "description", "figure", "configs"}
@@ -398,7 +402,7 @@ def read_study(path) -> ScanConfig | BoundStudy | RelaxStudy:
             raise ValueError(f"study file {path}: {e}") from None
         return rs
     if study.get("configs") != "bound":
-        return load_study(path)
+        return _scan_study(study, path)
     fields = {f.name for f in dataclasses.fields(BoundStudy)}
     unknown = set(study) - fields - {"configs"}
     if unknown:
