@@ -100,7 +100,7 @@ class ScanConfig:
             raise ValueError("amplitudes must be distinct")
         for a in self.amplitudes_deg:
             self.gait_spec(a).validate(params.robot.servo_speed, params.robot.arm_limit_deg)
-        from .engine import BACKENDS
+        from .engine import BACKENDS, check_backend
         if self.backend not in BACKENDS:
             raise ValueError(f"--backend must be {', '.join(BACKENDS[:-1])} or {BACKENDS[-1]}, got {self.backend!r}")
         from .engine.dart import check_study
@@ -111,8 +111,7 @@ class ScanConfig:
                 raise ValueError(mjwarp.MISSING)
         if self.batch_size <= 0 or self.chunk_periods <= 0 or self.quiet_periods < 0:
             raise ValueError("batch size and chunk periods must be positive, quiet periods >= 0")
-        if self.collisions and self.backend not in ("native", "dart"):
-            raise ValueError("--collisions is recorded by the native and dart backends only")
+        check_backend(self.backend, self.collisions)
         if self.collision_bins < 1:
             raise ValueError(f"--collision-bins must be positive, got {self.collision_bins}")
 
@@ -276,9 +275,8 @@ class RelaxConfig:
             raise ValueError(f"plate side must be positive, got {self.plate_m}")
         if self.batch_size < 1 or self.chunk_periods < 1 or self.quiet_periods < 0:
             raise ValueError("batch size and chunk periods must be >= 1, quiet periods >= 0")
-        from .engine import BACKENDS
-        if self.backend not in BACKENDS:
-            raise ValueError(f"unknown backend {self.backend!r}; choose one of {', '.join(BACKENDS)}")
+        from .engine import check_backend
+        check_backend(self.backend)
         from .engine.dart import check_study
         check_study(self.backend, self.dart_numerics, self.robots().scene(params))
         self.gait_spec().validate(params.robot.servo_speed, params.robot.arm_limit_deg)
