@@ -48,6 +48,7 @@ import shutil
 import h5py
 import numpy as np
 
+from . import __version__
 from .labels import BAD_STATUS as _BAD_STATUS
 from .labels import CONTACT_KINDS, STATUS_MEANINGS
 
@@ -67,12 +68,14 @@ class StoreError(Exception):
     """A store cannot be created, resumed or read as asked."""
 
 
+PACKAGE = f"smarticle-mjx {__version__}"  # a store's ``package`` attribute: which release made it
+
+
 def versions() -> dict:
     import jax
     import mujoco
 
-    from . import __version__
-    return {"package": f"smarticle-mjx {__version__}", "mujoco": mujoco.__version__, "jax": jax.__version__,
+    return {"package": PACKAGE, "mujoco": mujoco.__version__, "jax": jax.__version__,
             "h5py": h5py.__version__, "numpy": np.__version__}
 
 

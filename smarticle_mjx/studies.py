@@ -2,7 +2,7 @@
 
 Three kinds of study (one reader, :func:`read_study`):
 
-* a **scan** (random, polar or explicit starts; any ``ScanConfig`` keys) -> :class:`smarticle_mjx.scan.ScanConfig`;
+* a **scan** (random, polar or explicit starts; any ``ScanConfig`` keys) -> :class:`ScanConfig`;
 * a **started-bound** study (``configs = "bound"``): pairs started as steady gliders taken from
   another study's store, run at one or several amplitudes -> :class:`BoundStudy`;
 * a **relaxation** study (``configs = "relax"``): trials in stages -> :class:`RelaxStudy`.
@@ -23,13 +23,12 @@ from typing import Callable
 
 import numpy as np
 
-from . import __version__
 from .reduce import gliders as GL
 from .report import analyse_run
 from .scan import run_scan
 from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, params_json
 from .scene import SceneParams
-from .store import Store, journal_path
+from .store import PACKAGE, Store, journal_path
 
 def _stamp(text) -> str:
     return "".join(c for c in str(text) if c.isdigit())[:14] or "unknown"
@@ -72,7 +71,7 @@ def stale_reason(cfg: ScanConfig, path: pathlib.Path) -> str | None:
     have = _normalised(st.config, want, params)
     if have["model"] != cfg.model:
         return f"made by model {have['model']}"
-    if st.attrs.get("package") != f"smarticle-mjx {__version__}":
+    if st.attrs.get("package") != PACKAGE:
         return f"made by {st.attrs.get('package')}"
     if have != want:
         return "made from a different study file"
@@ -88,6 +87,18 @@ def _move_aside(path: pathlib.Path, what: pathlib.Path, why: str, created, notes
         notes.append(f"{path.name}: {why}; kept as {aside.name} and rerun")
 
 
+def _check_journal(path: pathlib.Path, want: dict, normalise, notes: list | None) -> None:
+    """Move aside the journal of an interrupted run at ``path`` that another configuration
+    (``normalise(its config) != want``) or package version made, so that the study starts anew."""
+    journal = journal_path(path)
+    if not journal.exists():
+        return
+    meta = json.loads((journal / "meta.json").read_text()) if (journal / "meta.json").exists() else {}
+    if meta.get("package") != PACKAGE or normalise(meta.get("config", {})) != want:
+        _move_aside(path, journal, "an interrupted run of another configuration or version", meta.get("created"),
+                    notes)
+
+
 def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict], None] | None = None,
                 notes: list | None = None, run: bool = True) -> pathlib.Path | None:
     """The complete store of scan ``cfg`` at ``path``: reused if it was made
@@ -96,9 +107,6 @@ def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict
     journal) made otherwise is moved aside, never deleted, and the scan is
     rerun."""
     params, want = _recorded(cfg)
-    package = f"smarticle-mjx {__version__}"
-    journal = journal_path(path)
-
     if path.exists():
         why = stale_reason(cfg, path)
         if why is None:
@@ -108,13 +116,9 @@ def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict
         _move_aside(path, path, why, Store(path).attrs.get("created"), notes)
     elif not run:
         return None
-    elif journal.exists():
-        meta = json.loads((journal / "meta.json").read_text()) if (journal / "meta.json").exists() else {}
-        have = _normalised(meta.get("config", {}), want, params)
-        if meta.get("package") != package or have != want:
-            _move_aside(path, journal, "an interrupted run of another configuration or version", meta.get("created"),
-                        notes)
-    run_scan(cfg, path, mode="resume" if journal.exists() else "new", on_progress=on_progress)
+    else:
+        _check_journal(path, want, lambda config: _normalised(config, want, params), notes)
+    run_scan(cfg, path, mode="resume" if journal_path(path).exists() else "new", on_progress=on_progress)
     return path
 
 
@@ -171,16 +175,14 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
     current complete store. A stage made by another configuration, model or
     package version is moved aside (never deleted) and rerun."""
     from .relax import run_relax
-    package = f"smarticle-mjx {__version__}"
     paths = []
     for stage in range(rs.stages):
         cfg = rs.stage_config(stage, model, imperfections)
         want = _recorded(cfg)[1]
         path = relax_stage_path(data, stem, stage)
-        journal = journal_path(path)
         if path.exists():
             st = Store(path)
-            if st.attrs.get("package") == package and st.config == want:
+            if st.attrs.get("package") == PACKAGE and st.config == want:
                 paths.append(path)
                 continue
             if not run:
@@ -188,12 +190,9 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
             _move_aside(path, path, "made by another configuration, model or version", st.attrs.get("created"), notes)
         elif not run:
             break
-        elif journal.exists():
-            meta = json.loads((journal / "meta.json").read_text()) if (journal / "meta.json").exists() else {}
-            if meta.get("package") != package or meta.get("config") != want:
-                _move_aside(path, journal, "an interrupted run of another configuration or version",
-                            meta.get("created"), notes)
-        run_relax(cfg, path, mode="resume" if journal.exists() else "new", on_progress=on_progress)
+        else:
+            _check_journal(path, want, lambda config: config, notes)
+        run_relax(cfg, path, mode="resume" if journal_path(path).exists() else "new", on_progress=on_progress)
         paths.append(path)
     return paths
 

@@ -95,7 +95,7 @@ def test_a_store_of_another_package_version_is_rerun_and_kept(tmp_path, monkeypa
     rows = json.loads((tmp_path / "v" / "validation.json").read_text())["rows"]
     assert sum("not run yet" in row["measured"] for row in rows) == 11
     old = _hashes(data / DEFAULT)["validation_polar.h5"]
-    monkeypatch.setattr(studies, "__version__", "99.0")
+    monkeypatch.setattr(studies, "PACKAGE", "smarticle-mjx 99.0")
     monkeypatch.setattr("smarticle_mjx.store.versions", lambda: {"package": "smarticle-mjx 99.0"})
     r = CliRunner().invoke(app, ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps),
                                  "--single-periods", "3", "--quiet", "--studies", "polar"])
