@@ -19,6 +19,7 @@ import numpy as np
 from ..configs import pose_from_relative, poses_valid
 from ..gait import GaitSpec
 from .. import presets
+from ..plots import check_out_dir
 from ..scene import SceneParams
 from .data import Trial
 from .effects import BY_NAME, EffectSet
@@ -94,8 +95,7 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
         gait.validate(params.robot.servo_speed, params.robot.arm_limit_deg)
     if not out_dir.parent.is_dir():
         raise ValueError(f"output directory {out_dir.parent} does not exist")
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ValueError(f"{out_dir} exists and is not a directory")
+    check_out_dir(out_dir)
     if out_dir.exists() and any(out_dir.glob("*.csv")):
         raise ValueError(f"{out_dir} already holds data; choose an empty folder")
     out_dir.mkdir(exist_ok=True)  # only once every input is known to be good

@@ -14,6 +14,7 @@ import pathlib
 import numpy as np
 
 from .. import presets
+from ..plots import check_out_dir
 from ..scene import SceneParams
 from ..specs import STUDIES, SWEEPS, ScanConfig, read_study
 from ..studies import ensure
@@ -88,8 +89,7 @@ def check_inputs(data, out_md, sweeps, single_periods: int, studies=None) -> Non
         raise ValueError(f"unknown studies {unknown}; known: {', '.join(STUDIES)}")
     if not out_md.parent.is_dir():
         raise ValueError(f"output directory {out_md.parent} does not exist")
-    if data.exists() and not data.is_dir():
-        raise ValueError(f"{data} exists and is not a directory")
+    check_out_dir(data)
     if single_periods < 2:
         raise ValueError("--single-periods must be >= 2")
 
