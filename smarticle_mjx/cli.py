@@ -74,10 +74,8 @@ def _progress(quiet: bool):
     return bar, progress
 
 
-
 _EXECUTOR_HELP = ("local (this machine), dask (a Dask cluster: --scheduler ADDRESS, or a local one) or slurm "
                   "(Slurm jobs as Dask workers, docs/cluster.md)")
-
 
 
 def _option(name: str, annotation, default, help: str) -> inspect.Parameter:
@@ -101,7 +99,6 @@ _EXECUTOR_OPTIONS = (
     _option("queue", Optional[str], None, "slurm: partition"),
     _option("account", Optional[str], None, "slurm: account"),
 )
-
 
 
 # The gait and the store options, also defined once (simulate, scan, relax; scan, sweep-amplitude, relax).

@@ -137,8 +137,7 @@ class RelaxJob:
         return (repr(self.params), self.config.backend, self.config.n_robots, nthread)
 
     def open_backend(self, nthread: int | None = None):
-        return open_backend(self.config.backend, self.params, self.config.n_robots,
-                            nthread=nthread,
+        return open_backend(self.config.backend, self.params, self.config.n_robots, nthread=nthread,
                             **self.config.backend_options())
 
     def rows(self, backend, run: str, lo: int, hi: int, on_rows) -> dict:
@@ -172,9 +171,10 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
     runs = {RUN: run_attrs(config.gait_spec(), prep.dt, config.periods, config.trials,
                            n_robots=config.n_robots, rows="trials")}
     job = RelaxJob(config, prep.params, starts, phase)
-    summary = {"trials": config.trials, "quiet_periods": config.quiet_periods, **write_rows(job, out, prep, runs, config.trials, mode, executor,
-                                                     LocalExecutor(flush_rows=None, nthread=nthread),
-                                                     on_progress, fields=RELAX_FIELDS)}
+    local = LocalExecutor(flush_rows=None, nthread=nthread)
+    summary = {"trials": config.trials, "quiet_periods": config.quiet_periods,
+               **write_rows(job, out, prep, runs, config.trials, mode, executor, local, on_progress,
+                            fields=RELAX_FIELDS)}
     st = Store(out)  # every trial, including those a resumed run found in the journal
     summary["stopped_early"] = int((st.run(RUN, fields=("periods_run",))["periods_run"] < config.periods).sum())
     return summary

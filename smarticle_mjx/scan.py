@@ -58,32 +58,13 @@ class RunInputs:
         return RunInputs(cfg, poses, C.poses_valid(poses, params.robot), g)
 
 
-def simulate_rows(backend, config: ScanConfig, params: SceneParams, inputs: RunInputs, lo: int, hi: int,
-                  on_rows: Callable[[np.ndarray, dict], None],
-                  on_progress: Callable[[int], None] | None = None) -> dict:
-    """Simulate rows ``lo .. hi-1`` of one run; ``on_rows(rows index, rows)`` as lanes finish (any order).
-
-    Returns the engine's summary (``run_lanes``): lane-periods run and the
-    seconds spent inside the backend.
-
-    Every executor runs configurations through this one function, so a row's
-    content does not depend on which executor, shard or batch computed it.
-    """
-    record = Record(collisions=config.collisions, collision_bins=config.collision_bins)
-    lanes = config.robots().lanes(Lanes.from_gait(inputs.poses[lo:hi], inputs.gait), np.arange(lo, hi))
-
-    def on_lanes(res):
-        idx = lo + res.index
-        on_rows(idx, _rows(inputs.cfg[idx], inputs.valid[idx], res, params.robot.body_length))
-
-    return run_lanes(backend, lanes, config.periods, batch_size=config.batch_size, chunk_periods=config.chunk_periods,
-              rule=RetireRule(quiet_periods=config.quiet_periods), valid=inputs.valid[lo:hi], on_lanes=on_lanes,
-              on_progress=(lambda done, total, lp: on_progress(done)) if on_progress else None, record=record)
-
-
 @dataclasses.dataclass(frozen=True)
 class ScanJob:
-    """A scan's row job (``executors.RowJob``): simulates any range of one run's configurations."""
+    """A scan's row job (``executors.RowJob``): simulates any range of one run's configurations.
+
+    Every executor runs configurations through :meth:`rows`, so a row's content does not depend on
+    which executor, shard or batch computed it.
+    """
 
     config: ScanConfig
     params: SceneParams
@@ -93,13 +74,24 @@ class ScanJob:
         return (repr(self.params), self.config.backend, self.config.collisions, nthread)
 
     def open_backend(self, nthread: int | None = None):
-        return open_backend(self.config.backend, self.params, 2, collisions=self.config.collisions,
-                            nthread=nthread,
+        return open_backend(self.config.backend, self.params, 2, collisions=self.config.collisions, nthread=nthread,
                             **self.config.backend_options())
 
-    def rows(self, backend, run: str, lo: int, hi: int, on_rows) -> dict:
-        inputs = RunInputs.of(self.config, self.params, self.amplitudes[run])
-        return simulate_rows(backend, self.config, self.params, inputs, lo, hi, on_rows)
+    def rows(self, backend, run: str, lo: int, hi: int, on_rows: Callable[[np.ndarray, dict], None]) -> dict:
+        """Simulate rows ``lo .. hi-1`` of ``run``; ``on_rows(rows index, rows)`` as lanes finish (any order).
+        Returns the engine's summary (``run_lanes``: lane-periods run, seconds inside the backend)."""
+        config = self.config
+        inputs = RunInputs.of(config, self.params, self.amplitudes[run])
+        record = Record(collisions=config.collisions, collision_bins=config.collision_bins)
+        lanes = config.robots().lanes(Lanes.from_gait(inputs.poses[lo:hi], inputs.gait), np.arange(lo, hi))
+
+        def on_lanes(res):
+            idx = lo + res.index
+            on_rows(idx, _rows(inputs.cfg[idx], inputs.valid[idx], res, self.params.robot.body_length))
+
+        return run_lanes(backend, lanes, config.periods, batch_size=config.batch_size,
+                         chunk_periods=config.chunk_periods, rule=RetireRule(quiet_periods=config.quiet_periods),
+                         valid=inputs.valid[lo:hi], on_lanes=on_lanes, record=record)
 
 
 def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | None = None,
