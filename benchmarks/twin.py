@@ -24,13 +24,13 @@ import argparse
 import dataclasses
 import json
 import math
-import os
 import pathlib
 import time
 
 import numpy as np
 
 from smarticle_mjx import presets
+from smarticle_mjx.bench import save_json
 from smarticle_mjx.engine.simulate import simulate
 from smarticle_mjx.gait import GaitSpec
 from smarticle_mjx.reduce import transport
@@ -491,9 +491,7 @@ def _update(path: pathlib.Path, change) -> None:
     written it while this one ran) and replace the file atomically."""
     done = json.loads(path.read_text()) if path.exists() else {"model": presets.DEFAULT}
     change(done)
-    tmp = path.with_name(path.name + f".{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(done, indent=1, default=float))
-    tmp.replace(path)
+    save_json(path, done)
 
 
 def _save(rows: dict, path: pathlib.Path):

@@ -40,7 +40,7 @@ def save_json(path, data: dict) -> None:
     """Write ``data`` to ``path`` atomically (a benchmark's resumable result file: an interrupted
     write leaves the previous file)."""
     path = pathlib.Path(path)
-    tmp = path.with_name(path.name + ".tmp")
+    tmp = path.with_name(path.name + f".{os.getpid()}.tmp")  # parts running side by side each their own
     tmp.write_text(json.dumps(data, indent=1, default=float))
     os.replace(tmp, path)
 
@@ -161,7 +161,7 @@ def gliding(params, n: int, periods: int, seed: int, burn_in: int, save: pathlib
             robots=None) -> dict:
     """Glider quantities at 90 deg from ``n`` random valid starts; the
     per-period tracks go to ``save`` (.npz) so that metrics can be recomputed
-    (:func:`glide_metrics`) without simulating again."""
+    (``gliders.glide_summary``, ``gliders.glider_transport``) without simulating again."""
     W = params.robot.body_length
     gait = GaitSpec(90.0)
     poses = pair_starts(params, n, seed, 90.0)
