@@ -531,7 +531,7 @@ def read_relax(paths) -> dict:
     Returns:
       dict of arrays (:data:`RELAX_FIELDS` plus ``trial`` indices) and
       ``settings`` (the first store's relax settings), ``periods``,
-      ``period_s``, ``body_length`` (m), ``model``, ``paths``.
+      ``period_s``, ``body_length`` and ``body_thickness`` (m), ``model``, ``paths``.
     """
     paths = [paths] if not isinstance(paths, (list, tuple)) else list(paths)
     if not paths:
@@ -559,7 +559,8 @@ def read_relax(paths) -> dict:
     st0 = stores[0]
     out.update(settings=dict(st0.config["relax"]), periods=int(st0.config["relax"]["periods"]),
                period_s=float(st0.run_attrs["trials"]["period_s"]), model=st0.model,
-               body_length=float(st0.config["scene"]["robot"]["body_length"]), paths=[str(p) for p in paths])
+               body_length=float(st0.config["scene"]["robot"]["body_length"]),
+               body_thickness=float(st0.config["scene"]["robot"]["body_thickness"]), paths=[str(p) for p in paths])
     return out
 
 

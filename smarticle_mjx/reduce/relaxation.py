@@ -33,6 +33,8 @@ Definitions (stated before any number is known):
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from .. import configs as C
@@ -243,3 +245,338 @@ def typed_lifetimes(episodes: list[dict]) -> dict:
     else:
         out["p_c1_longer"] = float("nan")
     return out
+
+
+# ------------------------------------------------------------------ the crowd
+# Measures of the crowd itself (chains, neighbours, area fraction and its plateau), typed results.
+# Definitions and their constants were fixed, with the tests in tests/test_crowd.py, before any model
+# trial was measured with them (docs/relax.md, "Measures of the crowd").
+
+PLATEAU_WINDOW = 10  # periods per window of the area-fraction plateau rule
+PLATEAU_TOL = 0.02  # largest change of phi over one window (least-squares slope x window), absolute
+PLATEAU_WINDOWS = 2  # consecutive windows that must each pass (a plateau lasts >= 2 windows)
+CHAIN_MIN = 3  # robots in a chain (a pair is a glider candidate, not a chain)
+
+
+@dataclasses.dataclass(frozen=True)
+class ChainEpisode:
+    """One chain held by the same robots over consecutive periods.
+
+    Attributes:
+      members: the robots (sorted indices), >= CHAIN_MIN of them.
+      start: first period (0-based) in which this member set formed one connected component.
+      lifetime: consecutive periods (>= 1) with exactly this member set.
+      censored: the run reached the last period simulated (the chain may have lived on).
+      loop_periods: periods of the episode in which the chain's touch graph held a closed loop
+        (at least as many touching pairs as members).
+    """
+
+    members: tuple[int, ...]
+    start: int
+    lifetime: int
+    censored: bool
+    loop_periods: int
+
+
+@dataclasses.dataclass(frozen=True)
+class Plateau:
+    """The area fraction's plateau (the relaxation time read off phi(t)).
+
+    Attributes:
+      period: first period of the plateau (phi(t) is indexed by periods, 0 = the start);
+        if none was found, the last period on which phi is defined (then ``censored``).
+      censored: no plateau before phi's series ended (the crowd was still relaxing).
+      phi: median phi over the plateau's first window (NaN if censored).
+      phi_end: phi on the last period it is defined (what a slow creep below the rule's rate
+        still took off after the plateau began: ``phi - phi_end``).
+      defined_until: last period on which phi is defined (plate-exit rule).
+      window, tol: the rule's constants.
+    """
+
+    period: int
+    censored: bool
+    phi: float
+    phi_end: float
+    defined_until: int
+    window: int = PLATEAU_WINDOW
+    tol: float = PLATEAU_TOL
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CrowdTrial:
+    """Crowd measures of one trial, per period.
+
+    Attributes:
+      phi: [K + 1] area fraction n W D / (convex-hull area of the body centres), index 0 the start,
+        index k the end of period k; NaN from the first period a robot is off the plate.
+      degree: [K, N] robots each robot touched in period k (-1 once off the plate or after an early stop).
+      in_chain: [K] robots belonging to a chain in period k.
+      chains: every chain episode.
+      plateau: phi's plateau.
+      contact_relaxation: the contact-based relaxation time (:func:`relaxation_time`) and whether censored.
+    """
+
+    phi: np.ndarray
+    degree: np.ndarray
+    in_chain: np.ndarray
+    chains: tuple[ChainEpisode, ...]
+    plateau: Plateau
+    contact_relaxation: tuple[int, bool]
+
+
+def hull_area(xy: np.ndarray) -> float:
+    """Area of the convex hull of points [M, 2] (0 for fewer than 3 or collinear points)."""
+    xy = np.asarray(xy, float)
+    if len(xy) < 3:
+        return 0.0
+    from scipy.spatial import ConvexHull, QhullError
+    try:
+        return float(ConvexHull(xy).volume)  # in 2-D, ``volume`` is the area
+    except QhullError:
+        return 0.0
+
+
+def area_fraction(poses, start, body_length: float, body_thickness: float, left_plate=None,
+                  periods_run=None) -> np.ndarray:
+    """Savoie's area fraction of a crowd, phi = n W D / A_hull, per period.
+
+    Args:
+      poses: [K, N, >=2] body centres (m) at the end of each period.
+      start: [N, >=2] start poses.
+      body_length, body_thickness: W and D (m): the body's footprint, as the lab's analysis used it
+        (wsavoie/ArduinoSmarticle cloudSmarticle/matlabScripts/plotCloudData.m, A = l w of the body).
+      left_plate: [N] first period (1-based) ending with the robot off the plate; 0: never.
+      periods_run: periods simulated (an early-stopped trial repeats its last state: phi is held).
+
+    Returns:
+      [K + 1] phi (index 0: the start); NaN from the first period a robot was off the plate
+      (the hull would jump to the lost robot; the lab's camera loses it).
+    """
+    poses = np.asarray(poses, float)
+    k, n = poses.shape[:2]
+    run = k if periods_run is None else int(periods_run)
+    xy = np.concatenate([np.asarray(start, float)[None, :, :2], poses[:, :, :2]])  # [K+1, N, 2]
+    phi = np.full(k + 1, np.nan)
+    a_robot = n * body_length * body_thickness
+    for t in range(min(run, k) + 1):
+        area = hull_area(xy[t])
+        phi[t] = a_robot / area if area > 0 else np.nan
+    if run < k:
+        phi[run + 1:] = phi[run]  # no contact for many periods: every later period repeats the last
+    if left_plate is not None:
+        lp = np.asarray(left_plate)
+        if (lp > 0).any():
+            phi[int(lp[lp > 0].min()):] = np.nan
+    return phi
+
+
+def phi_plateau(phi, window: int = PLATEAU_WINDOW, tol: float = PLATEAU_TOL,
+                windows: int = PLATEAU_WINDOWS) -> Plateau:
+    """The first period t at which phi has stopped changing: for each of ``windows`` consecutive
+    windows [t + i w, t + (i + 1) w] the least-squares line through phi changes by at most
+    ``tol`` across the window. Only phi's defined prefix is read (NaN ends it).
+
+    The rule is a rate (tol / window per period, 0.002 with the defaults: a fifth of the lab's
+    mean expansion rate, Savoie's clouds losing ~0.3 of phi in ~30 periods), chosen so that a
+    pair gliding away at the lab's ~0.03 W per period, which keeps stretching the hull, does not
+    keep the crowd "relaxing" for ever. Its price: a crowd creeping slower than that counts as
+    steady, so ``phi_end`` is reported beside the plateau's phi.
+
+    A slope rule (not a range rule) so that period-to-period jiggle of the hull does not hide a
+    plateau, and two windows so that a pause in the expansion is not taken for its end.
+    """
+    phi = np.asarray(phi, float)
+    bad = np.flatnonzero(~np.isfinite(phi))
+    end = int(bad[0]) - 1 if len(bad) else len(phi) - 1
+    last = float(phi[end]) if end >= 0 else float("nan")
+    x = np.arange(window + 1, dtype=float)
+    x -= x.mean()
+
+    def flat(t):
+        y = phi[t:t + window + 1]
+        return abs(float(np.dot(x, y - y.mean()) / np.dot(x, x))) * window <= tol
+
+    span = windows * window
+    for t in range(0, end - span + 1):
+        if all(flat(t + i * window) for i in range(windows)):
+            return Plateau(t, False, float(np.median(phi[t:t + window + 1])), last, end, window, tol)
+    return Plateau(max(end, 0), True, float("nan"), last, end, window, tol)
+
+
+def _components(adj: np.ndarray, alive: np.ndarray) -> list[list[int]]:
+    """Connected components (sorted member lists) of the graph ``adj`` [N, N] over robots ``alive``."""
+    n = len(adj)
+    seen = ~alive.copy()
+    out = []
+    for r in range(n):
+        if seen[r]:
+            continue
+        comp, todo = [], [r]
+        seen[r] = True
+        while todo:
+            a = todo.pop()
+            comp.append(a)
+            for b in np.flatnonzero(adj[a] & ~seen):
+                seen[b] = True
+                todo.append(int(b))
+        out.append(sorted(comp))
+    return out
+
+
+def crowd_trial(poses, touched, start, body_length: float, body_thickness: float, left_plate=None,
+                periods_run=None) -> CrowdTrial:
+    """Chains, neighbours, area fraction and plateau of one relaxation trial.
+
+    Args:
+      poses: [K, N, 5] poses at the end of each period (m, rad).
+      touched: [K, P] bool, pairs i < j in :func:`pairs_of` order.
+      start: [N, 5] start poses.
+      body_length, body_thickness: W and D (m).
+      left_plate: [N] first period off the plate (1-based; 0: never); a robot is out of the touch
+        graph from that period on.
+      periods_run: periods simulated (default K); later periods hold no touches and no chains.
+    """
+    poses = np.asarray(poses, float)
+    touched = np.asarray(touched, bool)
+    k, n = poses.shape[:2]
+    run = k if periods_run is None else int(periods_run)
+    pairs = pairs_of(n)
+    if touched.shape != (k, len(pairs)):
+        raise ValueError(f"touched has shape {touched.shape}, {n} robots over {k} periods need {(k, len(pairs))}")
+    on = np.ones((k, n), bool)
+    if left_plate is not None:
+        for r, lp in enumerate(np.asarray(left_plate)):
+            if lp > 0:
+                on[lp - 1:, r] = False
+    on[run:] = False
+    degree = np.full((k, n), -1, int)
+    in_chain = np.zeros(k, int)
+    episodes: list[ChainEpisode] = []
+    open_: dict[tuple[int, ...], list[int]] = {}  # members -> [start, loop_periods]
+    for t in range(k):
+        adj = np.zeros((n, n), bool)
+        live = touched[t] & on[t, pairs[:, 0]] & on[t, pairs[:, 1]]
+        adj[pairs[live, 0], pairs[live, 1]] = True
+        adj |= adj.T
+        degree[t] = np.where(on[t], adj.sum(1), -1)
+        now = {}
+        for comp in _components(adj, on[t]):
+            if len(comp) >= CHAIN_MIN:
+                edges = int(adj[np.ix_(comp, comp)].sum()) // 2
+                now[tuple(comp)] = edges >= len(comp)
+        in_chain[t] = sum(len(m) for m in now)
+        for m in list(open_):
+            if m not in now:
+                s, loops = open_.pop(m)
+                episodes.append(ChainEpisode(m, s, t - s, False, loops))
+        for m, loop in now.items():
+            if m in open_:
+                open_[m][1] += int(loop)
+            else:
+                open_[m] = [t, int(loop)]
+    last = min(run, k)
+    for m, (s, loops) in open_.items():
+        episodes.append(ChainEpisode(m, s, last - s, run >= k, loops))
+    episodes.sort(key=lambda e: (e.start, e.members))
+    phi = area_fraction(poses, start, body_length, body_thickness, left_plate, run)
+    return CrowdTrial(phi, degree, in_chain, tuple(episodes), phi_plateau(phi), relaxation_time(touched, run))
+
+
+@dataclasses.dataclass(frozen=True)
+class Spread:
+    """A sample's size, mean, standard error and quartiles, and how many of its values are censored
+    (lower bounds). NaN where the sample is too small."""
+
+    n: int
+    mean: float
+    sem: float
+    median: float
+    q25: float
+    q75: float
+    censored: int = 0
+
+    @classmethod
+    def of(cls, values, censored: int = 0) -> "Spread":
+        v = np.asarray(values, float)
+        if len(v) == 0:
+            return cls(0, *(float("nan"),) * 5, censored)
+        sem = float(v.std(ddof=1) / np.sqrt(len(v))) if len(v) > 1 else float("nan")
+        q25, q50, q75 = (float(x) for x in np.percentile(v, [25, 50, 75]))
+        return cls(int(len(v)), float(v.mean()), sem, q50, q25, q75, int(censored))
+
+
+@dataclasses.dataclass(frozen=True)
+class CrowdSummary:
+    """A relaxation study's crowd, over its usable trials.
+
+    Attributes:
+      trials: usable trials measured.
+      chain_lifetime: lifetimes (periods) of every chain episode; ``censored`` counts those still
+        holding when the trial ended (their lifetime is a lower bound).
+      chain_robots: robots per chain episode.
+      neighbours_in_chain: mean touch-graph degree of a robot in a chain, pooled over robot-periods.
+      neighbours_all: mean degree over every robot on the plate and period (the same pooling).
+      loop_fraction: share of chain-periods whose touch graph holds a closed loop.
+      chained_at_end: trials with a chain in their last simulated period.
+      plateau: relaxation times (periods) read off phi's plateau; ``censored``: trials with none.
+      contact_relaxation: the contact rule's times (last period a robot touched two others).
+      phi_start, phi_plateau: phi at the start and on the plateau (trials with one).
+      phi_creep: phi's further fall from the plateau to the end of its series (trials with a plateau).
+      phi_cut_by_plate: trials whose phi series ends early because a robot left the plate.
+    """
+
+    trials: int
+    chain_lifetime: Spread
+    chain_robots: Spread
+    neighbours_in_chain: float
+    neighbours_all: float
+    loop_fraction: float
+    chained_at_end: int
+    plateau: Spread
+    contact_relaxation: Spread
+    phi_start: Spread
+    phi_plateau: Spread
+    phi_creep: Spread
+    phi_cut_by_plate: int
+
+
+def crowd_summary(trials: list[CrowdTrial]) -> CrowdSummary:
+    """Pool :func:`crowd_trial` results of one study."""
+    eps = [e for t in trials for e in t.chains]
+    life = [e.lifetime for e in eps]
+    deg_all = np.concatenate([t.degree[t.degree >= 0] for t in trials]) if trials else np.zeros(0)
+    in_chain_deg, chain_periods, loop_periods = [], 0, 0
+    for t in trials:
+        for e in t.chains:
+            d = t.degree[e.start:e.start + e.lifetime][:, list(e.members)]
+            in_chain_deg.append(d.ravel())
+            chain_periods += e.lifetime
+            loop_periods += e.loop_periods
+    deg_chain = np.concatenate(in_chain_deg) if in_chain_deg else np.zeros(0)
+    mean = lambda v: float(v.mean()) if len(v) else float("nan")  # noqa: E731
+    ran = [int((t.degree >= 0).any(1).sum()) for t in trials]  # periods with a robot on the plate
+    plateaus = [t.plateau for t in trials]
+    contact = [t.contact_relaxation for t in trials]
+    return CrowdSummary(
+        trials=len(trials),
+        chain_lifetime=Spread.of(life, sum(e.censored for e in eps)),
+        chain_robots=Spread.of([len(e.members) for e in eps]),
+        neighbours_in_chain=mean(deg_chain), neighbours_all=mean(deg_all),
+        loop_fraction=loop_periods / chain_periods if chain_periods else float("nan"),
+        chained_at_end=sum(1 for t, r in zip(trials, ran) if r and t.in_chain[r - 1] > 0),
+        plateau=Spread.of([p.period for p in plateaus], sum(p.censored for p in plateaus)),
+        contact_relaxation=Spread.of([c[0] for c in contact], sum(c[1] for c in contact)),
+        phi_start=Spread.of([t.phi[0] for t in trials if np.isfinite(t.phi[0])]),
+        phi_plateau=Spread.of([p.phi for p in plateaus if not p.censored]),
+        phi_creep=Spread.of([p.phi - p.phi_end for p in plateaus if not p.censored]),
+        phi_cut_by_plate=sum(1 for t in trials if not np.isfinite(t.phi[-1])))
+
+
+def crowd(data: dict) -> tuple[CrowdSummary, list[CrowdTrial]]:
+    """The crowd measures of every usable trial of :func:`smarticle_mjx.store.read_relax` output
+    (the trials :func:`analyse` counts: valid, no bad status)."""
+    W, D = float(data["body_length"]), float(data["body_thickness"])
+    ok = np.asarray(data["valid"], bool) & ((np.asarray(data["status"]) & int(BAD_STATUS)) == 0)
+    trials = [crowd_trial(data["poses"][t], data["touched"][t], data["start_poses"][t], W, D,
+                          data["left_plate"][t], data["periods_run"][t]) for t in np.flatnonzero(ok)]
+    return crowd_summary(trials), trials
