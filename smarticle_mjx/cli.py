@@ -21,6 +21,14 @@ _MODEL_HELP = "model preset (smx models --list; default: the default preset, doc
 _IMPERFECTIONS_HELP = ("the robots' imperfections, drawn per robot from the seed (smx models --list; "
                        "default none: ideal robots)")
 _CONFIGS_HELP = "random (uniform |r|, theta, phi) or polar (fixed |r| grid)"
+_SET_HELP = ("change one field of the model preset, FIELD=VALUE (repeatable; robot fields dotted: "
+             "robot.servo_speed=7); recorded with the preset's name")
+
+
+def _sets(items) -> tuple:
+    """``--set`` values as checked overrides (ValueError, one line, for an unknown field or bad value)."""
+    from . import presets
+    return presets.overrides(items or ())
 
 
 def _fail(msg: str) -> None:
@@ -168,11 +176,13 @@ def simulate(
     out: pathlib.Path = typer.Option(pathlib.Path("track.csv"), help="output .csv (+ .json sidecar) or .h5"),
     overwrite: bool = typer.Option(False, help="replace an existing output file"),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
+    set_: list[str] = typer.Option([], "--set", help=_SET_HELP),
     gait_spec=None,
 ):
     """Simulate one scene and write its track (the measured-data format)."""
     from .replay import simulate_track
-    r = simulate_track(out, scene, config, gait_spec, periods, track_stride, backend, overwrite, model)
+    r = simulate_track(out, scene, config, gait_spec, periods, track_stride, backend, overwrite, model,
+                       overrides=_sets(set_))
     typer.echo(f"{r['robots']} robots, {periods} periods of {r['period_s']:.3g} s; pairs touched in "
                f"{r['touched_periods']}/{periods} periods; wrote {', '.join(map(str, r['written']))}")
 
@@ -217,6 +227,7 @@ def scan(
     collisions: bool = typer.Option(False, help="store the per-period collision record (native and dart backends)"),
     collision_bins: int = typer.Option(16, help="collision record: bins per gait period"),
     imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP),
+    set_: list[str] = typer.Option([], "--set", help=_SET_HELP),
     executor=None, gait_spec=None, store=None,
 ):
     """One basin scan at one amplitude into an HDF5 store."""
@@ -226,7 +237,7 @@ def scan(
                      chirality=gait_spec.chirality, gait=gait_spec.kind, period_s=gait_spec.period_s,
                      backend=backend, seed=seed, batch_size=batch_size,
                      model=_model(model), collisions=collisions, collision_bins=collision_bins,
-                     imperfections=imperfections)
+                     imperfections=imperfections, overrides=_sets(set_))
     _run_study(cfg, out, store, executor, flush_rows=flush_rows)
 
 
@@ -251,6 +262,7 @@ def relax(
     out: pathlib.Path = typer.Option(pathlib.Path("relax.h5"), help="output store (.h5)"),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
     imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP),
+    set_: list[str] = typer.Option([], "--set", help=_SET_HELP),
     executor=None, gait_spec=None, store=None,
 ):
     """The relaxation experiment: N robots start compressed and in phase; do gliders emerge? (smx report reads it)"""
@@ -260,7 +272,7 @@ def relax(
                       period_s=gait_spec.period_s, seed=seed,
                       gap_mm=gap_mm, jitter_mm=jitter_mm, jitter_deg=jitter_deg, phase_jitter=phase_jitter,
                       plate_m=plate, quiet_periods=quiet_periods, backend=backend, batch_size=batch_size,
-                      model=_model(model), imperfections=imperfections)
+                      model=_model(model), imperfections=imperfections, overrides=_sets(set_))
     _run_study(cfg, out, store, executor)
 
 
@@ -280,12 +292,13 @@ def sweep_amplitude(
     model: Optional[str] = typer.Option(None, help="model preset (default: the study file's, else the default preset)"),
     imperfections: Optional[str] = typer.Option(None, help="the robots' imperfections (default: the study "
                                                 "file's, else none)"),
+    set_: list[str] = typer.Option([], "--set", help=_SET_HELP + " (on top of the study file's [scene])"),
     executor=None, store=None,
 ):
     """The same scan over several amplitudes, one store, one group per amplitude."""
     from .specs import sweep_config
     cfg = sweep_config(study, amplitudes, configs=configs, n=n, periods=periods, backend=backend, seed=seed,
-                       model=model, imperfections=imperfections)
+                       model=model, imperfections=imperfections, sets=set_)
     _run_study(cfg, out, store, executor, flush_rows=flush_rows)
 
 

@@ -187,3 +187,148 @@ def get(name: str | None = None) -> Preset:
 def params(name: str | None = None) -> SceneParams:
     """The ``SceneParams`` of preset ``name`` (default: :data:`DEFAULT`)."""
     return get(name).params
+
+
+# ------------------------------------------------------------------ one field changed
+# ``--set FIELD=VALUE`` on the command line and a ``[scene]`` table in study files change single
+# fields of a preset (``robot_friction=0.1``, ``robot.servo_speed=7``) without code. The preset's
+# values stay its defaults; stores and sidecars record the preset's name and the overrides.
+
+_NOT_SETTABLE = {"robot", "quirks"}  # the robot is set field by field; quirks are drawn (imperfections)
+
+
+def _fields(cls) -> dict[str, object]:
+    import typing
+    hints = typing.get_type_hints(cls)
+    return {f.name: hints[f.name] for f in dataclasses.fields(cls) if f.name not in _NOT_SETTABLE}
+
+
+def settable() -> dict[str, object]:
+    """Every field ``--set`` can change: scene fields by name, robot fields as ``robot.NAME``; -> type."""
+    from .scene import RobotParams
+    out = dict(_fields(SceneParams))
+    out.update({f"robot.{k}": t for k, t in _fields(RobotParams).items()})
+    return out
+
+
+def _convert(field: str, kind, value):
+    """``value`` (a command line's string, or a TOML value) as the type of ``field``; ValueError if not."""
+    import typing
+    args = typing.get_args(kind)
+    optional = type(None) in args
+    if optional:
+        kind = next(a for a in args if a is not type(None))
+    if value is None or (isinstance(value, str) and value.strip().lower() == "none"):
+        if optional:
+            return None
+        raise ValueError(f"--set {field}: cannot be none")
+    origin = typing.get_origin(kind)
+    try:
+        if origin is tuple:
+            items = [x for x in value.split(",")] if isinstance(value, str) else list(value)
+            inner = typing.get_args(kind)
+            if len(inner) == 2 and inner[1] is Ellipsis:
+                inner = (inner[0],) * len(items)
+            if len(items) != len(inner):
+                raise ValueError
+            return tuple(_convert(field, t, x) for t, x in zip(inner, items))
+        if kind is bool:
+            if isinstance(value, bool):
+                return value
+            low = str(value).strip().lower()
+            if low not in ("true", "false", "1", "0"):
+                raise ValueError
+            return low in ("true", "1")
+        if kind is int:
+            if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
+                raise ValueError
+            return int(str(value).strip()) if isinstance(value, str) else int(value)
+        if kind is float:
+            if isinstance(value, bool):
+                raise ValueError
+            v = float(value)
+            if not math.isfinite(v):
+                raise ValueError
+            return v
+        if kind is str:
+            if not isinstance(value, str):
+                raise ValueError
+            return value.strip()
+    except (TypeError, ValueError):
+        pass
+    else:
+        raise ValueError(f"--set {field}: cannot be set from the command line")
+    want = {float: "a finite number", int: "an integer", bool: "true or false", str: "a name"}.get(kind)
+    if origin is tuple:
+        want = f"{len(typing.get_args(kind))} comma-separated values"
+    raise ValueError(f"--set {field}: expected {want or kind}{' or none' if optional else ''}, got {value!r}")
+
+
+def overrides(items) -> tuple[tuple[str, object], ...]:
+    """Checked overrides, sorted by field: from ``FIELD=VALUE`` strings (``--set``) or (field, value)
+    pairs (a study file's ``[scene]`` table, its ``robot`` sub-table flattened to ``robot.NAME``).
+
+    Raises:
+      ValueError: one line, for a malformed item, an unknown field, a field given twice or a value
+        of the wrong type. Whether the values make a valid scene is checked by :func:`apply`.
+    """
+    known = settable()
+    out = {}
+    for item in items:
+        if isinstance(item, str):
+            field, eq, value = item.partition("=")
+            field = field.strip()
+            if not eq or not field:
+                raise ValueError(f"--set takes FIELD=VALUE (e.g. robot_friction=0.1), got {item!r}")
+        else:
+            field, value = item
+        if field not in known:
+            near = sorted(k for k in known if field.split(".")[-1] in k) or sorted(known)
+            raise ValueError(f"--set: unknown scene field {field!r}; "
+                             f"{'did you mean' if len(near) < len(known) else 'known:'} {', '.join(near)}")
+        if field in out:
+            raise ValueError(f"--set: {field} given twice")
+        out[field] = _convert(field, known[field], value)
+    return tuple(sorted(out.items()))
+
+
+def table_overrides(table: dict) -> tuple[tuple[str, object], ...]:
+    """A study file's ``[scene]`` table (``robot`` a sub-table, or dotted keys) as checked overrides."""
+    if not isinstance(table, dict):
+        raise ValueError("[scene] must be a table of FIELD = VALUE")
+    items = []
+    for k, v in table.items():
+        if k == "robot" and isinstance(v, dict):
+            items += [(f"robot.{rk}", rv) for rk, rv in v.items()]
+        else:
+            items.append((k, v))
+    return overrides(items)
+
+
+def apply(params: SceneParams, changes) -> SceneParams:
+    """``params`` with the overrides ``changes`` (see :func:`overrides`) applied and the scene validated."""
+    changes = overrides(changes)
+    if not changes:
+        return params
+    robot = {k[len("robot."):]: v for k, v in changes if k.startswith("robot.")}
+    scene = {k: v for k, v in changes if not k.startswith("robot.")}
+    out = dataclasses.replace(params, robot=dataclasses.replace(params.robot, **robot), **scene)
+    try:
+        out.validate()
+    except ValueError as e:
+        raise ValueError(f"--set {', '.join(f'{k}={v}' for k, v in changes)}: {e}") from None
+    return out
+
+
+def overrides_json(changes) -> dict:
+    """Overrides as the store and the sidecar record them: {field: value} (tuples as lists)."""
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in overrides(changes)}
+
+
+def describe(model: str, overrides=None) -> str:
+    """A model as pages name it: the preset's name, then the fields changed from it (if any)."""
+    over = overrides_json(table_overrides(overrides)) if isinstance(overrides, dict) else \
+        overrides_json(overrides or ())
+    if not over:
+        return f"`{model}`"
+    return f"`{model}` with " + ", ".join(f"{k} = {v}" for k, v in over.items())

@@ -52,22 +52,24 @@ def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 
 
 def simulate_track(out, scene: str = "pair", config: str | None = None, gait=None, periods: int = 10,
                    track_stride: int = 20, backend: str = "native", overwrite: bool = False,
-                   model: str | None = None) -> dict:
+                   model: str | None = None, overrides=()) -> dict:
     """Simulate one scene (a standard scene, or a pair started at ``config`` = '|r|,theta,phi' in W and
     degrees) and write its track to ``out`` (.csv with a .json sidecar, or .h5). Every input is checked
-    before anything is simulated. Returns robots, periods, the period, touched periods, files written."""
+    before anything is simulated. ``overrides``: single fields of the preset changed (``--set``), recorded
+    in the sidecar. Returns robots, periods, the period, touched periods, files written."""
     from . import configs, presets, scene as scene_mod, tracks
     from .engine.dart import check_study, study_timestep
     from .engine.simulate import simulate
     from .gait import GaitSpec
     preset = presets.get(model)
-    params, g = preset.params, gait or GaitSpec()
+    overrides = presets.overrides(overrides)
+    params, g = presets.apply(preset.params, overrides), gait or GaitSpec()
     g.validate(params.robot.servo_speed, params.robot.arm_limit_deg)
     if periods < 1 or track_stride < 1:
         raise ValueError("--periods and --track-stride must be positive")
     if backend not in ("native", "dart"):
         raise ValueError(f"--backend must be native or dart (the backends that record tracks), got {backend!r}")
-    check_study(backend, None)  # dart: installed
+    check_study(backend, None, None, overrides)  # dart: installed, reads what --set changes
     dt = study_timestep(backend, None, params.timestep)
     if pathlib.Path(out).exists() and not overwrite:
         raise ValueError(f"{out} exists; pass --overwrite to replace it")
@@ -82,7 +84,8 @@ def simulate_track(out, scene: str = "pair", config: str | None = None, gait=Non
     else:
         poses = [(x, y, h, a0[0], a0[1]) for x, y, h, _, _ in scene_mod.standard_poses(scene, params.robot)]
     res = simulate(params, poses, g, periods, track_stride=track_stride, backend=backend)
-    meta = tracks.sidecar(len(poses), g, params.plate_friction, 1.0 / (track_stride * dt), model=preset.name)
+    meta = tracks.sidecar(len(poses), g, params.plate_friction, 1.0 / (track_stride * dt), model=preset.name,
+                          overrides=overrides)
     written = tracks.write_track(out, [0.0, *res.track_t], [res.poses[0], *res.track], meta,
                                  records={"touched": res.touched, "poses": res.poses, "min_dist": res.min_dist})
     return {"robots": len(poses), "periods": periods, "period_s": res.period, "written": written,

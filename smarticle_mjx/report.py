@@ -13,7 +13,7 @@ import pathlib
 
 import numpy as np
 
-from . import plots
+from . import plots, presets
 from .reduce import binding, gliders as GL, transport
 from .store import BAD_STATUS, Store
 
@@ -189,7 +189,7 @@ def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> 
         common += [p.name for p in plots.pb_curve(amps, [s["pb_end"] for s in summaries],
                                                    [s["pb_throughout"] for s in summaries], out)]
         common += [p.name for p in plots.versus_amplitude(amps, amplitude_panels(summaries), out)]
-    report = {"store": str(store_path), "model": st.model,
+    report = {"store": str(store_path), "model": st.model, **({"overrides": st.overrides} if st.overrides else {}),
               "versions": {k: st.attrs.get(k) for k in ("package", "mujoco", "jax")},
               "scan": st.config["scan"], "runs": summaries, "figures": {"runs": figs, "common": common}}
     (out / "report.json").write_text(json.dumps(report, indent=1, default=json_default))
@@ -294,7 +294,7 @@ def markdown(report: dict) -> str:
     lines = [f"# Report: `{pathlib.Path(report['store']).name}`", "",
              f"{report['runs'][0]['configs'] if report['runs'] else 0} configurations"
              + describe_configs(sc, " ({})")
-             + f", {sc['periods']} periods, gait {sc['gait']} {sc['chirality']}, model `{report.get('model')}`, "
+             + f", {sc['periods']} periods, gait {sc['gait']} {sc['chirality']}, model {presets.describe(report.get('model'), report.get('overrides'))}, "
              f"backend {sc['backend']}; "
              f"written by {report['versions'].get('package')}, mujoco {report['versions'].get('mujoco')}.", "",
              "| α_max | valid | P_b end [95% CI] | P_b throughout [95% CI] | C1 basin | C2 basin | "
@@ -362,6 +362,8 @@ def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0) -> d
                 "interval": (float(lo), float(hi))}
     a["settings"] = data["settings"]
     a["model"] = data["model"]
+    if data.get("overrides"):
+        a["overrides"] = data["overrides"]
     a["period_s"] = data["period_s"]
     return a
 
@@ -446,7 +448,7 @@ def relax_markdown(rep: dict) -> str:
     rt = rep["relaxation_periods"]
     lines = [f"# Relaxation report: {', '.join(pathlib.Path(p).name for p in rep['stores'])}", "",
              f"{rep['trials']} trials of {s['n_robots']} robots ({rep['valid']} usable), {s['periods']} periods "
-             f"at α_max = {s['amplitude_deg']:g}° ({s['gait']}, {s['chirality']}), model `{rep['model']}`; "
+             f"at α_max = {s['amplitude_deg']:g}° ({s['gait']}, {s['chirality']}), model {presets.describe(rep['model'], rep.get('overrides'))}; "
              f"compressed in-phase start, gap {s['gap_mm']:g} mm, jitter {s['jitter_mm']:g} mm / "
              f"{s['jitter_deg']:g}°, plate {s['plate_m']:g} m. A glider: a pair bound (touching every period) "
              f"for ≥ {rep['min_periods']} consecutive periods while apart from the rest (no touch with a third "

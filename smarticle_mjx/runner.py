@@ -3,8 +3,8 @@
 A runner (``scan.run_scan``, ``relax.run_relax``) does three things and only
 the middle one is its own:
 
-1. :func:`prepare` resolves the spec's scene (the named model, or explicit
-   parameters recorded as "custom"), checks the spec against it, adds the drawn
+1. :func:`prepare` resolves the spec's scene (the named model with the spec's
+   single-field overrides, or explicit parameters recorded as "custom"), checks the spec against it, adds the drawn
    robots' quirks, finds the engine's own step and writes the store's header;
 2. the runner lays out its runs (one per amplitude, or the one run of trials)
    and builds its picklable row job;
@@ -22,6 +22,7 @@ from typing import Callable
 from .engine.core import steps_per_period
 from .executors import Executor, LocalExecutor, RowJob
 from .gait import GaitSpec
+from .presets import overrides_json
 from .scene import SceneParams
 from .specs import params_json
 from .store import ROW_FIELDS, Writer
@@ -47,14 +48,24 @@ def prepare(config, kind: str, params: SceneParams | None, executor: Executor | 
     robots = config.robots()
     params = robots.scene(params)  # the drawn robots' backlash and centres of mass, recorded with the scene
     params.validate()
-    header = {"model": model, kind: config.to_json(), "scene": params_json(params)}
-    if not robots.set.ideal:
-        header["imperfections"] = robots.to_json()
+    header = store_header(config, kind, model, params, robots)
     where = executor.describe() if executor is not None else None
     if where is not None:
         header["executor"] = where
     dt = study_timestep(config.backend, config.dart_numerics, params.timestep)  # the engine's own step
     return Prepared(model, params, dt, header)
+
+
+def store_header(config, kind: str, model: str, params: SceneParams, robots) -> dict:
+    """What a store of ``config`` records about its scene: the preset's name, the spec (under
+    ``kind``), the full parameters (drawn robots included), the single fields changed from the preset
+    (``overrides``, when any) and the drawn imperfections (when not ideal)."""
+    header = {"model": model, kind: config.to_json(), "scene": params_json(params)}
+    if config.overrides:
+        header["overrides"] = overrides_json(config.overrides)
+    if not robots.set.ideal:
+        header["imperfections"] = robots.to_json()
+    return header
 
 
 def run_attrs(gait: GaitSpec, dt: float, periods: int, n_configs: int, **extra) -> dict:

@@ -62,10 +62,13 @@ class ScanConfig:
     dart_numerics: tuple | None = None
     # the robots' imperfections (smarticle_mjx/imperfections.py), drawn from ``seed``
     imperfections: str = "none"
+    # single fields of the preset changed (``--set``, a study file's [scene]): sorted (field, value)
+    overrides: tuple[tuple[str, object], ...] = ()
 
     def scene_params(self) -> SceneParams:
-        """The preset's parameters (ValueError naming the known presets if unknown)."""
-        return presets.params(self.model)
+        """The preset's parameters with the overrides (ValueError naming the known presets if unknown,
+        or for a bad override)."""
+        return presets.apply(presets.params(self.model), self.overrides)
 
     def robots(self) -> imperfections.Draw:
         """The pair's imperfections, drawn from the scan's seed (ValueError for an unknown set)."""
@@ -104,7 +107,7 @@ class ScanConfig:
         if self.backend not in BACKENDS:
             raise ValueError(f"--backend must be {', '.join(BACKENDS[:-1])} or {BACKENDS[-1]}, got {self.backend!r}")
         from .engine.dart import check_study
-        check_study(self.backend, self.dart_numerics, self.robots().scene(params))
+        check_study(self.backend, self.dart_numerics, self.robots().scene(params), self.overrides)
         if self.backend == "warp":
             from .engine import mjwarp
             if not mjwarp.available():
@@ -142,6 +145,7 @@ class ScanConfig:
             d["initial"] = [[float(x) for x in c] for c in self.initial]
         if self.imperfections == "none":
             del d["imperfections"]  # nor do stores of ideal robots
+        _overrides_json(d, self.overrides)
         from .engine.dart import study_json
         return study_json(d, self.backend)
 
@@ -165,11 +169,14 @@ def parse_amplitudes(text: str) -> tuple[float, ...]:
         raise ValueError(f"amplitudes must look like '10:90:10' or '10,40,90', got {text!r}") from None
 
 
-def sweep_config(study=None, amplitudes: str | None = None, **overrides) -> ScanConfig:
+def sweep_config(study=None, amplitudes: str | None = None, sets=(), **changes) -> ScanConfig:
     """A sweep's spec: the study file ``study`` (or the default scan) with ``amplitudes``
-    ('10:90:10' or '10,40,90') and the non-None ``overrides`` (ScanConfig fields) applied."""
+    ('10:90:10' or '10,40,90'), the non-None ``changes`` (ScanConfig fields) and the scene overrides
+    ``sets`` (FIELD=VALUE, on top of the study file's [scene]) applied."""
     cfg = load_study(study) if study is not None else ScanConfig()
-    changes = {k: v for k, v in overrides.items() if v is not None}
+    changes = {k: v for k, v in changes.items() if v is not None}
+    if sets:
+        changes["overrides"] = tuple(sorted({**dict(cfg.overrides), **dict(presets.overrides(sets))}.items()))
     if amplitudes is not None:
         changes["amplitudes_deg"] = parse_amplitudes(amplitudes)
     elif study is None:
@@ -180,7 +187,8 @@ def sweep_config(study=None, amplitudes: str | None = None, **overrides) -> Scan
 
 
 def _study_table(path: pathlib.Path) -> dict:
-    """The ``[study]`` table of a study file (or its top level); ValueError for a missing or unreadable file."""
+    """The ``[study]`` table of a study file (or its top level), its ``[scene]`` table as ``overrides``;
+    ValueError for a missing or unreadable file or a bad override."""
     try:
         raw = tomllib.loads(path.read_text())
     except FileNotFoundError:
@@ -189,7 +197,14 @@ def _study_table(path: pathlib.Path) -> dict:
         raise ValueError(f"cannot read study file {path}: {e}") from None
     except tomllib.TOMLDecodeError as e:
         raise ValueError(f"study file {path} is not valid TOML: {e}") from None
-    return raw.get("study", raw)
+    study = dict(raw.get("study", raw))
+    scene = raw.get("scene") if "study" in raw else study.pop("scene", None)
+    if scene is not None:  # [scene]: single fields of the preset changed, as --set does
+        try:
+            study["overrides"] = presets.table_overrides(scene)
+        except ValueError as e:
+            raise ValueError(f"study file {path}: [scene] {e}") from None
+    return study
 
 
 def _scan_study(study: dict, path: pathlib.Path) -> ScanConfig:
@@ -244,6 +259,8 @@ class RelaxConfig:
     # the robots' imperfections (smarticle_mjx/imperfections.py): the same robots in every
     # trial (drawn from ``seed``), their phase jitter drawn per trial
     imperfections: str = "none"
+    # single fields of the preset changed (``--set``, a study file's [scene]): sorted (field, value)
+    overrides: tuple[tuple[str, object], ...] = ()
 
     def robots(self) -> imperfections.Draw:
         return imperfections.draw(self.imperfections, self.n_robots, self.seed)
@@ -253,7 +270,7 @@ class RelaxConfig:
                         period_s=self.period_s)
 
     def scene_params(self) -> SceneParams:
-        return presets.params(self.model)
+        return presets.apply(presets.params(self.model), self.overrides)
 
     def validate(self, params: SceneParams) -> None:
         imperfections.get(self.imperfections).check_backend(self.backend)
@@ -278,7 +295,7 @@ class RelaxConfig:
         from .engine import check_backend
         check_backend(self.backend)
         from .engine.dart import check_study
-        check_study(self.backend, self.dart_numerics, self.robots().scene(params))
+        check_study(self.backend, self.dart_numerics, self.robots().scene(params), self.overrides)
         self.gait_spec().validate(params.robot.servo_speed, params.robot.arm_limit_deg)
 
     def backend_options(self) -> dict:
@@ -291,7 +308,17 @@ class RelaxConfig:
         d = dataclasses.asdict(self)
         if self.imperfections == "none":
             del d["imperfections"]  # stores of ideal robots keep their earlier configuration
+        _overrides_json(d, self.overrides)
         return study_json(d, self.backend)
+
+
+def _overrides_json(d: dict, overrides) -> None:
+    """A spec's overrides as its stored JSON holds them: {field: value}, absent when none (so stores
+    made before ``--set`` existed keep their configuration)."""
+    if overrides:
+        d["overrides"] = presets.overrides_json(overrides)
+    else:
+        del d["overrides"]
 
 
 SWEEPS = pathlib.Path(__file__).resolve().parents[1] / "sweeps"
@@ -432,7 +459,16 @@ def _config_keywords(d: dict) -> dict:
         kw["initial"] = tuple(tuple(float(x) for x in c) for c in kw["initial"])
     if kw.get("dart_numerics") is not None:
         kw["dart_numerics"] = tuple(kw["dart_numerics"])
+    if "overrides" in kw:
+        kw["overrides"] = _as_overrides(kw["overrides"])
     return kw
+
+
+def _as_overrides(value) -> tuple[tuple[str, object], ...]:
+    """Overrides from a store's {field: value}, a study file's [scene] table or (field, value) pairs."""
+    if isinstance(value, dict):
+        return presets.table_overrides(value)
+    return presets.overrides(tuple(v) if isinstance(v, list) else v for v in value)
 
 
 def params_from_json(d: dict) -> SceneParams:

@@ -502,6 +502,8 @@ class Store:
         self.config = json.loads(self.attrs["config"])
         # the model preset that made the store (stores from before presets: "paper")
         self.model = self.config.get("model", "paper")
+        # single fields changed from that preset (--set, a study file's [scene]); {} when none
+        self.overrides = dict(self.config.get("overrides", {}))
         # what the rows are: "scan" (pair configurations) or "relax" (N-robot relaxation trials)
         self.kind = "relax" if "relax" in self.config else "scan"
 
@@ -531,7 +533,7 @@ def read_relax(paths) -> dict:
     Returns:
       dict of arrays (:data:`RELAX_FIELDS` plus ``trial`` indices) and
       ``settings`` (the first store's relax settings), ``periods``,
-      ``period_s``, ``body_length`` and ``body_thickness`` (m), ``model``, ``paths``.
+      ``period_s``, ``body_length`` and ``body_thickness`` (m), ``model``, ``overrides``, ``paths``.
     """
     paths = [paths] if not isinstance(paths, (list, tuple)) else list(paths)
     if not paths:
@@ -559,6 +561,7 @@ def read_relax(paths) -> dict:
     st0 = stores[0]
     out.update(settings=dict(st0.config["relax"]), periods=int(st0.config["relax"]["periods"]),
                period_s=float(st0.run_attrs["trials"]["period_s"]), model=st0.model,
+               overrides=st0.overrides,
                body_length=float(st0.config["scene"]["robot"]["body_length"]),
                body_thickness=float(st0.config["scene"]["robot"]["body_thickness"]), paths=[str(p) for p in paths])
     return out

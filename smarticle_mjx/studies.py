@@ -25,6 +25,7 @@ import numpy as np
 
 from .reduce import gliders as GL
 from .report import analyse_run
+from .runner import store_header
 from .scan import run_scan
 from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, params_json
 from .scene import SceneParams
@@ -57,10 +58,7 @@ def _recorded(cfg: ScanConfig | RelaxConfig) -> tuple[SceneParams, dict]:
     robots = cfg.robots()
     params = robots.scene(cfg.scene_params())
     kind = "scan" if isinstance(cfg, ScanConfig) else "relax"
-    want = {"model": cfg.model, kind: cfg.to_json(), "scene": params_json(params)}
-    if not robots.set.ideal:
-        want["imperfections"] = robots.to_json()
-    return params, json.loads(json.dumps(want))
+    return params, json.loads(json.dumps(store_header(cfg, kind, cfg.model, params, robots)))
 
 
 def stale_reason(cfg: ScanConfig, path: pathlib.Path) -> str | None:

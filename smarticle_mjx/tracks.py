@@ -28,11 +28,14 @@ from .scene import RobotParams, SceneParams
 COLUMNS = ("trial", "t", "robot", "x", "y", "theta", "alpha1", "alpha2")
 
 
-def sidecar(n_robots: int, gait, plate_friction: float, frame_rate_hz: float, model: str | None = None) -> dict:
-    """The JSON sidecar of a track; ``model`` names the preset that simulated it."""
+def sidecar(n_robots: int, gait, plate_friction: float, frame_rate_hz: float, model: str | None = None,
+            overrides=()) -> dict:
+    """The JSON sidecar of a track; ``model`` names the preset that simulated it, ``overrides`` the
+    single fields changed from it (``--set``; recorded as {field: value} when any)."""
     return {
         "robots": n_robots,
         **({"model": model} if model is not None else {}),
+        **({"overrides": presets.overrides_json(overrides)} if overrides else {}),
         "gait": {"kind": "symmetric" if gait.kind == "diagonal" else gait.kind,
                  "amplitude_deg": gait.amplitude_deg, "period_s": gait.period(),
                  "chirality": gait.chirality},
@@ -157,10 +160,11 @@ def _gaits(meta: dict, n: int, where: str) -> tuple[GaitSpec, ...]:
 
 def _params(meta: dict, gaits, where: str, model: str | None = None) -> SceneParams:
     """The model to compare the data with: preset ``model`` if given, else the
-    sidecar's ``model``, else the default preset; then the sidecar's robot and
-    plate overrides."""
+    sidecar's ``model``, else the default preset, with the fields ``smx simulate --set`` changed
+    (``overrides``); then the sidecar's robot and plate overrides."""
     try:
         base = presets.params(model if model is not None else meta.get("model"))
+        base = presets.apply(base, presets.table_overrides(meta.get("overrides") or {}))
     except ValueError as e:
         raise TrackError(f"{where}: {e}") from None
     robot = base.robot
@@ -279,4 +283,8 @@ def read_h5(path) -> tuple:
         meta = json.loads(f.attrs["meta"])
         t = f["t"][()]
         poses = np.stack([f[k][()] for k in ("x", "y", "theta", "alpha1", "alpha2")], -1)
-    return t, poses, sidecar_gait(meta["gait"], path.name), presets.params(meta.get("model")).robot
+    try:
+        params = presets.apply(presets.params(meta.get("model")), presets.table_overrides(meta.get("overrides") or {}))
+    except ValueError as e:
+        raise TrackError(f"{path}: {e}") from None
+    return t, poses, sidecar_gait(meta["gait"], path.name), params.robot

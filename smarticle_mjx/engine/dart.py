@@ -104,10 +104,23 @@ def check_model(params: SceneParams, numerics: DartNumerics) -> None:
                          "MuJoCo backends")
 
 
-def check_study(backend: str, spec, params: SceneParams | None = None) -> None:
-    """A study's backend and DART numerics agree, DART is installed when it runs on it, and can build
-    ``params`` when given (ValueError)."""
+# Scene fields the twin does not read: MuJoCo's numerics (DART steps and resolves contacts by its own
+# numerics, ``dart_numerics``) and plate departures it does not build. ``--set`` on one of them is
+# refused on the twin rather than silently ignored.
+NOT_BUILT = ("timestep", "integrator", "iterations", "ls_iterations", "tolerance", "contact_timeconst",
+             "contact_dampratio", "contact_solimp", "boundary_radius", "boundary_segments",
+             "plate_friction_y_ratio", "arm_plate_friction")
+
+
+def check_study(backend: str, spec, params: SceneParams | None = None, overrides=()) -> None:
+    """A study's backend and DART numerics agree, DART is installed when it runs on it, can build
+    ``params`` when given and reads every field the study's ``overrides`` change (ValueError)."""
     if backend == "dart":
+        ignored = sorted(k for k, _ in overrides if k in NOT_BUILT)
+        if ignored:
+            raise ValueError(f"--set {', '.join(ignored)}: the DART twin does not read "
+                             f"{'this field' if len(ignored) == 1 else 'these fields'} (its step and contacts "
+                             "come from dart_numerics); run it on a MuJoCo backend")
         if not available():
             raise ValueError(MISSING)
         numerics = numerics_of(spec)

@@ -1,0 +1,137 @@
+"""``--set FIELD=VALUE`` and a study file's ``[scene]`` table: one field of a preset changed without
+code, checked, recorded beside the preset's name, honoured by the engine or refused in one line."""
+
+import hashlib
+import json
+
+import h5py
+import mujoco
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from smarticle_mjx import presets, scene, specs, studies, tracks
+from smarticle_mjx.cli import app
+from smarticle_mjx.engine import dart
+
+
+def _md5(path):
+    return hashlib.md5(path.read_bytes()).hexdigest()
+
+
+def test_overrides_change_one_field_and_leave_the_preset_alone():
+    base = presets.params("lab-lag")
+    got = presets.apply(base, presets.overrides(["robot_friction=0.1", "robot.servo_speed=7.5",
+                                                 "contact_solimp=0.9,0.95,0.002", "robot.servo_kv=none"]))
+    assert got.robot_friction == 0.1 and got.robot.servo_speed == 7.5
+    assert got.contact_solimp == (0.9, 0.95, 0.002) and got.robot.servo_kv is None
+    assert got.robot.arm_length == base.robot.arm_length and got.plate_friction == base.plate_friction
+    assert presets.params("lab-lag") == base  # the preset itself is untouched
+    # a study file's [scene] table, robot fields as a sub-table, gives the same overrides
+    assert presets.table_overrides({"robot_friction": 0.1, "robot": {"servo_speed": 7.5}}) == \
+        presets.overrides(["robot.servo_speed=7.5", "robot_friction=0.1"])
+
+
+@pytest.mark.parametrize("item, says", [
+    ("robot_frction=0.1", "unknown scene field 'robot_frction'"),
+    ("robot.servo_sped=7", "unknown scene field 'robot.servo_sped'"),
+    ("robot_friction", "FIELD=VALUE"),
+    ("robot_friction=abc", "expected a finite number"),
+    ("robot_friction=nan", "expected a finite number"),
+    ("iterations=2.5", "expected an integer"),
+    ("contact_solimp=0.9,0.95", "3 comma-separated values"),
+    ("robot_friction=-1", "friction coefficients must be >= 0"),
+    ("robot.mass=0.001", "must exceed the two arms' mass"),
+    ("quirks=1", "unknown scene field 'quirks'"),
+])
+def test_bad_overrides_are_one_line_errors(item, says):
+    with pytest.raises(ValueError) as e:
+        presets.apply(presets.params(), presets.overrides([item]))
+    assert says in str(e.value) and "\n" not in str(e.value)
+
+
+def test_an_override_reaches_the_compiled_model():
+    # the physical fact: robot-robot friction set on the command line is the friction MuJoCo
+    # combines for two robots' geoms (its default combination takes the larger of the two)
+    params = presets.apply(presets.params(), presets.overrides(["robot_friction=0.11", "plate_friction=0.21"]))
+    m = scene.compile_model(scene.build_mjcf(params, scene.standard_poses("pair", params.robot)))
+    plate = [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE]
+    robot = [g for g in range(m.ngeom) if g not in plate]
+    assert plate and robot
+    assert np.allclose(m.geom_friction[robot, 0], 0.11)
+    base = scene.compile_model(scene.build_mjcf(presets.params(), scene.standard_poses("pair", params.robot)))
+    assert not np.allclose(base.geom_friction[robot, 0], 0.11)
+
+
+def test_scan_records_preset_and_overrides_and_bad_set_touches_nothing(tmp_path):
+    run = CliRunner()
+    out = tmp_path / "scan.h5"
+    r = run.invoke(app, ["scan", "--n", "2", "--periods", "1", "--out", str(out), "--quiet",
+                         "--set", "robot_friction=0.12", "--set", "robot.servo_speed=8"])
+    assert r.exit_code == 0, r.output
+    with h5py.File(out, "r") as f:
+        cfg = json.loads(f.attrs["config"])
+    assert cfg["model"] == presets.DEFAULT
+    assert cfg["overrides"] == {"robot.servo_speed": 8.0, "robot_friction": 0.12}
+    assert cfg["scene"]["robot_friction"] == 0.12 and cfg["scene"]["robot"]["servo_speed"] == 8.0
+    assert cfg["scan"]["overrides"] == cfg["overrides"]
+    rep = tmp_path / "rep"
+    assert run.invoke(app, ["report", str(out), "--out", str(rep)]).exit_code == 0
+    assert "robot_friction = 0.12" in (rep / "report.md").read_text()
+    before = _md5(out)
+    for bad in (["--set", "robot_frction=0.1"], ["--set", "robot_friction=x"], ["--set", "robot.mass=-1"]):
+        r = run.invoke(app, ["scan", "--n", "2", "--periods", "1", "--out", str(out), "--quiet", "--overwrite", *bad])
+        assert r.exit_code == 2 and r.output.startswith("error:") and r.output.strip().count("\n") == 0, r.output
+    assert _md5(out) == before
+
+
+def test_a_store_made_with_other_overrides_is_stale(tmp_path):
+    cfg = specs.ScanConfig(n=2, periods=1)
+    out = tmp_path / "s.h5"
+    studies.run_study(cfg, out)
+    assert studies.stale_reason(cfg, out) is None
+    changed = specs.ScanConfig(n=2, periods=1, overrides=presets.overrides(["robot_friction=0.2"]))
+    assert studies.stale_reason(changed, out) == "made from a different study file"
+
+
+def test_study_file_scene_table(tmp_path):
+    f = tmp_path / "s.toml"
+    f.write_text('[study]\nconfigs = "random"\nn = 4\nperiods = 2\n\n[scene]\nrobot_friction = 0.15\n'
+                 '[scene.robot]\nservo_speed = 7.0\n')
+    cfg = specs.load_study(f)
+    assert dict(cfg.overrides) == {"robot_friction": 0.15, "robot.servo_speed": 7.0}
+    assert cfg.scene_params().robot.servo_speed == 7.0
+    # --set goes on top of the file's table
+    sw = specs.sweep_config(f, "90", sets=["robot_friction=0.2"])
+    assert dict(sw.overrides) == {"robot_friction": 0.2, "robot.servo_speed": 7.0}
+    f.write_text('[study]\nconfigs = "relax"\nstages = 1\ntrials = 2\nperiods = 3\n\n[scene]\nplate_friction = 0.3\n')
+    rs = specs.read_study(f)
+    assert rs.stage_config(0, presets.DEFAULT).scene_params().plate_friction == 0.3
+    f.write_text('[study]\nconfigs = "random"\n\n[scene]\nrobot_fiction = 0.15\n')
+    with pytest.raises(ValueError, match=r"\[scene\] --set: unknown scene field 'robot_fiction'"):
+        specs.load_study(f)
+
+
+def test_relax_and_simulate_record_overrides(tmp_path):
+    run = CliRunner()
+    out = tmp_path / "relax.h5"
+    r = run.invoke(app, ["relax", "--robots", "3", "--trials", "1", "--periods", "2", "--out", str(out), "--quiet",
+                         "--set", "contact_dampratio=0.3"])
+    assert r.exit_code == 0, r.output
+    rep = tmp_path / "rep"
+    assert run.invoke(app, ["report", str(out), "--out", str(rep), "--glider-min-periods", "2"]).exit_code == 0
+    assert "contact_dampratio = 0.3" in (rep / "report.md").read_text()
+    track = tmp_path / "t.csv"
+    r = run.invoke(app, ["simulate", "--scene", "single", "--periods", "1", "--out", str(track),
+                         "--set", "robot.arm_mass=0.004"])
+    assert r.exit_code == 0, r.output
+    meta = json.loads(track.with_suffix(".json").read_text())
+    assert meta["overrides"] == {"robot.arm_mass": 0.004}
+    # the track reads back with the robot that made it
+    assert tracks.read_csv(track)[0].params.robot.arm_mass == 0.004
+
+
+def test_the_dart_twin_refuses_fields_it_does_not_read():
+    with pytest.raises(ValueError, match="the DART twin does not read"):
+        dart.check_study("dart", None, None, presets.overrides(["contact_timeconst=0.01"]))
+    dart.check_study("native", None, None, presets.overrides(["contact_timeconst=0.01"]))  # MuJoCo reads it
