@@ -306,3 +306,46 @@ def lifetime_contour(episodes, fit, min_periods, out_dir, stem="lifetime_contour
         ax2.legend(fontsize=7)
     ax2.set_title("lifetimes by type", fontsize=9)
     return save_figure(fig, out_dir, stem, formats)
+
+
+def crowd(phi, in_chain, plateau_periods, chain_lifetimes, out_dir, stem="crowd", title="", formats=("png",)):
+    """The crowd over a relaxation study: area fraction phi(t) (median and quartiles over trials,
+    each trial's plateau start marked), robots in chains per period (mean over trials), and the
+    lifetimes of chain episodes.
+
+    Args:
+      phi: [T, K + 1] per trial (NaN where undefined); in_chain: [T, K];
+      plateau_periods: [T] plateau starts (NaN: censored); chain_lifetimes: every chain episode's lifetime.
+    """
+    plt = pyplot()
+    fig, (ax, ax2, ax3) = plt.subplots(1, 3, figsize=(11, 3.4))
+    phi = np.asarray(phi, float)
+    if phi.size and np.isfinite(phi).any():
+        with np.errstate(all="ignore"):
+            import warnings
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                q = np.nanpercentile(phi, [25, 50, 75], axis=0)
+        t = np.arange(phi.shape[1])
+        ax.fill_between(t, q[0], q[2], color="C0", alpha=0.25, lw=0, label="quartiles")
+        ax.plot(t, q[1], "C0-", lw=1.2, label="median")
+        pl = np.asarray(plateau_periods, float)
+        pl = pl[np.isfinite(pl)]
+        if len(pl):
+            ax.axvline(np.median(pl), color="k", ls="--", lw=0.8, label=f"median plateau start {np.median(pl):.0f}")
+        ax.axvline(30, color="0.5", ls=":", lw=0.8, label="lab: ~30 periods")
+        ax.legend(fontsize=7)
+    ax.set(xlabel="period", ylabel="area fraction φ")
+    ax.set_title(title or "area fraction (n W D / hull of centres)", fontsize=9)
+    ic = np.asarray(in_chain, float)
+    if ic.size:
+        ax2.plot(np.arange(1, ic.shape[1] + 1), ic.mean(0), "C3-", lw=1)
+    ax2.set(xlabel="period", ylabel="robots in chains (mean over trials)")
+    life = np.asarray(chain_lifetimes, float)
+    if life.size:
+        ax3.hist(life, bins=np.arange(0, life.max() + 2) if life.max() < 60 else 40, color="C2")
+    ax3.axvspan(8, 10, color="0.5", alpha=0.3, label="lab: 8-10 periods")
+    ax3.set(xlabel="chain lifetime (periods)", ylabel="chain episodes")
+    ax3.legend(fontsize=7)
+    fig.tight_layout()
+    return save_figure(fig, out_dir, stem, formats)

@@ -350,7 +350,8 @@ def markdown(report: dict) -> str:
 
 # ------------------------------------------------------------------ relaxation
 
-LAB_RELAX = {"emerged": 77, "trials": 151, "distance_W": (2.9, 0.2), "relaxation_periods": 30}
+LAB_RELAX = {"emerged": 77, "trials": 151, "distance_W": (2.9, 0.2), "relaxation_periods": 30,
+             "chain_lifetime": (8, 10)}
 
 
 def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0) -> dict:
@@ -398,6 +399,13 @@ def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 
     a = relax_summary(data, min_periods, apart_W)
     figs = trial_figure(data, a, out)
     figs += [p.name for p in plots.lifetime_contour(a["episodes"], a["fit"], min_periods, out)]
+    from .reduce import relaxation as RX
+    crowd, trials = RX.crowd(data)
+    a["crowd"] = dataclasses.asdict(crowd)
+    if trials:
+        figs += [p.name for p in plots.crowd(np.stack([t.phi for t in trials]), np.stack([t.in_chain for t in trials]),
+                                             [np.nan if t.plateau.censored else t.plateau.period for t in trials],
+                                             [e.lifetime for t in trials for e in t.chains], out)]
     episodes = [{k: v for k, v in e.items() if k != "track"} for e in a["episodes"]]
     per_trial = [{**r, "glider": None if r["glider"] is None else
                   {k: v for k, v in r["glider"].items() if k != "track"}} for r in a["per_trial"]]
@@ -435,10 +443,41 @@ def headline(rep: dict) -> list[str]:
         lo, hi = rep["interval"]
         return [f"{rep['emerged']}/{rep['valid']} trials formed a glider ({rep['fraction']:.2f}, 95% CI "
                 f"{lo:.2f}-{hi:.2f}; lab 77/151); distance {rep['distance']['mean']:.2f} W "
-                f"(n = {rep['distance']['n']}; lab 2.9 W)"]
+                f"(n = {rep['distance']['n']}; lab 2.9 W)", *crowd_headline(rep.get("crowd"))]
     return [f"{s['run']}: P_b end {s['pb_end'][0]}, C1 basin {(s.get('C1') or {}).get('basin_fraction')}, "
             f"C2 basin {(s.get('C2') or {}).get('basin_fraction')}, gliders {s['gliders']}, "
             f"beta {(s.get('beta') or {}).get('value')}" for s in rep["runs"]]
+
+
+def crowd_headline(c: dict | None) -> list[str]:
+    if not c:
+        return []
+    pl, cl = c["plateau"], c["chain_lifetime"]
+    return [f"relaxation (area-fraction plateau) median {pl['median']:.0f} periods, {pl['censored']} of {pl['n']} "
+            f"without a plateau (lab ~30); chain lifetime median {cl['median']:.0f} periods over {cl['n']} chains "
+            "(lab 8-10)"]
+
+
+def crowd_rows(c: dict | None, f) -> list[str]:
+    """The crowd's rows of a relaxation report (reduce.relaxation.CrowdSummary as stored)."""
+    if not c:
+        return []
+    cl, pl, ps, pp, cr = c["chain_lifetime"], c["plateau"], c["phi_start"], c["phi_plateau"], c["phi_creep"]
+    return [
+        f"| relaxation time, area-fraction plateau (φ changes ≤ 0.02 per 10 periods, two windows running) | "
+        f"median {f(pl['median'], 0)} [IQR {f(pl['q25'], 0)}–{f(pl['q75'], 0)}]; {pl['censored']} of {pl['n']} "
+        "trials without a plateau | about 30 periods |",
+        f"| area fraction φ = n W D / hull of the centres: start → plateau (further fall to the end) | "
+        f"{f(ps['median'])} → {f(pp['median'])} ({f(cr['median'], 3)}; medians over trials) | "
+        "≈ 0.5, falling by 0.24–0.35 in Savoie's cloud runs |",
+        f"| chain lifetime (≥ 3 robots connected by touches, same members) | mean {f(cl['mean'], 1)}, median "
+        f"{f(cl['median'], 0)} [IQR {f(cl['q25'], 0)}–{f(cl['q75'], 0)}] periods over {cl['n']} chains, "
+        f"{cl['censored']} still holding at the end; {c['chained_at_end']} of {c['trials']} trials end with a chain | "
+        "8–10 periods (APS 2023, G18.2) |",
+        f"| neighbours of a robot in a chain (touches per period) | {f(c['neighbours_in_chain'])}; closed loops in "
+        f"{f(100 * c['loop_fraction'], 0)} % of chain-periods; all robots {f(c['neighbours_all'])} | "
+        "≈ 4 with closed loops (glider gait; APS 2023) |",
+    ]
 
 
 def relax_markdown(rep: dict) -> str:
@@ -471,6 +510,7 @@ def relax_markdown(rep: dict) -> str:
              f"| relaxation time (last period with a robot touching two others) | median {f(rt['median'], 0)} "
              f"[IQR {f(rt['q25'], 0)}–{f(rt['q75'], 0)}]; {rt['crowded_at_end']} trials still crowded at the end | "
              "about 30 periods |",
+             *crowd_rows(rep.get("crowd"), f),
              f"| robots that left the plate | {rep['left_plate']['robots']} in {rep['left_plate']['trials']} "
              "trials | – |",
              f"| trials stopped early (no contact for {s['quiet_periods']} periods) | {rep['stopped_early']} | – |",

@@ -173,6 +173,9 @@ def test_relax_cli_store_report_and_bad_input(tmp_path):
     j = json.loads((rep / "report.json").read_text())
     assert j["kind"] == "relax" and j["trials"] == 2 and (rep / "relax_tracks.png").exists()
     assert "77/151" in (rep / "report.md").read_text()
+    # the crowd's measures: every usable trial measured, their rows beside the lab's, their figure
+    assert j["crowd"]["trials"] == 2 and j["crowd"]["plateau"]["n"] == 2 and (rep / "crowd.png").exists()
+    assert "chain lifetime" in (rep / "report.md").read_text() and "8–10 periods" in (rep / "report.md").read_text()
     before = _digest(out)
     for args in (["--robots", "1"], ["--jitter-mm", "-1"], ["--trials", "0"], ["--amplitude", "120"], []):
         r = run.invoke(app, ["relax", "--trials", "2", "--periods", "4", "--out", str(out), "--quiet", *args])
