@@ -252,6 +252,11 @@ def relax(
     periods: int = typer.Option(300, help="gait periods per trial (the lab: 300)"),
     seed: int = typer.Option(0, help="seed of the per-trial perturbations"),
     gap_mm: float = typer.Option(2.0, help="gap between neighbours' bounding boxes in the packing (mm)"),
+    start: str = typer.Option("lattice", help="start family: lattice (staggered rows) or hex (one robot ringed "
+                              "by six, for 7)"),
+    headings: str = typer.Option("aligned", help="start headings: aligned (all 0, jittered) or drawn (uniform)"),
+    start_phi: Optional[float] = typer.Option(None, help="scale the start to this area fraction n W D / hull "
+                                              "of the centres (e.g. 0.4-0.6; default: spaced by --gap-mm)"),
     jitter_mm: float = typer.Option(1.0, help="s.d. of each robot's start position per axis (mm)"),
     jitter_deg: float = typer.Option(2.0, help="s.d. of each robot's start heading (deg)"),
     phase_jitter: float = typer.Option(0.0, help="s.d. of each robot's gait phase (periods; 0: in phase)"),
@@ -270,7 +275,7 @@ def relax(
     cfg = RelaxConfig(n_robots=robots, trials=trials, first_trial=first_trial, periods=periods,
                       amplitude_deg=gait_spec.amplitude_deg, chirality=gait_spec.chirality, gait=gait_spec.kind,
                       period_s=gait_spec.period_s, seed=seed,
-                      gap_mm=gap_mm, jitter_mm=jitter_mm, jitter_deg=jitter_deg, phase_jitter=phase_jitter,
+                      gap_mm=gap_mm, start=start, headings=headings, start_phi=start_phi, jitter_mm=jitter_mm, jitter_deg=jitter_deg, phase_jitter=phase_jitter,
                       plate_m=plate, quiet_periods=quiet_periods, backend=backend, batch_size=batch_size,
                       model=_model(model), imperfections=imperfections, overrides=_sets(set_))
     _run_study(cfg, out, store, executor)

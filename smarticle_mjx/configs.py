@@ -188,12 +188,11 @@ def poses_valid(poses, robot: RobotParams = RobotParams(), clearance: float = 0.
     ``clearance`` (m) demands a positive gap; 0 accepts touching robots.
     """
     poses = np.asarray(poses, dtype=float)
-    n = poses.shape[-2]
-    ok = np.ones(poses.shape[:-2], dtype=bool)
-    for i in range(n):
-        for j in range(i + 1, n):
-            ok &= pair_separation(poses[..., i, :], poses[..., j, :], robot) > clearance
-    return ok
+    i, j = np.triu_indices(poses.shape[-2], 1)
+    if len(i) == 0:
+        return np.ones(poses.shape[:-2], dtype=bool)
+    # every pair at once: one vectorised call instead of one per pair
+    return (pair_separation(poses[..., i, :], poses[..., j, :], robot) > clearance).all(-1)
 
 
 # ---------------------------------------------------------------- sampling

@@ -77,6 +77,57 @@ def packing(n: int, robot: RobotParams, alpha: tuple[float, float], gap: float) 
     return poses
 
 
+def hex_pack(n: int, robot: RobotParams, alpha: tuple[float, float], spacing: float | None,
+             gap: float) -> np.ndarray:
+    """Poses [n, 5] of a hexagonal pack: the n sites of a triangular lattice nearest its centre (for 7: a
+    robot ringed by six, the packing Savoie's cloud analysis takes as the densest), all headings 0.
+    ``spacing`` (m) between neighbouring centres; None: the closest at which robots of heading 0 do not
+    overlap, plus ``gap``."""
+    rows = int(math.ceil(math.sqrt(n))) + 2
+    sites = np.array([(i + 0.5 * j, j * math.sqrt(3) / 2) for j in range(-rows, rows + 1)
+                      for i in range(-rows, rows + 1)])
+    key = np.round(np.hypot(sites[:, 0], sites[:, 1]), 9)
+    unit = sites[np.lexsort((sites[:, 0], sites[:, 1], key))[:n]]
+    unit = unit - unit.mean(0)
+    poses = np.zeros((n, 5))
+    poses[:, 3], poses[:, 4] = alpha
+    if spacing is None:
+        lo, hi = robot.body_length * 0.5, 4 * (robot.body_length + robot.arm_length)
+        for _ in range(60):  # bisection on the spacing at which the aligned pack stops overlapping
+            mid = 0.5 * (lo + hi)
+            poses[:, :2] = unit * mid
+            lo, hi = (mid, hi) if not C.poses_valid(poses, robot) else (lo, mid)
+        spacing = hi + gap
+    poses[:, :2] = unit * spacing
+    return poses
+
+
+def area_fraction_of(poses: np.ndarray, robot: RobotParams) -> float:
+    """n W D / (hull area of the body centres) of one set of poses [n, >=2] (reduce.relaxation's phi)."""
+    from .reduce.relaxation import hull_area
+    return len(poses) * robot.body_length * robot.body_thickness / hull_area(poses[:, :2])
+
+
+def base_start(config: RelaxConfig, robot: RobotParams, alpha: tuple[float, float]) -> np.ndarray:
+    """The unperturbed start [n, 5] of ``config``: its family (``start``: lattice or hex) spaced by
+    ``gap_mm``, or scaled about its centre to the area fraction ``start_phi``; ValueError if the
+    robots would overlap."""
+    gap = config.gap_mm * 1e-3
+    if config.start == "hex":
+        base = hex_pack(config.n_robots, robot, alpha, None, gap)
+    else:
+        base = packing(config.n_robots, robot, alpha, gap)
+    if config.start_phi is not None:
+        centre = base[:, :2].mean(0)
+        k = math.sqrt(area_fraction_of(base, robot) / config.start_phi)
+        base[:, :2] = centre + (base[:, :2] - centre) * k
+    if not C.poses_valid(base, robot):
+        what = f"area fraction {config.start_phi:g}" if config.start_phi is not None else f"gap {config.gap_mm:g} mm"
+        raise ValueError(f"the {config.start} start at {what} overlaps; "
+                         f"{'lower --start-phi' if config.start_phi is not None else 'raise --gap-mm'}")
+    return base
+
+
 def trial_rng(seed: int, trial: int) -> np.random.Generator:
     return np.random.default_rng([int(seed), int(trial), 0x52454C58])  # "RELX": apart from other streams
 
@@ -85,9 +136,7 @@ def start_poses(config: RelaxConfig, params: SceneParams) -> tuple[np.ndarray, n
     """Perturbed starts [T, N, 5] and per-robot phases [T, N] of the config's trials."""
     g = config.gait_spec()
     a0 = g.setpoints(0.0, params.robot.servo_speed)
-    base = packing(config.n_robots, params.robot, (float(a0[0]), float(a0[1])), config.gap_mm * 1e-3)
-    if not C.poses_valid(base, params.robot):
-        raise ValueError("the compressed packing overlaps; raise --gap-mm")
+    base = base_start(config, params.robot, (float(a0[0]), float(a0[1])))
     out = np.empty((config.trials,) + base.shape)
     phase = np.zeros((config.trials, config.n_robots))
     for t in range(config.trials):
@@ -96,11 +145,13 @@ def start_poses(config: RelaxConfig, params: SceneParams) -> tuple[np.ndarray, n
             p = base.copy()
             p[:, :2] += rng.normal(0.0, config.jitter_mm * 1e-3, (config.n_robots, 2))
             p[:, 2] += rng.normal(0.0, math.radians(config.jitter_deg), config.n_robots)
+            if config.headings == "drawn":  # after the aligned draws, so aligned trials keep their stream
+                p[:, 2] += rng.uniform(0.0, 2 * math.pi, config.n_robots)
             if C.poses_valid(p, params.robot):
                 break
         else:
             raise ValueError(f"no overlap-free start for trial {config.first_trial + t} in 1000 draws; "
-                             "lower --jitter-mm or raise --gap-mm")
+                             "lower --jitter-mm or --start-phi, or raise --gap-mm")
         out[t] = p
         if config.phase_jitter > 0:
             phase[t] = rng.normal(0.0, config.phase_jitter, config.n_robots)

@@ -245,6 +245,13 @@ class RelaxConfig:
     period_s: float | None = None
     seed: int = 0
     gap_mm: float = 2.0  # gap between neighbouring robots' bounding boxes in the packing
+    # the start's family: "lattice" (staggered rows of bounding boxes, the default) or "hex" (a
+    # triangular lattice: for 7 robots one ringed by six); headings "aligned" (all 0, then jittered)
+    # or "drawn" (uniform per robot and trial); start_phi: scale the pack to this area fraction
+    # n W D / hull of the centres (None: spaced by gap_mm)
+    start: str = "lattice"
+    headings: str = "aligned"
+    start_phi: float | None = None
     jitter_mm: float = 1.0  # per-axis standard deviation of each robot's start position
     jitter_deg: float = 2.0  # standard deviation of each robot's start heading
     phase_jitter: float = 0.0  # standard deviation of per-robot gait phase (periods); 0: in phase (paper)
@@ -290,6 +297,12 @@ class RelaxConfig:
                 raise ValueError(f"{name.replace('_', '-')} must be a finite number >= 0, got {v}")
         if not self.plate_m > 0:
             raise ValueError(f"plate side must be positive, got {self.plate_m}")
+        if self.start not in ("lattice", "hex"):
+            raise ValueError(f"--start must be lattice or hex, got {self.start!r}")
+        if self.headings not in ("aligned", "drawn"):
+            raise ValueError(f"--headings must be aligned or drawn, got {self.headings!r}")
+        if self.start_phi is not None and not 0 < self.start_phi < 1:
+            raise ValueError(f"--start-phi must lie between 0 and 1, got {self.start_phi}")
         if self.batch_size < 1 or self.chunk_periods < 1 or self.quiet_periods < 0:
             raise ValueError("batch size and chunk periods must be >= 1, quiet periods >= 0")
         from .engine import check_backend
@@ -308,6 +321,9 @@ class RelaxConfig:
         d = dataclasses.asdict(self)
         if self.imperfections == "none":
             del d["imperfections"]  # stores of ideal robots keep their earlier configuration
+        for k, default in (("start", "lattice"), ("headings", "aligned"), ("start_phi", None)):
+            if d[k] == default:
+                del d[k]  # as do stores of the start the study always had
         _overrides_json(d, self.overrides)
         return study_json(d, self.backend)
 

@@ -147,6 +147,60 @@ def test_trials_do_not_depend_on_the_stage():
     assert C.poses_valid(a, params.robot).all()
 
 
+def test_hex_start_is_one_robot_ringed_by_six_at_the_closest_clear_spacing():
+    from smarticle_mjx.relax import hex_pack
+    robot = presets.params().robot
+    p = hex_pack(7, robot, (math.pi / 2, math.pi / 2), None, 0.002)
+    d = np.linalg.norm(p[:, :2] - p[:, :2].mean(0), axis=1)
+    centre = int(np.argmin(d))
+    ring = np.delete(d, centre)
+    assert d[centre] == pytest.approx(0, abs=1e-12) and np.allclose(ring, ring[0])  # a regular hexagon
+    ang = np.sort(np.degrees(np.arctan2(*(p[:, 1::-1][np.arange(7) != centre] - p[centre, 1::-1]).T)) % 360)
+    assert np.allclose(np.diff(ang), 60)
+    # the closest clear spacing plus 2 mm along the line of centres (at 60 deg to the faces that
+    # meet, so 2 mm x cos 30 deg between them), overlapping 3 mm closer
+    sep = [C.pair_separation(p[i], p[j], robot) for i in range(7) for j in range(i + 1, 7)]
+    assert 0.002 * math.cos(math.pi / 6) - 2e-4 <= min(sep) <= 0.002 + 2e-4
+    closer = hex_pack(7, robot, (math.pi / 2, math.pi / 2), ring[0] - 0.003, 0.0)
+    assert not C.poses_valid(closer, robot)
+
+
+@pytest.mark.parametrize("start", ["lattice", "hex"])
+@pytest.mark.parametrize("phi", [0.4, 0.6])
+def test_start_family_is_scaled_to_its_area_fraction_and_overlap_free(start, phi):
+    from smarticle_mjx.relax import RelaxConfig, area_fraction_of, base_start, start_poses
+    from smarticle_mjx.reduce.relaxation import hull_area
+    params = presets.params()
+    cfg = RelaxConfig(trials=2, start=start, start_phi=phi)
+    base = base_start(cfg, params.robot, (math.pi / 2, math.pi / 2))
+    # Savoie's phi of the unperturbed start, by the hull's shoelace area as a second computation
+    hull = hull_area(base[:, :2])
+    assert area_fraction_of(base, params.robot) == pytest.approx(phi, rel=1e-9)
+    assert 7 * params.robot.body_length * params.robot.body_thickness / hull == pytest.approx(phi, rel=1e-9)
+    starts, _ = start_poses(cfg, params)
+    assert C.poses_valid(starts, params.robot).all()
+    drawn, _ = start_poses(RelaxConfig(trials=2, start=start, start_phi=phi, headings="drawn"), params)
+    assert C.poses_valid(drawn, params.robot).all()
+    assert np.ptp(np.mod(drawn[..., 2], 2 * math.pi)) > math.pi  # headings spread round the circle
+    # the aligned trials keep the stream they had before headings could be drawn
+    assert np.array_equal(start_poses(RelaxConfig(trials=2), params)[0],
+                          start_poses(RelaxConfig(trials=2, headings="aligned"), params)[0])
+
+
+def test_bad_start_is_one_line():
+    from smarticle_mjx.relax import RelaxConfig, start_poses
+    params = presets.params()
+    for cfg, says in ((RelaxConfig(start_phi=0.95), "overlaps; lower --start-phi"),
+                      (RelaxConfig(start="ring"), "--start must be lattice or hex"),
+                      (RelaxConfig(headings="random"), "--headings must be aligned or drawn"),
+                      (RelaxConfig(start_phi=1.5), "--start-phi must lie between 0 and 1")):
+        with pytest.raises(ValueError, match=says):
+            cfg.validate(params)
+            start_poses(cfg, params)
+    assert "start" not in RelaxConfig().to_json() and "start_phi" not in RelaxConfig().to_json()
+    assert RelaxConfig(start="hex", start_phi=0.5).to_json()["start_phi"] == 0.5
+
+
 # ------------------------------------------------------------ end to end
 
 def _digest(path):
