@@ -1,0 +1,169 @@
+"""The discovery experiment's diagnosis screen: seven robots from a compressed start, one physical
+choice switched at a time (sweeps/discovery_screen.toml, written before it ran).
+
+Per variant: one relaxation store of T trials x K periods (resumable: a complete store of the same
+configuration is reused, an interrupted one resumed), then the crowd's measures
+(reduce.relaxation.crowd: area-fraction plateau, chain lifetime, neighbours, loops), the contact rule's
+relaxation time, trials the engine flagged, and pairs that stayed bound and apart >= 30 periods (a
+screen-length indicator, not the lab's 100-period glider). Intervals: 95 % bootstrap over trials
+(medians and pooled means), exact binomial for counts.
+
+  python benchmarks/discovery_screen.py                      # every variant of the study file
+  python benchmarks/discovery_screen.py --only baseline,lab  # some of them
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import sys
+import time
+import tomllib
+
+import numpy as np
+
+from smarticle_mjx import presets
+from smarticle_mjx.bench import save_json
+from smarticle_mjx.labels import BAD_STATUS
+from smarticle_mjx.reduce import binding, relaxation as RX
+from smarticle_mjx.specs import RelaxStudy
+from smarticle_mjx.store import read_relax
+from smarticle_mjx.studies import ensure_relax
+
+ROOT = pathlib.Path(__file__).resolve().parent
+APART_PERIODS = 30  # the screen's bound-and-apart indicator (fixed with the study file)
+
+
+def read_screen(path: pathlib.Path) -> tuple[dict, list[dict]]:
+    raw = tomllib.loads(path.read_text())
+    return raw["screen"], raw["variant"]
+
+
+def study_of(screen: dict, variant: dict) -> RelaxStudy:
+    keys = {k: v for k, v in variant.items() if k not in ("name", "set")}
+    keys.update(periods=int(screen["periods"]), seed=int(screen["seed"]),
+                amplitude_deg=float(screen["amplitude_deg"]))
+    if variant.get("set"):
+        keys["overrides"] = presets.overrides(variant["set"])
+    rs = RelaxStudy(stages=1, trials=int(screen["trials"]), settings=tuple(sorted(keys.items())))
+    rs.validate()
+    return rs
+
+
+def _boot(values_per_trial, stat, rng, n=2000) -> tuple[float, float]:
+    """95 % bootstrap interval of ``stat`` over trials (each a list of values)."""
+    t = len(values_per_trial)
+    if t == 0:
+        return float("nan"), float("nan")
+    out = []
+    for _ in range(n):
+        pick = rng.integers(0, t, t)
+        v = np.concatenate([np.asarray(values_per_trial[i], float) for i in pick])
+        out.append(stat(v) if len(v) else np.nan)
+    lo, hi = np.nanpercentile(out, [2.5, 97.5])
+    return float(lo), float(hi)
+
+
+def measure(data: dict, seed: int = 0) -> dict:
+    """The screen's numbers of one variant's store."""
+    rng = np.random.default_rng(seed)
+    summary, trials = RX.crowd(data)
+    flagged = int(((np.asarray(data["status"]) & int(BAD_STATUS)) != 0).sum())
+    usable = len(trials)
+    a = RX.analyse(data, min_periods=APART_PERIODS)
+    apart = a["emerged"]
+    plateau = [[np.nan if t.plateau.censored else t.plateau.period] for t in trials]
+    plateau_c = [[t.plateau.period] for t in trials]  # censored ones at their (lower-bound) end
+    chains = [[e.lifetime for e in t.chains] for t in trials]
+    deg = []
+    for t in trials:
+        d = [t.degree[e.start:e.start + e.lifetime][:, list(e.members)].ravel() for e in t.chains]
+        deg.append(np.concatenate(d) if d else np.zeros(0))
+    contact = [[t.contact_relaxation[0]] for t in trials]
+    moved = []
+    for i in np.flatnonzero((np.asarray(data["status"]) & int(BAD_STATUS)) == 0):
+        k = int(data["periods_run"][i])
+        d = np.linalg.norm(data["poses"][i][k - 1, :, :2] - data["start_poses"][i][:, :2], axis=1)
+        moved.append([float(d.mean() / data["body_length"])])
+    lo, hi = binding.binomial_interval(apart, usable) if usable else (np.nan, np.nan)
+    return {
+        "trials": int(len(data["valid"])), "flagged": flagged, "usable": usable,
+        "plateau_median": summary.plateau.median, "plateau_ci": _boot(plateau_c, np.median, rng),
+        "plateau_censored": summary.plateau.censored,
+        "phi_start": summary.phi_start.median, "phi_plateau": summary.phi_plateau.median,
+        "phi_creep": summary.phi_creep.median,
+        "chain_lifetime_median": summary.chain_lifetime.median, "chain_lifetime_mean": summary.chain_lifetime.mean,
+        "chain_lifetime_mean_ci": _boot(chains, np.mean, rng), "chains": summary.chain_lifetime.n,
+        "chains_censored": summary.chain_lifetime.censored,
+        "neighbours_in_chain": summary.neighbours_in_chain, "neighbours_in_chain_ci": _boot(deg, np.mean, rng),
+        "loop_fraction": summary.loop_fraction, "chained_at_end": summary.chained_at_end,
+        "contact_relaxation_median": summary.contact_relaxation.median,
+        "contact_relaxation_ci": _boot(contact, np.median, rng),
+        "apart_30": apart, "apart_30_ci": (float(lo), float(hi)),
+        "moved_W": float(np.mean([m[0] for m in moved])) if moved else float("nan"),
+        "moved_W_ci": _boot(moved, np.mean, rng),
+        "plateau_values": [p[0] for p in plateau],
+    }
+
+
+def f(x, nd=1):
+    return "–" if x is None or not np.isfinite(x) else f"{x:.{nd}f}"
+
+
+def table(rows: dict, screen: dict) -> list[str]:
+    out = [f"Screen: {screen['trials']} trials x {screen['periods']} periods per variant, seed {screen['seed']}, "
+           f"{screen['amplitude_deg']:g} deg; medians with 95 % bootstrap intervals over trials.", "",
+           "| variant | flagged | φ start → plateau | plateau start (periods) | chain lifetime mean (periods) | "
+           "neighbours in chain | loops | contact relaxation | chained at end | apart ≥ 30 | moved (W) |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for name, r in rows.items():
+        pc, cc, nc, rc, mc = (r["plateau_ci"], r["chain_lifetime_mean_ci"], r["neighbours_in_chain_ci"],
+                              r["contact_relaxation_ci"], r["moved_W_ci"])
+        out.append(
+            f"| {name} | {r['flagged']}/{r['trials']} | {f(r['phi_start'], 2)} → {f(r['phi_plateau'], 2)} | "
+            f"{f(r['plateau_median'], 0)} [{f(pc[0], 0)}, {f(pc[1], 0)}] ({r['plateau_censored']} none) | "
+            f"{f(r['chain_lifetime_mean'])} [{f(cc[0])}, {f(cc[1])}] (n {r['chains']}) | "
+            f"{f(r['neighbours_in_chain'], 2)} [{f(nc[0], 2)}, {f(nc[1], 2)}] | {f(100 * r['loop_fraction'], 0)} % | "
+            f"{f(r['contact_relaxation_median'], 0)} [{f(rc[0], 0)}, {f(rc[1], 0)}] | "
+            f"{r['chained_at_end']}/{r['usable']} | {r['apart_30']}/{r['usable']} | "
+            f"{f(r['moved_W'], 2)} [{f(mc[0], 2)}, {f(mc[1], 2)}] |")
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--study", type=pathlib.Path, default=ROOT.parent / "sweeps" / "discovery_screen.toml")
+    ap.add_argument("--only", default=None, help="comma-separated variant names")
+    ap.add_argument("--stores", type=pathlib.Path, default=ROOT.parent / "out" / "discovery_screen")
+    ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "discovery_screen.json")
+    ap.add_argument("--model", default=presets.DEFAULT)
+    args = ap.parse_args(argv)
+    screen, variants = read_screen(args.study)
+    names = [v["name"] for v in variants]
+    if len(set(names)) != len(names):
+        sys.exit("error: variant names repeat")
+    only = set(args.only.split(",")) if args.only else set(names)
+    if only - set(names):
+        sys.exit(f"error: unknown variants {sorted(only - set(names))}")
+    args.stores.mkdir(parents=True, exist_ok=True)
+    res = json.loads(args.out.read_text()) if args.out.exists() else {}
+    res.setdefault("variants", {})
+    res.update(screen=screen, model=args.model, study=str(args.study.relative_to(ROOT.parent)))
+    for v in variants:
+        if v["name"] not in only:
+            continue
+        rs = study_of(screen, v)
+        t0 = time.perf_counter()
+        paths = ensure_relax(rs, v["name"], args.stores, args.model)
+        row = measure(read_relax(paths))
+        row.update(variant={k: val for k, val in v.items() if k != "name"}, wall_s=time.perf_counter() - t0)
+        res["variants"][v["name"]] = row
+        save_json(args.out, res)
+        print(f"{v['name']}: done in {row['wall_s']:.0f} s", flush=True)
+    rows = {n: res["variants"][n] for n in names if n in res["variants"]}
+    print("\n".join(table(rows, screen)))
+
+
+if __name__ == "__main__":
+    main()
