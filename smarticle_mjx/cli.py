@@ -374,10 +374,12 @@ def validate(
 
 @_command("movie")
 def movie(
-    source: pathlib.Path = typer.Argument(..., help="a scan store (.h5, with --lane) or a track from smx simulate "
+    source: pathlib.Path = typer.Argument(..., help="a scan store (.h5, with --lane), a relaxation store (with "
+                                                     "--trial) or a track from smx simulate "
                                                      "(.csv with its .json sidecar, or .h5)"),
     lane: Optional[int] = typer.Option(None, help="scan store: the lane (configuration index) to show"),
     run: Optional[str] = typer.Option(None, help="scan store: run (amplitude group); default: the first"),
+    trial: Optional[int] = typer.Option(None, help="relaxation store: the trial to show"),
     out: pathlib.Path = typer.Option(pathlib.Path("movie.mp4"), help="output .mp4 (GIF if no packaged ffmpeg) "
                                                                      "or .gif"),
     fps: float = typer.Option(20.0, help="frames per second"),
@@ -386,13 +388,15 @@ def movie(
     size: int = typer.Option(480, help="frame width and height in pixels"),
     trail: float = typer.Option(5.0, help="trail of the body centres, in gait periods"),
 ):
-    """Top-view movie of a simulated track, or of one lane of a scan store simulated again exactly."""
+    """Top-view movie of a simulated track, or of one lane of a scan store or one trial of a relaxation store
+    simulated again exactly."""
     from .movie import MovieOptions, check_output, render
     from .replay import movie_track
     opts = MovieOptions(fps=fps, speed=speed, duration=duration, trail_periods=trail, size_px=size)
     opts.validate()
     check_output(out)
-    t, poses, robot, period, title, same = movie_track(source, lane, run, frame_interval=min(0.05, speed / fps))
+    t, poses, robot, period, title, same = movie_track(source, lane, run, frame_interval=min(0.05, speed / fps),
+                                                       trial=trial)
     if not same:
         typer.echo("warning: the re-simulation differs from the stored records "
                    "(another package or MuJoCo version made the store)", err=True)

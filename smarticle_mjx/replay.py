@@ -1,15 +1,16 @@
 """Full-rate tracks: one scene simulated and written in the track format (``smx simulate``), or one lane of
-a scan store simulated again exactly (``smx movie``)."""
+a scan store or one trial of a relaxation store simulated again exactly (``smx movie``)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import pathlib
 
 import numpy as np
 
 from .scan import RunInputs
-from .specs import config_from_json, params_from_json
+from .specs import config_from_json, params_from_json, relax_config_from_json
 
 
 def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 40,
@@ -105,7 +106,49 @@ def lane_track(store_path, run: str | None, lane: int | None, frame_interval: fl
     return t, poses, params.robot, gait.period(), title, same
 
 
-def movie_track(source, lane: int | None, run: str | None, frame_interval: float) -> tuple:
+def resimulate_trial(store_path, trial: int, frame_interval: float):
+    """Simulate trial ``trial`` of a relaxation store again, from its stored configuration and model:
+    the start (checked against the stored one), per-robot phases and drawn robots of that trial.
+
+    Returns (times [S], poses [S, N, 5] from the start, ``SimResult``, params, gait, the stored rows of
+    that trial). Raises ValueError for a trial the store does not hold."""
+    from .engine.simulate import simulate
+    from .relax import RUN, start_poses
+    from .store import Store
+    st = Store(store_path)
+    config = relax_config_from_json(st.config["relax"])
+    params = params_from_json(st.config["scene"])
+    lo, hi = config.first_trial, config.first_trial + config.trials
+    if not lo <= trial < hi:
+        raise ValueError(f"trial {trial} is not in {store_path}: it holds trials {lo}..{hi - 1}")
+    rows = st.run(RUN, fields=("start_poses", "poses", "periods_run", "status"))
+    rows = {k: v[trial - lo] for k, v in rows.items()}
+    start, phase = start_poses(dataclasses.replace(config, first_trial=trial, trials=1), params)
+    if not np.array_equal(start[0], rows["start_poses"]):
+        raise ValueError(f"trial {trial}'s start cannot be rebuilt (another package version made the store)")
+    gait = config.gait_spec()
+    stride = max(1, int(round(frame_interval / params.timestep)))
+    res = simulate(params, start[0], gait, max(int(rows["periods_run"]), 1), phase=phase[0], track_stride=stride,
+                   imperfections=config.robots(), row=trial)
+    t = np.concatenate([[0.0], res.track_t])
+    return t, np.concatenate([start[0][None], res.track], 0), res, params, gait, rows
+
+
+def trial_track(store_path, trial: int | None, frame_interval: float) -> tuple:
+    """A relaxation store's trial simulated again for a movie: (times, poses, robot, period, title, same),
+    ``same`` telling whether the re-simulation reproduces the stored per-period poses."""
+    if trial is None:
+        raise ValueError("a relaxation store needs --trial (the trial index to show)")
+    t, poses, res, params, gait, rows = resimulate_trial(store_path, trial, frame_interval)
+    k = int(rows["periods_run"])
+    same = bool(np.array_equal(res.poses[1:k + 1].astype(np.float32), rows["poses"][:k]))
+    title = (f"{pathlib.Path(store_path).name} trial {trial}, {gait.amplitude_deg:g} deg"
+             + ("" if same else " (differs from store!)"))
+    return t, poses, params.robot, gait.period(), title, same
+
+
+def movie_track(source, lane: int | None, run: str | None, frame_interval: float,
+                trial: int | None = None) -> tuple:
     """What ``smx movie`` shows: one lane of a scan store simulated again (:func:`lane_track`), or a track
     written by ``smx simulate`` (:func:`smarticle_mjx.movie.load_track`, ``same`` True). ValueError for a
     missing source or a ``lane`` given for a track."""
@@ -114,7 +157,16 @@ def movie_track(source, lane: int | None, run: str | None, frame_interval: float
     if not pathlib.Path(source).exists():
         raise ValueError(f"{source} does not exist")
     if is_scan_store(source):
+        from .store import Store
+        if Store(source).kind == "relax":
+            if lane is not None or run is not None:
+                raise ValueError("a relaxation store takes --trial, not --lane or --run")
+            return trial_track(source, trial, frame_interval)
+        if trial is not None:
+            raise ValueError("--trial is for relaxation stores; a scan store takes --lane")
         return lane_track(source, run, lane, frame_interval)
+    if trial is not None:
+        raise ValueError("--trial is for relaxation stores; this is a track")
     if lane is not None:
         raise ValueError("--lane is for scan stores; this is a track")
     return (*load_track(source), True)

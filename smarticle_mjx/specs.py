@@ -487,6 +487,17 @@ def _as_overrides(value) -> tuple[tuple[str, object], ...]:
     return presets.overrides(tuple(v) if isinstance(v, list) else v for v in value)
 
 
+def relax_config_from_json(d: dict) -> RelaxConfig:
+    """The RelaxConfig a relaxation store recorded (its ``config["relax"]``), lists back to tuples."""
+    fields = {f.name for f in dataclasses.fields(RelaxConfig)}
+    kw = {k: v for k, v in d.items() if k in fields}
+    if kw.get("dart_numerics") is not None:
+        kw["dart_numerics"] = tuple(kw["dart_numerics"])
+    if "overrides" in kw:
+        kw["overrides"] = _as_overrides(kw["overrides"])
+    return RelaxConfig(**kw)
+
+
 def params_from_json(d: dict) -> SceneParams:
     """The SceneParams a store recorded (its ``config["scene"]``), lists back to tuples."""
     from .scene import RobotParams, RobotQuirk

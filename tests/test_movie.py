@@ -70,3 +70,26 @@ def test_smx_movie_of_a_store_lane_and_its_bad_input(store, tmp_path):
         r = CliRunner().invoke(app, ["movie", str(store), "--out", str(tmp_path / "x.gif"), *args])
         assert r.exit_code == 2 and msg in r.output and len(r.output.strip().splitlines()) == 1, r.output
     assert not (tmp_path / "x.gif").exists()
+
+
+def test_a_relaxation_trial_simulated_again_is_the_stored_trial(tmp_path):
+    """From a relaxation store alone (its configuration, model, drawn robots and the trial's own random
+    stream: start and phase offsets) a trial is simulated again exactly, imperfect robots included, and
+    ``smx movie --trial`` draws it; a trial the store lacks, or scan options, are one line."""
+    from smarticle_mjx.replay import resimulate_trial
+    out = tmp_path / "r.h5"
+    run = CliRunner()
+    r = run.invoke(app, ["relax", "--robots", "3", "--trials", "2", "--first-trial", "3", "--periods", "3",
+                         "--imperfections", "phase-jitter", "--out", str(out), "--quiet"])
+    assert r.exit_code == 0, r.output
+    t, track, res, params, gait, rows = resimulate_trial(out, 4, frame_interval=0.1)
+    k = int(rows["periods_run"])
+    assert np.array_equal(res.poses[1:k + 1].astype(np.float32), rows["poses"][:k])
+    assert np.array_equal(track[0], rows["start_poses"]) and t[0] == 0
+    r = run.invoke(app, ["movie", str(out), "--trial", "3", "--out", str(tmp_path / "t.gif"), "--fps", "5",
+                         "--size", "120", "--duration", "1"])
+    assert r.exit_code == 0 and "differs" not in r.output, r.output
+    assert (tmp_path / "t.gif").stat().st_size > 0
+    for args, msg in ((["--trial", "0"], "trial 0 is not in"), ([], "needs --trial"), (["--lane", "0"], "--trial, not --lane")):
+        r = run.invoke(app, ["movie", str(out), "--out", str(tmp_path / "x.gif"), *args])
+        assert r.exit_code == 2 and msg in r.output and r.output.strip().count("\n") == 0, (args, r.output)
