@@ -87,7 +87,15 @@ def measure(data: dict, seed: int = 0) -> dict:
         d = np.linalg.norm(data["poses"][i][k - 1, :, :2] - data["start_poses"][i][:, :2], axis=1)
         moved.append([float(d.mean() / data["body_length"])])
     lo, hi = binding.binomial_interval(apart, usable) if usable else (np.nan, np.nan)
+    # the deepest robot-robot penetration of each trial (flagged ones included) and, for flagged
+    # trials, the first period past the 2 mm flag: a tail of the depth distribution or a cliff?
+    md = np.asarray(data["min_dist"], float)  # [T, K, P] m, +inf without contact
+    md = np.where(np.isfinite(md), md, np.inf)
+    depth_mm = -1e3 * np.minimum(md.min(axis=(1, 2)), 0.0)
+    first_flag = [int(np.argmax((md[i] < -2e-3).any(-1))) + 1 for i in range(len(md)) if (md[i] < -2e-3).any()]
     return {
+        "depth_mm_median": float(np.median(depth_mm)), "depth_mm_max": float(depth_mm.max()),
+        "depth_mm": [float(x) for x in depth_mm], "first_flag_period": first_flag,
         "trials": int(len(data["valid"])), "flagged": flagged, "usable": usable,
         "plateau_median": summary.plateau.median, "plateau_ci": _boot(plateau_c, np.median, rng),
         "plateau_censored": summary.plateau.censored,
