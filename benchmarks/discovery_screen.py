@@ -161,15 +161,21 @@ def main(argv=None):
     for v in variants:
         if v["name"] not in only:
             continue
-        rs = study_of(screen, v)
         t0 = time.perf_counter()
-        paths = ensure_relax(rs, v["name"], args.stores, args.model)
+        try:
+            rs = study_of(screen, v)
+            paths = ensure_relax(rs, v["name"], args.stores, args.model)
+        except ValueError as e:  # a variant the model refuses is reported, the others still run
+            print(f"{v['name']}: refused: {e}", flush=True)
+            res["variants"][v["name"]] = {"refused": str(e), "variant": {k: val for k, val in v.items() if k != "name"}}
+            save_json(args.out, res)
+            continue
         row = measure(read_relax(paths))
         row.update(variant={k: val for k, val in v.items() if k != "name"}, wall_s=time.perf_counter() - t0)
         res["variants"][v["name"]] = row
         save_json(args.out, res)
         print(f"{v['name']}: done in {row['wall_s']:.0f} s", flush=True)
-    rows = {n: res["variants"][n] for n in names if n in res["variants"]}
+    rows = {n: res["variants"][n] for n in names if n in res["variants"] and "refused" not in res["variants"][n]}
     print("\n".join(table(rows, screen)))
 
 
