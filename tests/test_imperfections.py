@@ -207,3 +207,31 @@ def test_a_backend_that_cannot_run_the_imperfections_refuses_them_before_any_sto
             check_model(params, DartNumerics())
     with pytest.raises(ValueError, match="share one gait period"):
         I.get("clock-drift").check_backend("dart")
+
+
+def test_clock_drift_accumulates_across_chunks():
+    """A robot whose clock runs fast keeps gaining phase however the run is cut into chunks: the
+    per-period records of a 40-period run are the same in chunks of 5 periods as in one chunk, and the
+    fast robot's arm, back at its corner every period at first, has left it by period 40
+    (0.26 % fast: a tenth of a period ahead, well into its next move)."""
+    from smarticle_mjx import imperfections, presets
+    from smarticle_mjx.engine import Lanes, open_backend
+    from smarticle_mjx.engine.batch import RetireRule, run_lanes
+    from smarticle_mjx.gait import GaitSpec
+    params, g = presets.params(), GaitSpec()
+    draw = imperfections.draw("clock-drift", 2, 0)
+    poses = np.zeros((1, 2, 5))
+    poses[0, 1, 0] = 0.5  # 10 W apart: never touching
+    poses[..., 3:] = g.setpoints(0.0, params.robot.servo_speed)[:2]
+    lanes = draw.lanes(Lanes(poses, np.full(1, g.amplitude), np.full(1, g.chirality_sign, np.int32),
+                             np.full(1, g.kind_code, np.int32), np.zeros((1, 2)), g.period()), [0])
+    assert not np.allclose(lanes.robot_period, g.period())
+    out = {}
+    with open_backend("native", draw.scene(params), 2) as be:
+        for chunk in (5, 40):
+            run_lanes(be, lanes, 40, batch_size=1, chunk_periods=chunk, rule=RetireRule(quiet_periods=0),
+                      on_lanes=lambda r, c=chunk: out.setdefault(c, r.poses[0]))
+    np.testing.assert_allclose(out[5], out[40], rtol=0, atol=1e-9)
+    arms = np.degrees(out[40][:, :, 3])  # [K, N] first arm of each robot at every period's end
+    drifting = int(np.argmax(np.abs(lanes.robot_period[0] - g.period())))
+    assert abs(arms[0, drifting] - arms[-1, drifting]) > 20

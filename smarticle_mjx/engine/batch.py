@@ -186,6 +186,18 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
     buf_coll = blank_collisions(b, periods, p, record.collision_bins) if record.collisions else None
     wall = 0.0
 
+    # robots with their own gait period (clock drift) keep their phase across chunks: each chunk starts
+    # at the time its lane has run, not at 0 (backends without such robots take no start time)
+    if lanes.robot_period is not None:
+        from .core import on_step_grid
+        grid = on_step_grid(lanes, backend.scene.params.timestep).period
+
+        def start(idx):
+            return {"t0": slot_done[idx] * grid}
+    else:
+        def start(idx):
+            return {}
+
     while active.any():
         # a slot with fewer periods left than the chunk still runs the
         # chunk (the surplus records are dropped); no chunk runs past the
@@ -197,11 +209,11 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
             if shrink == "pow2":
                 idx = _pad_to_bucket(idx, b)
             sub_state, sub_rec, _ = backend.advance(_take_state(state, idx), slot_lanes.take(idx), n_adv,
-                                                    record=record)
+                                                    record=record, **start(idx))
             state = _put_state(state, idx, sub_state)
             rec = _scatter_records(sub_rec, idx, b)
         else:
-            state, rec, _ = backend.advance(state, slot_lanes, n_adv, record=record)
+            state, rec, _ = backend.advance(state, slot_lanes, n_adv, record=record, **start(np.arange(b)))
         wall += time.perf_counter() - t
         finished = []
         for s in np.flatnonzero(active):

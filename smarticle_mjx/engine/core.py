@@ -279,9 +279,12 @@ class Lanes:
         every period boundary; a robot with its own period (``robot_period``)
         is ``t / T_i`` periods further on, so its phase offset moves by that
         (mod 1). Without ``robot_period`` the lanes are returned unchanged.
+        ``t``: one time for every lane, or [B] (lanes that started at different times).
         """
         if self.robot_period is None:
             return self
+        t = np.asarray(t, float)
+        t = t[:, None] if t.ndim == 1 else t
         return dataclasses.replace(self, phase=np.mod(self.phase + t / self.robot_period, 1.0))
 
     def take(self, idx) -> "Lanes":

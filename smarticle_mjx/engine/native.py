@@ -72,7 +72,8 @@ class NativeBackend(BackendBase):
         Every lane must be at gait phase 0 (a whole number of periods into its
         run); lanes need not share a clock. ``t0`` labels track times and, for
         robots with their own gait period (``lanes.robot_period``), is the
-        time since the run's start that sets their phase (:meth:`Lanes.at_time`).
+        time since the run's start that sets their phase (:meth:`Lanes.at_time`);
+        [B] when the lanes started at different times (no track then).
         ``record`` says what to keep beyond the per-period records.
 
         Returns:
@@ -82,6 +83,8 @@ class NativeBackend(BackendBase):
         record = record or Record()
         record.validate()
         track_stride = record.track_stride
+        if track_stride and np.ndim(t0):
+            raise ValueError("a full-rate track needs one start time t0 for every lane")
         if record.collisions and not self.scene.collisions:
             raise ValueError("the collision record needs a scene built with Scene.build(..., collisions=True)")
         m = self.model
