@@ -364,3 +364,24 @@ def test_open_backend_builds_the_sensors_its_records_need_and_refuses_what_it_ca
     monkeypatch.undo()
     with open_backend("native", params, 2, collisions=True, nthread=1) as be:
         assert be.name == "native" and be.scene.collisions
+
+
+def test_a_mujoco_reset_after_a_blow_up_is_flagged_not_taken_for_physics():
+    """MuJoCo answers a NaN, Inf or huge acceleration by resetting the data to the model's rest state
+    and going on with finite numbers, so the robots jump to the scene's placeholder poses. A violently
+    unstable servo (stiff, undamped, unbounded, at a 2 ms step) makes it happen; the lane must carry
+    NONFINITE, as a NaN would, instead of a finite jump that looks like motion."""
+    import dataclasses
+    from smarticle_mjx import presets
+    from smarticle_mjx.engine.core import Status
+    from smarticle_mjx.engine.simulate import simulate
+    from smarticle_mjx.gait import GaitSpec
+    from smarticle_mjx.scene import standard_poses
+    p = presets.params()
+    p = dataclasses.replace(p, timestep=2e-3, robot=dataclasses.replace(
+        p.robot, servo_kp=5e4, servo_kv=0.0, servo_armature=0.0, servo_torque=1e4))
+    r = simulate(p, standard_poses("pair", p.robot), GaitSpec(), 2)
+    assert np.isfinite(r.poses).all()  # the reset leaves finite numbers behind
+    assert r.status & Status.NONFINITE
+    ok = simulate(presets.params(), standard_poses("pair", presets.params().robot), GaitSpec(), 2)
+    assert ok.status == 0  # an ordinary run's clock always advances

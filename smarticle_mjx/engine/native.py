@@ -127,6 +127,11 @@ class NativeBackend(BackendBase):
                 min_dist[sl, k] = dist
                 final = states[:, -1]
                 bad = ~np.isfinite(states).all(axis=(1, 2))
+                # MuJoCo answers a NaN, Inf or huge acceleration by resetting the data to the model's
+                # rest state (a warning, then finite numbers: robots jump to the placeholder poses).
+                # The reset sets the clock back to 0, so a step whose time does not advance marks it.
+                clock = np.concatenate([init[:, :1], states[:, :, 0]], axis=1)
+                bad |= (np.diff(clock, axis=1) <= 0).any(1)
                 status[sl] |= np.where(bad, int(Status.NONFINITE), 0)
                 status[sl] |= np.where((dist < -self.penetration_limit).any(-1), int(Status.PENETRATION), 0)
                 state[sl] = final
