@@ -260,6 +260,8 @@ def relax(
     jitter_mm: float = typer.Option(1.0, help="s.d. of each robot's start position per axis (mm)"),
     jitter_deg: float = typer.Option(2.0, help="s.d. of each robot's start heading (deg)"),
     phase_jitter: float = typer.Option(0.0, help="s.d. of each robot's gait phase (periods; 0: in phase)"),
+    retrigger_sd: float = typer.Option(0.0, help="re-start every robot's gait each cycle with a delay drawn "
+                                       "afresh per robot and cycle, this s.d. (periods; 0: started once)"),
     plate: float = typer.Option(0.6, help="side of the square plate (m); robots past its edge are recorded"),
     quiet_periods: int = typer.Option(10, help="stop a trial after this many periods without contact (0: never)"),
     backend: str = typer.Option("native", help="native, mjx, warp or dart (the DART twin; needs the dart extra)"),
@@ -275,7 +277,8 @@ def relax(
     cfg = RelaxConfig(n_robots=robots, trials=trials, first_trial=first_trial, periods=periods,
                       amplitude_deg=gait_spec.amplitude_deg, chirality=gait_spec.chirality, gait=gait_spec.kind,
                       period_s=gait_spec.period_s, seed=seed,
-                      gap_mm=gap_mm, start=start, headings=headings, start_phi=start_phi, jitter_mm=jitter_mm, jitter_deg=jitter_deg, phase_jitter=phase_jitter,
+                      gap_mm=gap_mm, start=start, headings=headings, start_phi=start_phi, jitter_mm=jitter_mm,
+                      jitter_deg=jitter_deg, phase_jitter=phase_jitter, retrigger_sd=retrigger_sd,
                       plate_m=plate, quiet_periods=quiet_periods, backend=backend, batch_size=batch_size,
                       model=_model(model), imperfections=imperfections, overrides=_sets(set_))
     _run_study(cfg, out, store, executor)

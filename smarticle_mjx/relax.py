@@ -158,6 +158,13 @@ def start_poses(config: RelaxConfig, params: SceneParams) -> tuple[np.ndarray, n
     return out, phase
 
 
+def retrigger_of(config: RelaxConfig, trials) -> np.ndarray:
+    """[T, 3] the engine's per-cycle retrigger of ``trials`` (s.d., the study's seed, the trial)."""
+    trials = np.atleast_1d(np.asarray(trials))
+    return np.stack([np.full(len(trials), config.retrigger_sd), np.full(len(trials), config.seed), trials], 1
+                    ).astype(float)
+
+
 def left_plate(poses: np.ndarray, centre: np.ndarray, half: float) -> np.ndarray:
     """[T, N] first period (1-based) ending with the robot's centre off the
     square plate of half-side ``half`` around ``centre``; 0: never."""
@@ -197,6 +204,8 @@ class RelaxJob:
         lanes = Lanes(self.starts[idx], np.full(len(idx), g.amplitude), np.full(len(idx), g.chirality_sign, np.int32),
                       np.full(len(idx), g.kind_code, np.int32), self.phase[idx], g.period())
         lanes = c.robots().lanes(lanes, c.first_trial + idx)
+        if c.retrigger_sd > 0:
+            lanes = dataclasses.replace(lanes, retrigger=retrigger_of(c, c.first_trial + idx))
 
         def on_lanes(res):
             on_rows(idx[res.index], _rows(self.starts[idx[res.index]], res, c))

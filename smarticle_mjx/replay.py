@@ -113,7 +113,7 @@ def resimulate_trial(store_path, trial: int, frame_interval: float):
     Returns (times [S], poses [S, N, 5] from the start, ``SimResult``, params, gait, the stored rows of
     that trial). Raises ValueError for a trial the store does not hold."""
     from .engine.simulate import simulate
-    from .relax import RUN, start_poses
+    from .relax import RUN, retrigger_of, start_poses
     from .store import Store
     st = Store(store_path)
     config = relax_config_from_json(st.config["relax"])
@@ -129,7 +129,8 @@ def resimulate_trial(store_path, trial: int, frame_interval: float):
     gait = config.gait_spec()
     stride = max(1, int(round(frame_interval / params.timestep)))
     res = simulate(params, start[0], gait, max(int(rows["periods_run"]), 1), phase=phase[0], track_stride=stride,
-                   imperfections=config.robots(), row=trial)
+                   imperfections=config.robots(), row=trial,
+                   retrigger=retrigger_of(config, trial)[0] if config.retrigger_sd > 0 else None)
     t = np.concatenate([[0.0], res.track_t])
     return t, np.concatenate([start[0][None], res.track], 0), res, params, gait, rows
 

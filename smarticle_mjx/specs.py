@@ -255,6 +255,9 @@ class RelaxConfig:
     jitter_mm: float = 1.0  # per-axis standard deviation of each robot's start position
     jitter_deg: float = 2.0  # standard deviation of each robot's start heading
     phase_jitter: float = 0.0  # standard deviation of per-robot gait phase (periods); 0: in phase (paper)
+    # every robot re-started each cycle with a delay drawn afresh per robot and cycle (s.d., periods), as
+    # the lab firmware re-synchronised its robots on a trigger every cycle; 0: started once
+    retrigger_sd: float = 0.0
     plate_m: float = 0.6  # side of the square plate, centred on the packing
     backend: str = "native"
     batch_size: int = 4
@@ -291,7 +294,7 @@ class RelaxConfig:
             raise ValueError(f"first trial must be >= 0, got {self.first_trial}")
         if self.periods < 1:
             raise ValueError(f"periods must be >= 1, got {self.periods}")
-        for name in ("gap_mm", "jitter_mm", "jitter_deg", "phase_jitter"):
+        for name in ("gap_mm", "jitter_mm", "jitter_deg", "phase_jitter", "retrigger_sd"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name.replace('_', '-')} must be a finite number >= 0, got {v}")
@@ -321,7 +324,7 @@ class RelaxConfig:
         d = dataclasses.asdict(self)
         if self.imperfections == "none":
             del d["imperfections"]  # stores of ideal robots keep their earlier configuration
-        for k, default in (("start", "lattice"), ("headings", "aligned"), ("start_phi", None)):
+        for k, default in (("start", "lattice"), ("headings", "aligned"), ("start_phi", None), ("retrigger_sd", 0.0)):
             if d[k] == default:
                 del d[k]  # as do stores of the start the study always had
         _overrides_json(d, self.overrides)

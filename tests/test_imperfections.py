@@ -235,3 +235,40 @@ def test_clock_drift_accumulates_across_chunks():
     arms = np.degrees(out[40][:, :, 3])  # [K, N] first arm of each robot at every period's end
     drifting = int(np.argmax(np.abs(lanes.robot_period[0] - g.period())))
     assert abs(arms[0, drifting] - arms[-1, drifting]) > 20
+
+
+def test_per_cycle_retrigger_draws_fresh_delays_and_survives_chunking(tmp_path):
+    """A robot re-started every cycle with a fresh delay (the lab firmware's trigger) has, at the start
+    of cycle k, its phase offset plus a delay drawn from (seed, key, k): the same cycle gives the same
+    delays, other cycles other ones, s.d. as asked; a relaxation's records do not depend on how the run
+    is cut into chunks; and a retriggered relaxation trial replays exactly from its store."""
+    from smarticle_mjx.engine import Lanes
+    from smarticle_mjx.replay import resimulate_trial
+    from smarticle_mjx.store import read_relax
+    b, n, sd = 2, 400, 0.05
+    lanes = Lanes(np.zeros((b, n, 5)), np.full(b, 1.0), np.ones(b, np.int32), np.zeros(b, np.int32),
+                  np.full((b, n), 0.25), 1.6, retrigger=np.array([[sd, 0, 7], [sd, 0, 8]]))
+    k3 = lanes.at_time(3 * 1.6).phase - 0.25
+    assert np.array_equal(k3, lanes.at_time(3 * 1.6).phase - 0.25)
+    assert not np.allclose(k3, lanes.at_time(4 * 1.6).phase - 0.25)
+    assert not np.allclose(k3[0], k3[1])  # lanes (trials) draw their own delays
+    d = np.mod(k3 + 0.5, 1.0) - 0.5
+    assert d.std() == pytest.approx(sd, rel=0.15) and abs(d.mean()) < 4 * sd / np.sqrt(n)
+    # lane 1 at cycle 4 while lane 0 is at cycle 3: per-lane times
+    both = lanes.at_time(np.array([3 * 1.6, 4 * 1.6])).phase
+    assert np.allclose(both[0], lanes.at_time(3 * 1.6).phase[0]) and np.allclose(both[1], lanes.at_time(4 * 1.6).phase[1])
+    run = CliRunner()
+    stores = {}
+    for chunk in (2, 8):
+        from smarticle_mjx.relax import RelaxConfig, run_relax
+        out = tmp_path / f"r{chunk}.h5"
+        run_relax(RelaxConfig(n_robots=3, trials=1, periods=8, retrigger_sd=0.03, chunk_periods=chunk,
+                              quiet_periods=0), out)
+        stores[chunk] = read_relax(out)
+    assert np.array_equal(stores[2]["poses"], stores[8]["poses"])
+    plain = tmp_path / "plain.h5"
+    assert run.invoke(app, ["relax", "--robots", "3", "--trials", "1", "--periods", "8", "--quiet-periods", "0",
+                            "--out", str(plain), "--quiet"]).exit_code == 0
+    assert not np.array_equal(read_relax(plain)["poses"], stores[8]["poses"])  # the retrigger acts
+    t, track, res, params, gait, rows = resimulate_trial(tmp_path / "r2.h5", 0, frame_interval=0.2)
+    assert np.array_equal(res.poses[1:].astype(np.float32), rows["poses"])

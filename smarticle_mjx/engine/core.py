@@ -178,6 +178,10 @@ class Lanes:
         phase 0 at the period records.
       arm_speed: [B, N, 2] each arm's servo speed as a multiple of the
         model's ``servo_speed``, or None (every arm at it).
+      retrigger: [B, 3] (s.d. in periods, seed, key) per lane, or None: every robot's
+        gait is started again each cycle with a delay drawn afresh per robot and cycle,
+        Normal(0, s.d.) periods from the stream (seed, key, cycle), as the lab's firmware
+        re-synchronised its robots on an external trigger every cycle (on top of ``phase``).
     """
 
     poses: np.ndarray
@@ -188,6 +192,7 @@ class Lanes:
     period: float
     robot_period: np.ndarray | None = None
     arm_speed: np.ndarray | None = None
+    retrigger: np.ndarray | None = None
 
     def __post_init__(self):
         b, n = self.poses.shape[:2]
@@ -201,6 +206,10 @@ class Lanes:
                 raise ValueError(f"lanes.robot_period must have shape ({b}, {n})")
             if not (np.isfinite(self.robot_period).all() and (self.robot_period > 0).all()):
                 raise ValueError("lanes.robot_period must be positive")
+        if self.retrigger is not None:
+            if self.retrigger.shape != (b, 3) or not (np.isfinite(self.retrigger).all() and
+                                                      (self.retrigger[:, 0] >= 0).all()):
+                raise ValueError(f"lanes.retrigger must be [{b}, 3] (s.d. >= 0, seed, key)")
         if self.arm_speed is not None:
             if self.arm_speed.shape != (b, n, 2):
                 raise ValueError(f"lanes.arm_speed must have shape ({b}, {n}, 2)")
@@ -280,17 +289,40 @@ class Lanes:
         is ``t / T_i`` periods further on, so its phase offset moves by that
         (mod 1). Without ``robot_period`` the lanes are returned unchanged.
         ``t``: one time for every lane, or [B] (lanes that started at different times).
+        With ``retrigger``, the cycle's delays (cycle = t / period, rounded) are added.
         """
-        if self.robot_period is None:
+        if not self.varies:
             return self
         t = np.asarray(t, float)
         t = t[:, None] if t.ndim == 1 else t
-        return dataclasses.replace(self, phase=np.mod(self.phase + t / self.robot_period, 1.0))
+        phase = self.phase if self.robot_period is None else self.phase + t / self.robot_period
+        if self.retrigger is not None:
+            cycle = np.rint(np.broadcast_to(t, (self.size, 1))[:, 0] / self.period).astype(np.int64)
+            phase = phase + self.retrigger_delays(cycle)
+        return dataclasses.replace(self, phase=np.mod(phase, 1.0))
+
+    def retrigger_delays(self, cycle) -> np.ndarray:
+        """[B, N] each robot's delay (periods) in cycle ``cycle`` ([B] or one int) of its lane."""
+        cycle = np.broadcast_to(np.asarray(cycle, np.int64), (self.size,))
+        n = self.poses.shape[1]
+        out = np.zeros((self.size, n))
+        for b, (sd, seed, key) in enumerate(self.retrigger):
+            if sd > 0:
+                rng = np.random.default_rng([int(seed), int(key), int(cycle[b]), 0x54524947])  # "TRIG"
+                out[b] = rng.normal(0.0, sd, n)
+        return out
+
+    @property
+    def varies(self) -> bool:
+        """Whether a robot's phase at a period boundary changes from period to period (own clocks,
+        per-cycle retriggering): the backends then recompute the controls every period."""
+        return self.robot_period is not None or self.retrigger is not None
 
     def take(self, idx) -> "Lanes":
         return Lanes(self.poses[idx], self.amplitude[idx], self.chirality[idx], self.kind[idx],
                      self.phase[idx], self.period, None if self.robot_period is None else self.robot_period[idx],
-                     None if self.arm_speed is None else self.arm_speed[idx])
+                     None if self.arm_speed is None else self.arm_speed[idx],
+                     None if self.retrigger is None else self.retrigger[idx])
 
     def arm_ratios(self) -> np.ndarray:
         """[B, N, 2] each arm's speed ratio (1 where the lanes give none)."""

@@ -477,8 +477,9 @@ class DartBackend(BackendBase):
         contact impulse on robot i (DART's contact force, normal and friction,
         times the step) and its component along r = c_j - c_i, with the body
         centres taken after the step (they move ~1e-6 of |r| in one step)."""
-        if lanes.robot_period is not None:
-            raise ValueError("the dart backend runs robots that share one gait period")
+        if lanes.varies:
+            raise ValueError("the dart backend runs robots that share one gait period and start it once "
+                             "(clock drift and per-cycle retriggering run on the MuJoCo backends)")
         dt = self.numerics.timestep
         lanes = on_step_grid(lanes, dt)
         nstep = steps_per_period(lanes.period, dt)

@@ -238,9 +238,9 @@ class WarpBackend(BackendBase):
 
     def _set_table(self, b: _Batch, lanes: Lanes, nstep: int):
         """Controls of one period, one row per distinct gait among the lanes."""
-        if lanes.robot_period is not None:
-            raise ValueError("robots with different gait periods in one lane run on the native or MJX backend, "
-                             "not on Warp (its control table holds one period)")
+        if lanes.varies:
+            raise ValueError("robots with different gait periods or retriggered every cycle run on the native or "
+                             "MJX backend, not on Warp (its control table holds one period)")
         wp = self._wp
         first, row = distinct_gaits(lanes)  # lanes with one gait share a row
         dt = float(self.model.opt.timestep)

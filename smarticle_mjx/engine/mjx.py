@@ -179,7 +179,7 @@ class MjxBackend(BackendBase):
         min_dist = np.full((b, n_periods, self.scene.n_pairs), np.inf)
         status = np.zeros(b, dtype=np.int32)
         for k in range(n_periods):
-            if k and lanes.robot_period is not None:  # robots with their own period: their phase moves on
+            if k and lanes.varies:  # own clocks or per-cycle retriggering: the phases move on
                 args, _ = self._lane_args(lanes.at_time(t0 + k * lanes.period))
             state, tch, mind, finite = fn(state, *args)
             touched[:, k] = np.asarray(tch)

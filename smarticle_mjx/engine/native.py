@@ -109,7 +109,7 @@ class NativeBackend(BackendBase):
         for k in range(n_periods):
             t_start = t0 + k * lanes.period
             lanes_k = lanes.at_time(t_start)
-            if b <= slice_size and (k == 0 or lanes.robot_period is not None):
+            if b <= slice_size and (k == 0 or lanes.varies):
                 ctrl_all = lane_controls(self.scene, lanes_k, t_rel)
             out_q = []
             for lo in range(0, b, slice_size):

@@ -48,7 +48,8 @@ class SimResult:
 
 def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=None,
              track_stride: int | None = None, backend: str = "native", nthread: int | None = None,
-             record: Record | None = None, imperfections=None, row: int = 0) -> SimResult:
+             record: Record | None = None, imperfections=None, row: int = 0,
+             retrigger=None) -> SimResult:
     """Simulate N robots on the plate for ``periods`` gait periods.
 
     Args:
@@ -64,6 +65,8 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
       imperfections: an ``imperfections.Draw`` of these robots (its scene
         quirks must already be in ``params``); ``row``: the lane or trial
         whose phase jitter applies.
+      retrigger: optional [3] (s.d. in periods, seed, key): every robot re-started each cycle with a
+        fresh delay (``Lanes.retrigger``).
 
     Raises:
       ValueError: bad parameters, or robots overlapping at the start.
@@ -85,6 +88,8 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
     lanes = Lanes.from_gait(poses, gait, phase)
     if imperfections is not None:
         lanes = imperfections.lanes(lanes, [row])
+    if retrigger is not None:
+        lanes = dataclasses.replace(lanes, retrigger=np.asarray(retrigger, float).reshape(1, 3))
     lanes = on_step_grid(lanes, params.timestep)
     from . import make_backend
     be = make_backend(backend, scene, nthread=nthread)
