@@ -1,5 +1,6 @@
 """The discovery experiment's diagnosis screen: seven robots from a compressed start, one physical
-choice switched at a time (sweeps/discovery_screen.toml, written before it ran).
+choice switched at a time (sweeps/screens/discovery.toml, written before it ran; later stages appended
+to it, each saying why).
 
 Per variant: one relaxation store of T trials x K periods (resumable: a complete store of the same
 configuration is reused, an interrupted one resumed), then the crowd's measures
@@ -27,28 +28,12 @@ from smarticle_mjx import presets
 from smarticle_mjx.bench import save_json
 from smarticle_mjx.labels import BAD_STATUS
 from smarticle_mjx.reduce import binding, relaxation as RX
-from smarticle_mjx.specs import RelaxStudy
+from smarticle_mjx.specs import read_relax_screen
 from smarticle_mjx.store import read_relax
 from smarticle_mjx.studies import ensure_relax
 
 ROOT = pathlib.Path(__file__).resolve().parent
 APART_PERIODS = 30  # the screen's bound-and-apart indicator (fixed with the study file)
-
-
-def read_screen(path: pathlib.Path) -> tuple[dict, list[dict]]:
-    raw = tomllib.loads(path.read_text())
-    return raw["screen"], raw["variant"]
-
-
-def study_of(screen: dict, variant: dict) -> RelaxStudy:
-    keys = {k: v for k, v in variant.items() if k not in ("name", "set")}
-    keys.update(periods=int(screen["periods"]), seed=int(screen["seed"]),
-                amplitude_deg=float(screen["amplitude_deg"]))
-    if variant.get("set"):
-        keys["overrides"] = presets.overrides(variant["set"])
-    rs = RelaxStudy(stages=1, trials=int(screen["trials"]), settings=tuple(sorted(keys.items())))
-    rs.validate()
-    return rs
 
 
 def _boot(values_per_trial, stat, rng, n=2000) -> tuple[float, float]:
@@ -141,16 +126,19 @@ def table(rows: dict, screen: dict) -> list[str]:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--study", type=pathlib.Path, default=ROOT.parent / "sweeps" / "discovery_screen.toml")
+    ap.add_argument("--study", type=pathlib.Path, default=ROOT.parent / "sweeps" / "screens" / "discovery.toml")
     ap.add_argument("--only", default=None, help="comma-separated variant names")
     ap.add_argument("--stores", type=pathlib.Path, default=ROOT.parent / "out" / "discovery_screen")
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "discovery_screen.json")
     ap.add_argument("--model", default=presets.DEFAULT)
     args = ap.parse_args(argv)
-    screen, variants = read_screen(args.study)
-    names = [v["name"] for v in variants]
-    if len(set(names)) != len(names):
-        sys.exit("error: variant names repeat")
+    try:
+        screen, studies = read_relax_screen(args.study)
+    except ValueError as e:
+        sys.exit(f"error: {e}")
+    raw = tomllib.loads(args.study.read_text())["variant"]
+    variants = [dict(v) for v in raw]
+    names = list(studies)
     only = set(args.only.split(",")) if args.only else set(names)
     if only - set(names):
         sys.exit(f"error: unknown variants {sorted(only - set(names))}")
@@ -163,8 +151,7 @@ def main(argv=None):
             continue
         t0 = time.perf_counter()
         try:
-            rs = study_of(screen, v)
-            paths = ensure_relax(rs, v["name"], args.stores, args.model)
+            paths = ensure_relax(studies[v["name"]], v["name"], args.stores, args.model)
         except ValueError as e:  # a variant the model refuses is reported, the others still run
             print(f"{v['name']}: refused: {e}", flush=True)
             res["variants"][v["name"]] = {"refused": str(e), "variant": {k: val for k, val in v.items() if k != "name"}}

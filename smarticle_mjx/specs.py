@@ -427,6 +427,43 @@ class RelaxStudy:
         self.stage_config(0, presets.DEFAULT).validate(presets.params())
 
 
+def read_relax_screen(path) -> tuple[dict, dict[str, RelaxStudy]]:
+    """A relaxation screen (``sweeps/screens/``): a ``[screen]`` table (trials, periods, seed,
+    amplitude_deg) and ``[[variant]]`` tables, each a name, RelaxConfig keys and an optional ``set``
+    list of scene overrides (``--set FIELD=VALUE``). Returns the screen table and each variant as a
+    one-stage :class:`RelaxStudy`; ValueError (one line) for a bad file or variant."""
+    path = pathlib.Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+        raise ValueError(f"screen file {path}: {e}") from None
+    screen, variants = raw.get("screen"), raw.get("variant")
+    if not isinstance(screen, dict) or not isinstance(variants, list) or not variants:
+        raise ValueError(f"screen file {path}: needs a [screen] table and [[variant]] tables")
+    known = {f.name for f in dataclasses.fields(RelaxConfig)} - {"trials", "first_trial", "model", "overrides",
+                                                                   "periods", "seed", "amplitude_deg"}
+    out = {}
+    for v in variants:
+        name = v.get("name")
+        if not name or name in out:
+            raise ValueError(f"screen file {path}: every variant needs a name of its own, got {name!r}")
+        unknown = set(v) - known - {"name", "set"}
+        if unknown:
+            raise ValueError(f"screen file {path}: variant {name}: unknown keys {sorted(unknown)}")
+        keys = {k: val for k, val in v.items() if k in known}
+        try:
+            keys.update(periods=int(screen["periods"]), seed=int(screen["seed"]),
+                        amplitude_deg=float(screen["amplitude_deg"]))
+            if v.get("set"):
+                keys["overrides"] = presets.overrides(v["set"])
+            rs = RelaxStudy(stages=1, trials=int(screen["trials"]), settings=tuple(sorted(keys.items())))
+            rs.validate()
+        except (KeyError, TypeError, ValueError) as e:
+            raise ValueError(f"screen file {path}: variant {name}: {e}") from None
+        out[name] = rs
+    return screen, out
+
+
 def read_study(path) -> ScanConfig | BoundStudy | RelaxStudy:
     """A study file from sweeps/: a scan (``ScanConfig`` keys), a started-bound or a relaxation study."""
     path = pathlib.Path(path)

@@ -3,6 +3,7 @@
 import hashlib
 import os
 import pathlib
+import re
 import signal
 import subprocess
 import sys
@@ -69,6 +70,30 @@ def test_sweep_has_one_group_per_amplitude(tmp_path):
     assert st.run_attrs["a060.00"]["period_s"] == pytest.approx(1.6 * 60 / 90, abs=half_step)
     # the same initial configurations at every amplitude
     np.testing.assert_array_equal(st.run("a060.00")["config"], st.run("a090.00")["config"])
+
+
+def test_screen_files_in_sweeps_load():
+    """Every relaxation screen of sweeps/screens/ reads, each variant a valid study; a bad variant is one line."""
+    from smarticle_mjx.specs import read_relax_screen
+    screens = sorted((pathlib.Path(__file__).resolve().parents[1] / "sweeps" / "screens").glob("*.toml"))
+    assert screens
+    for path in screens:
+        screen, variants = read_relax_screen(path)
+        assert variants and all(rs.stages == 1 and rs.trials == screen["trials"] for rs in variants.values())
+
+
+def test_a_bad_screen_variant_is_one_line(tmp_path):
+    from smarticle_mjx.specs import read_relax_screen
+    f = tmp_path / "s.toml"
+    head = '[screen]\ntrials = 2\nperiods = 3\nseed = 0\namplitude_deg = 90.0\n'
+    for body, says in (('[[variant]]\nname = "a"\nstart = "ring"\n', "variant a: --start must be"),
+                       ('[[variant]]\nname = "a"\nset = ["robot_fiction=0.1"]\n', "unknown scene field"),
+                       ('[[variant]]\nname = "a"\ncolour = 1\n', "unknown keys ['colour']"),
+                       ('[[variant]]\nname = "a"\n[[variant]]\nname = "a"\n', "a name of its own")):
+        f.write_text(head + body)
+        with pytest.raises(ValueError, match=re.escape(says)) as e:
+            read_relax_screen(f)
+        assert "\n" not in str(e.value)
 
 
 def test_study_files_in_sweeps_load():
