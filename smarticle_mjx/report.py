@@ -354,10 +354,12 @@ LAB_RELAX = {"emerged": 77, "trials": 151, "distance_W": (2.9, 0.2), "relaxation
              "chain_lifetime": (8, 10)}
 
 
-def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0) -> dict:
-    """The relaxation study's numbers (reduce.relaxation.analyse) beside the lab's."""
+def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0, crowd=None) -> dict:
+    """The relaxation study's numbers (reduce.relaxation.analyse) and its crowd's (``crowd``: a
+    ``CrowdSummary``, computed when None) beside the lab's."""
     from .reduce import relaxation as RX
     a = RX.analyse(data, min_periods=min_periods, apart_W=apart_W)
+    a["crowd"] = dataclasses.asdict(crowd if crowd is not None else RX.crowd(data)[0])
     lo, hi = binding.binomial_interval(LAB_RELAX["emerged"], LAB_RELAX["trials"])
     a["lab"] = {**LAB_RELAX, "fraction": LAB_RELAX["emerged"] / LAB_RELAX["trials"],
                 "interval": (float(lo), float(hi))}
@@ -396,12 +398,11 @@ def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 
     data = read_relax(paths)
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    a = relax_summary(data, min_periods, apart_W)
-    figs = trial_figure(data, a, out)
-    figs += [p.name for p in plots.lifetime_contour(a["episodes"], a["fit"], min_periods, out)]
     from .reduce import relaxation as RX
     crowd, trials = RX.crowd(data)
-    a["crowd"] = dataclasses.asdict(crowd)
+    a = relax_summary(data, min_periods, apart_W, crowd=crowd)
+    figs = trial_figure(data, a, out)
+    figs += [p.name for p in plots.lifetime_contour(a["episodes"], a["fit"], min_periods, out)]
     if trials:
         figs += [p.name for p in plots.crowd(np.stack([t.phi for t in trials]), np.stack([t.in_chain for t in trials]),
                                              [np.nan if t.plateau.censored else t.plateau.period for t in trials],

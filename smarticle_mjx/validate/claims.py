@@ -363,9 +363,20 @@ def relax_emergence(a: dict) -> Outcome:
                    f"away. Relaxation (last period with a robot touching two others): median "
                    f"{f(rt['median'], '.0f')} periods [IQR {f(rt['q25'], '.0f')}–{f(rt['q75'], '.0f')}] (paper: "
                    f"about 30); {a['stopped_early']} trials stopped early, all robots apart and quiet for "
-                   f"{s['quiet_periods']} periods."
+                   f"{s['quiet_periods']} periods." + crowd_note(a.get("crowd"))
                    + (f" {a['trials'] - n} of {a['trials']} trials were flagged by the engine (penetration or a "
                       "non-finite state) and are left out." if a.get("trials", n) > n else ""))
+
+
+def crowd_note(c: dict | None) -> str:
+    """The crowd's measures (reduce.relaxation.CrowdSummary as stored) in one sentence for a claim's notes."""
+    if not c:
+        return ""
+    pl, cl = c["plateau"], c["chain_lifetime"]
+    return (f" Relaxation read off the area fraction's plateau (docs/relax.md): median {f(pl['median'], '.0f')} "
+            f"periods [IQR {f(pl['q25'], '.0f')}–{f(pl['q75'], '.0f')}], {pl['censored']} trials without one "
+            f"(paper: about 30); chains of ≥ 3 robots live {f(cl['mean'], '.1f')} periods on average with "
+            f"{f(c['neighbours_in_chain'])} neighbours per robot (lab: 8–10 periods, about 4).")
 
 
 @claim("relax_distance", "the glider travels 2.9 ± 0.2 W on average", "2.9 ± 0.2 W (text)",
