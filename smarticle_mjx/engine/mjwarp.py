@@ -239,8 +239,8 @@ class WarpBackend(BackendBase):
     def _set_table(self, b: _Batch, lanes: Lanes, nstep: int):
         """Controls of one period, one row per distinct gait among the lanes."""
         if lanes.varies:
-            raise ValueError("robots with different gait periods or retriggered every cycle run on the native or "
-                             "MJX backend, not on Warp (its control table holds one period)")
+            raise ValueError("robots with different gait periods in one lane run on the native or MJX backend, as "
+                             "do robots retriggered every cycle, not on Warp (its control table holds one period)")
         wp = self._wp
         first, row = distinct_gaits(lanes)  # lanes with one gait share a row
         dt = float(self.model.opt.timestep)
