@@ -60,6 +60,35 @@ def tracks(poses: np.ndarray, dt: float) -> pathlib.Path:
     return path
 
 
+def paired_rows(data: dict, ref: str, boot: int, width: int = 20) -> dict:
+    """Per run (name -> (com, touched) of the same starts): gliders and each quantity with its 95 %
+    bootstrap interval and, but for the reference ``ref``, its difference from the reference with the
+    paired bootstrap interval (starts resampled together in all runs). Prints a line per run."""
+    rng = np.random.default_rng(0)
+    idx = [rng.integers(0, POOL, POOL) for _ in range(boot)]
+    point = {k: quantities(*v) for k, v in data.items()}
+    boots = {k: [quantities(v[0][i], v[1][i]) for i in idx] for k, v in data.items()}
+    rows = {}
+    for k in data:
+        row = {"gliders": point[k]["gliders"]}
+        for q in ("beta", "net_speed", "persistence"):
+            vals = np.array([b[q] for b in boots[k]])
+            lo, hi = np.nanpercentile(vals, [2.5, 97.5])
+            row[q] = {"value": point[k][q], "ci95": [float(lo), float(hi)]}
+            if k != ref:
+                d = vals - np.array([b[q] for b in boots[ref]])
+                dlo, dhi = np.nanpercentile(d, [2.5, 97.5])
+                row[q]["minus_reference"] = point[k][q] - point[ref][q]
+                row[q]["minus_reference_ci95"] = [float(dlo), float(dhi)]
+        rows[k] = row
+        print(f"{k:>{width}}: {row['gliders']} gliders; " + "; ".join(
+            f"{q} {row[q]['value']:.4g} [{row[q]['ci95'][0]:.4g}, {row[q]['ci95'][1]:.4g}]"
+            + (f" (vs ref {row[q]['minus_reference']:+.3g} [{row[q]['minus_reference_ci95'][0]:+.3g}, "
+               f"{row[q]['minus_reference_ci95'][1]:+.3g}])" if "minus_reference" in row[q] else "")
+            for q in ("beta", "net_speed", "persistence")), flush=True)
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dt", type=float, default=6.25e-5)
@@ -71,29 +100,8 @@ def main():
     runs = {f"{dt * 1e3:g} ms": np.load(tracks(poses, dt)) for dt in STEPS}
     runs[ref_name] = np.load(tracks(poses, args.dt))
     data = {k: (z["com"], z["touched"]) for k, z in runs.items()}
-    rng = np.random.default_rng(0)
-    idx = [rng.integers(0, POOL, POOL) for _ in range(args.boot)]
-    point = {k: quantities(*v) for k, v in data.items()}
-    boots = {k: [quantities(v[0][i], v[1][i]) for i in idx] for k, v in data.items()}
     res = {"model": "lab-lag", "starts": POOL, "periods": PERIODS, "burn_in": BURN_IN,
-           "reference_dt_s": args.dt, "runs": {}}
-    for k in data:
-        row = {"gliders": point[k]["gliders"]}
-        for q in ("beta", "net_speed", "persistence"):
-            vals = np.array([b[q] for b in boots[k]])
-            lo, hi = np.nanpercentile(vals, [2.5, 97.5])
-            row[q] = {"value": point[k][q], "ci95": [float(lo), float(hi)]}
-            if k != ref_name:
-                d = vals - np.array([b[q] for b in boots[ref_name]])
-                dlo, dhi = np.nanpercentile(d, [2.5, 97.5])
-                row[q]["minus_reference"] = point[k][q] - point[ref_name][q]
-                row[q]["minus_reference_ci95"] = [float(dlo), float(dhi)]
-        res["runs"][k] = row
-        print(f"{k:>20}: {row['gliders']} gliders; " + "; ".join(
-            f"{q} {row[q]['value']:.4g} [{row[q]['ci95'][0]:.4g}, {row[q]['ci95'][1]:.4g}]"
-            + (f" (vs ref {row[q]['minus_reference']:+.3g} [{row[q]['minus_reference_ci95'][0]:+.3g}, "
-               f"{row[q]['minus_reference_ci95'][1]:+.3g}])" if "minus_reference" in row[q] else "")
-            for q in ("beta", "net_speed", "persistence")))
+           "reference_dt_s": args.dt, "runs": paired_rows(data, ref_name, args.boot)}
     args.out.write_text(json.dumps(res, indent=1, default=float))
     print(f"wrote {args.out}")
 

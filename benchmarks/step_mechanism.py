@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from glider_step import BURN_IN, PERIODS, POOL, SEED, quantities
+from glider_step import BURN_IN, PERIODS, POOL, SEED, paired_rows
 from smarticle_mjx import presets
 from smarticle_mjx.bench import gliding, pair_starts, save_json
 
@@ -69,28 +69,9 @@ def main():
     for n in names:
         z = np.load(run(n, poses))
         data[n] = (z["com"], z["touched"])
-    rng = np.random.default_rng(0)
-    idx = [rng.integers(0, POOL, POOL) for _ in range(args.boot)]
-    point = {k: quantities(*v) for k, v in data.items()}
-    boots = {k: [quantities(v[0][i], v[1][i]) for i in idx] for k, v in data.items()}
-    res = {"model": "lab-lag", "starts": POOL, "periods": PERIODS, "burn_in": BURN_IN, "seed": SEED, "runs": {}}
-    for k in data:
-        row = {"dt_s": VARIANTS[k][0], "changes": VARIANTS[k][1], "gliders": point[k]["gliders"]}
-        for q in ("beta", "net_speed", "persistence"):
-            vals = np.array([b[q] for b in boots[k]])
-            lo, hi = np.nanpercentile(vals, [2.5, 97.5])
-            row[q] = {"value": point[k][q], "ci95": [float(lo), float(hi)]}
-            if k != REFERENCE:
-                d = vals - np.array([b[q] for b in boots[REFERENCE]])
-                dlo, dhi = np.nanpercentile(d, [2.5, 97.5])
-                row[q]["minus_reference"] = point[k][q] - point[REFERENCE][q]
-                row[q]["minus_reference_ci95"] = [float(dlo), float(dhi)]
-        res["runs"][k] = row
-        print(f"{k:>30}: {row['gliders']} gliders; " + "; ".join(
-            f"{q} {row[q]['value']:.4g}"
-            + (f" ({row[q]['minus_reference']:+.3g} [{row[q]['minus_reference_ci95'][0]:+.3g}, "
-               f"{row[q]['minus_reference_ci95'][1]:+.3g}])" if "minus_reference" in row[q] else "")
-            for q in ("beta", "net_speed", "persistence")), flush=True)
+    rows = paired_rows(data, REFERENCE, args.boot, width=30)
+    res = {"model": "lab-lag", "starts": POOL, "periods": PERIODS, "burn_in": BURN_IN, "seed": SEED,
+           "runs": {k: {"dt_s": VARIANTS[k][0], "changes": VARIANTS[k][1], **row} for k, row in rows.items()}}
     save_json(args.out, res)
     print(f"wrote {args.out}")
 
