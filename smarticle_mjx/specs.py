@@ -424,7 +424,8 @@ class RelaxStudy:
     def validate(self) -> None:
         if self.stages < 1 or self.trials < 1:
             raise ValueError("relax study: stages and trials must be >= 1")
-        self.stage_config(0, presets.DEFAULT).validate(presets.params())
+        cfg = self.stage_config(0, presets.DEFAULT)
+        cfg.validate(cfg.scene_params())  # with the study's overrides (a slower servo, say) applied
 
 
 def read_relax_screen(path) -> tuple[dict, dict[str, RelaxStudy]]:

@@ -89,7 +89,9 @@ def test_a_bad_screen_variant_is_one_line(tmp_path):
     for body, says in (('[[variant]]\nname = "a"\nstart = "ring"\n', "variant a: --start must be"),
                        ('[[variant]]\nname = "a"\nset = ["robot_fiction=0.1"]\n', "unknown scene field"),
                        ('[[variant]]\nname = "a"\ncolour = 1\n', "unknown keys ['colour']"),
-                       ('[[variant]]\nname = "a"\n[[variant]]\nname = "a"\n', "a name of its own")):
+                       ('[[variant]]\nname = "a"\n[[variant]]\nname = "a"\n', "a name of its own"),
+                       # a servo too slow for the gait's period is refused with the override applied
+                       ('[[variant]]\nname = "a"\nset = ["robot.servo_speed=7.85"]\n', "shorter than the 4 moves")):
         f.write_text(head + body)
         with pytest.raises(ValueError, match=re.escape(says)) as e:
             read_relax_screen(f)
