@@ -61,10 +61,7 @@ def measure(data: dict, seed: int = 0) -> dict:
     plateau = [[np.nan if t.plateau.censored else t.plateau.period] for t in trials]
     plateau_c = [[t.plateau.period] for t in trials]  # censored ones at their (lower-bound) end
     chains = [[e.lifetime for e in t.chains] for t in trials]
-    deg = []
-    for t in trials:
-        d = [t.degree[e.start:e.start + e.lifetime][:, list(e.members)].ravel() for e in t.chains]
-        deg.append(np.concatenate(d) if d else np.zeros(0))
+    deg = [t.chain_degrees() for t in trials]
     contact = [[t.contact_relaxation[0]] for t in trials]
     moved = []
     for i in np.flatnonzero((np.asarray(data["status"]) & int(BAD_STATUS)) == 0):

@@ -15,7 +15,9 @@ track sidecar records the preset's name and its full parameters.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+import types
 
 from .scene import RobotParams, SceneParams
 
@@ -203,12 +205,14 @@ def _fields(cls) -> dict[str, object]:
     return {f.name: hints[f.name] for f in dataclasses.fields(cls) if f.name not in _NOT_SETTABLE}
 
 
-def settable() -> dict[str, object]:
-    """Every field ``--set`` can change: scene fields by name, robot fields as ``robot.NAME``; -> type."""
+@functools.cache
+def settable() -> types.MappingProxyType:
+    """Every field ``--set`` can change: scene fields by name, robot fields as ``robot.NAME``; -> type.
+    Read once (every scene a spec resolves checks its overrides against it)."""
     from .scene import RobotParams
     out = dict(_fields(SceneParams))
     out.update({f"robot.{k}": t for k, t in _fields(RobotParams).items()})
-    return out
+    return types.MappingProxyType(out)
 
 
 def _convert(field: str, kind, value):
@@ -325,10 +329,9 @@ def overrides_json(changes) -> dict:
     return {k: list(v) if isinstance(v, tuple) else v for k, v in overrides(changes)}
 
 
-def describe(model: str, overrides=None) -> str:
-    """A model as pages name it: the preset's name, then the fields changed from it (if any)."""
-    over = overrides_json(table_overrides(overrides)) if isinstance(overrides, dict) else \
-        overrides_json(overrides or ())
-    if not over:
+def describe(model: str, overrides: dict | None = None) -> str:
+    """A model as pages name it: the preset's name, then the fields a store recorded as changed from it
+    (its ``overrides``, {field: value}), if any."""
+    if not overrides:
         return f"`{model}`"
-    return f"`{model}` with " + ", ".join(f"{k} = {v}" for k, v in over.items())
+    return f"`{model}` with " + ", ".join(f"{k} = {v}" for k, v in sorted(overrides.items()))

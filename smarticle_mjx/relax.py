@@ -104,8 +104,8 @@ def hex_pack(n: int, robot: RobotParams, alpha: tuple[float, float], spacing: fl
 
 def area_fraction_of(poses: np.ndarray, robot: RobotParams) -> float:
     """n W D / (hull area of the body centres) of one set of poses [n, >=2] (reduce.relaxation's phi)."""
-    from .reduce.relaxation import hull_area
-    return len(poses) * robot.body_length * robot.body_thickness / hull_area(poses[:, :2])
+    from .reduce.relaxation import area_fraction_at
+    return area_fraction_at(poses, robot.body_length, robot.body_thickness)
 
 
 def base_start(config: RelaxConfig, robot: RobotParams, alpha: tuple[float, float]) -> np.ndarray:

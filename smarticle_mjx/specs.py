@@ -505,9 +505,15 @@ def config_from_json(d: dict) -> ScanConfig:
     return ScanConfig(**_config_keywords(d))
 
 
-def _config_keywords(d: dict) -> dict:
-    """ScanConfig keywords from a study file's or a store's dict: its fields, lists back to tuples."""
-    fields = {f.name for f in dataclasses.fields(ScanConfig)}
+def relax_config_from_json(d: dict) -> RelaxConfig:
+    """The RelaxConfig a relaxation store recorded (its ``config["relax"]``), lists back to tuples."""
+    return RelaxConfig(**_config_keywords(d, RelaxConfig))
+
+
+def _config_keywords(d: dict, spec=ScanConfig) -> dict:
+    """Keywords of ``spec`` (ScanConfig or RelaxConfig) from a study file's or a store's dict: its
+    fields, lists back to tuples, stored overrides ({field: value}) back to checked pairs."""
+    fields = {f.name for f in dataclasses.fields(spec)}
     kw = {k: v for k, v in d.items() if k in fields}
     for k in ("r_range_W", "amplitudes_deg"):
         if k in kw:
@@ -522,21 +528,8 @@ def _config_keywords(d: dict) -> dict:
 
 
 def _as_overrides(value) -> tuple[tuple[str, object], ...]:
-    """Overrides from a store's {field: value}, a study file's [scene] table or (field, value) pairs."""
-    if isinstance(value, dict):
-        return presets.table_overrides(value)
-    return presets.overrides(tuple(v) if isinstance(v, list) else v for v in value)
-
-
-def relax_config_from_json(d: dict) -> RelaxConfig:
-    """The RelaxConfig a relaxation store recorded (its ``config["relax"]``), lists back to tuples."""
-    fields = {f.name for f in dataclasses.fields(RelaxConfig)}
-    kw = {k: v for k, v in d.items() if k in fields}
-    if kw.get("dart_numerics") is not None:
-        kw["dart_numerics"] = tuple(kw["dart_numerics"])
-    if "overrides" in kw:
-        kw["overrides"] = _as_overrides(kw["overrides"])
-    return RelaxConfig(**kw)
+    """Overrides from a store's {field: value} or already checked (field, value) pairs (a study file's)."""
+    return presets.table_overrides(value) if isinstance(value, dict) else presets.overrides(value)
 
 
 def params_from_json(d: dict) -> SceneParams:

@@ -158,13 +158,19 @@ def _gaits(meta: dict, n: int, where: str) -> tuple[GaitSpec, ...]:
     return (sidecar_gait(g, where),) * n
 
 
+def _sidecar_model(meta: dict, model: str | None = None) -> SceneParams:
+    """Preset ``model`` if given, else the sidecar's ``model``, else the default preset, with the
+    fields ``smx simulate --set`` changed (the sidecar's ``overrides``); ValueError if unknown or bad."""
+    base = presets.params(model if model is not None else meta.get("model"))
+    return presets.apply(base, presets.table_overrides(meta.get("overrides") or {}))
+
+
 def _params(meta: dict, gaits, where: str, model: str | None = None) -> SceneParams:
     """The model to compare the data with: preset ``model`` if given, else the
     sidecar's ``model``, else the default preset, with the fields ``smx simulate --set`` changed
     (``overrides``); then the sidecar's robot and plate overrides."""
     try:
-        base = presets.params(model if model is not None else meta.get("model"))
-        base = presets.apply(base, presets.table_overrides(meta.get("overrides") or {}))
+        base = _sidecar_model(meta, model)
     except ValueError as e:
         raise TrackError(f"{where}: {e}") from None
     robot = base.robot
@@ -284,7 +290,7 @@ def read_h5(path) -> tuple:
         t = f["t"][()]
         poses = np.stack([f[k][()] for k in ("x", "y", "theta", "alpha1", "alpha2")], -1)
     try:
-        params = presets.apply(presets.params(meta.get("model")), presets.table_overrides(meta.get("overrides") or {}))
+        params = _sidecar_model(meta)
     except ValueError as e:
         raise TrackError(f"{path}: {e}") from None
     return t, poses, sidecar_gait(meta["gait"], path.name), params.robot

@@ -323,6 +323,12 @@ class CrowdTrial:
     plateau: Plateau
     contact_relaxation: tuple[int, bool]
 
+    def chain_degrees(self) -> np.ndarray:
+        """Touch degree of every robot in a chain in every period of its chain, pooled (the
+        neighbours-in-chain sample)."""
+        d = [self.degree[e.start:e.start + e.lifetime][:, list(e.members)].ravel() for e in self.chains]
+        return np.concatenate(d) if d else np.zeros(0, int)
+
 
 def hull_area(xy: np.ndarray) -> float:
     """Area of the convex hull of points [M, 2] (0 for fewer than 3 or collinear points)."""
@@ -334,6 +340,13 @@ def hull_area(xy: np.ndarray) -> float:
         return float(ConvexHull(xy).volume)  # in 2-D, ``volume`` is the area
     except QhullError:
         return 0.0
+
+
+def area_fraction_at(xy, body_length: float, body_thickness: float) -> float:
+    """phi = n W D / (convex-hull area of the n body centres ``xy`` [n, >=2], m); NaN for a degenerate hull."""
+    xy = np.asarray(xy, float)
+    area = hull_area(xy[:, :2])
+    return len(xy) * body_length * body_thickness / area if area > 0 else float("nan")
 
 
 def area_fraction(poses, start, body_length: float, body_thickness: float, left_plate=None,
@@ -353,14 +366,12 @@ def area_fraction(poses, start, body_length: float, body_thickness: float, left_
       (the hull would jump to the lost robot; the lab's camera loses it).
     """
     poses = np.asarray(poses, float)
-    k, n = poses.shape[:2]
+    k = poses.shape[0]
     run = k if periods_run is None else int(periods_run)
     xy = np.concatenate([np.asarray(start, float)[None, :, :2], poses[:, :, :2]])  # [K+1, N, 2]
     phi = np.full(k + 1, np.nan)
-    a_robot = n * body_length * body_thickness
     for t in range(min(run, k) + 1):
-        area = hull_area(xy[t])
-        phi[t] = a_robot / area if area > 0 else np.nan
+        phi[t] = area_fraction_at(xy[t], body_length, body_thickness)
     if run < k:
         phi[run + 1:] = phi[run]  # no contact for many periods: every later period repeats the last
     if left_plate is not None:
@@ -545,14 +556,9 @@ def crowd_summary(trials: list[CrowdTrial]) -> CrowdSummary:
     eps = [e for t in trials for e in t.chains]
     life = [e.lifetime for e in eps]
     deg_all = np.concatenate([t.degree[t.degree >= 0] for t in trials]) if trials else np.zeros(0)
-    in_chain_deg, chain_periods, loop_periods = [], 0, 0
-    for t in trials:
-        for e in t.chains:
-            d = t.degree[e.start:e.start + e.lifetime][:, list(e.members)]
-            in_chain_deg.append(d.ravel())
-            chain_periods += e.lifetime
-            loop_periods += e.loop_periods
-    deg_chain = np.concatenate(in_chain_deg) if in_chain_deg else np.zeros(0)
+    deg_chain = np.concatenate([t.chain_degrees() for t in trials]) if trials else np.zeros(0)
+    chain_periods = sum(e.lifetime for e in eps)
+    loop_periods = sum(e.loop_periods for e in eps)
     mean = lambda v: float(v.mean()) if len(v) else float("nan")  # noqa: E731
     ran = [int((t.degree >= 0).any(1).sum()) for t in trials]  # periods with a robot on the plate
     plateaus = [t.plateau for t in trials]
