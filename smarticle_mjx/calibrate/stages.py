@@ -231,9 +231,12 @@ class Calibration:
 
 
 def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_step: Callable | None = None,
-              nominal: bool = True) -> Calibration:
+              nominal: bool = True, structural: bool = True) -> Calibration:
     """The whole loop: conventions -> nominal parameters -> plate tilt -> ranked diagnosis -> fit ->
-    selection -> observables."""
+    selection -> observables. ``structural`` False: the nominal parameters alone (no effect is tried;
+    what a data set's clean twin is calibrated with in the stress suite)."""
+    if not structural:
+        library = ()
     say = on_step or (lambda msg: None)
     train_t, test_t = split(trials)
     train, test = Problem(train_t), Problem(test_t)
