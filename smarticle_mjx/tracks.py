@@ -113,6 +113,7 @@ class TrackedTrial:
     gaits: tuple
     params: SceneParams
     frame_rate_hz: float
+    measured: tuple = ()  # ((name, value, sd), ...): the sidecar's measured values with their uncertainties
 
 
 class TrackError(ValueError):
@@ -203,6 +204,23 @@ def _params(meta: dict, gaits, where: str, model: str | None = None) -> ScenePar
     return params
 
 
+def _measured(meta: dict, where: str) -> tuple:
+    """The sidecar's ``measured`` values: {name: [value, sd]} (sd > 0, both finite) -> ((name, value, sd), ...)."""
+    m = meta.get("measured") or {}
+    if not isinstance(m, dict):
+        raise TrackError(f"{where}: measured must be an object {{name: [value, sd]}}, got {m!r}")
+    out = []
+    for name, pair in sorted(m.items()):
+        try:
+            value, sd = (float(x) for x in pair)
+        except (TypeError, ValueError):
+            raise TrackError(f"{where}: measured {name} must be [value, sd], got {pair!r}") from None
+        if not (math.isfinite(value) and math.isfinite(sd) and sd > 0):
+            raise TrackError(f"{where}: measured {name} needs a finite value and an sd > 0, got {pair!r}")
+        out.append((str(name), value, sd))
+    return tuple(out)
+
+
 def _num(text: str, row: int, col: str, where: str, allow_empty=False) -> float:
     if text is None or text.strip() == "":
         if allow_empty:
@@ -232,6 +250,7 @@ def read_csv(path, model: str | None = None) -> list[TrackedTrial]:
         raise TrackError(f"{where}: robots must be >= 1")
     gaits = _gaits(meta, n, where)
     params = _params(meta, gaits, where, model)
+    measured = _measured(meta, where)
     centre = np.zeros(2)
     if meta.get("boundary") is not None:
         try:
@@ -275,7 +294,8 @@ def read_csv(path, model: str | None = None) -> list[TrackedTrial]:
             ok = np.isfinite(data[:, i, 2])
             data[ok, i, 2] = np.unwrap(data[ok, i, 2])
         trials.append(TrackedTrial(f"{path.stem}:{trial}", times, data, bool(np.isfinite(data[..., 3:]).any()),
-                                   gaits, params, float(meta.get("frame_rate_hz", 1.0 / np.median(np.diff(times))))))
+                                   gaits, params, float(meta.get("frame_rate_hz", 1.0 / np.median(np.diff(times)))),
+                                   measured))
     return trials
 
 

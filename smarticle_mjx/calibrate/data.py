@@ -38,6 +38,9 @@ class Trial:
       params: scene parameters with the sidecar's overrides.
       frame_rate_hz: nominal frame rate from the sidecar.
       gaits: every robot's commanded gait; None: all run ``gait``.
+      measured: the sidecar's measured nominal parameters {name: (value, sd)}
+        (already the model's values in ``params``; calibrate.nominal uses
+        them as priors).
     """
 
     name: str
@@ -48,6 +51,7 @@ class Trial:
     params: SceneParams
     frame_rate_hz: float
     gaits: tuple[GaitSpec, ...] | None = None
+    measured: dict = dataclasses.field(default_factory=dict)
 
     def __post_init__(self):
         n = self.pose.shape[1]
@@ -85,8 +89,25 @@ class Trial:
 def load_csv(path, model: str | None = None) -> list[Trial]:
     """All trials of one CSV file with its sidecar, compared with preset
     ``model`` (default: the sidecar's, else the default preset)."""
-    return [Trial(r.name, r.t, r.poses[..., :3], r.poses[..., 3:] if r.arms_tracked else None, r.gaits[0],
-                  r.params, r.frame_rate_hz, r.gaits) for r in tracks.read_csv(path, model)]
+    from .nominal import BY_NAME, apply
+    out = []
+    for r in tracks.read_csv(path, model):
+        measured = {name: (v, sd) for name, v, sd in r.measured}
+        if "arm_length" in measured and "arm2_length" not in measured:  # one ruler value for both arms
+            measured["arm2_length"] = measured["arm_length"]
+        unknown = sorted(set(measured) - set(BY_NAME))
+        if unknown:
+            raise DataError(f"{pathlib.Path(path).name}: unknown measured values {unknown} "
+                            f"(known: {', '.join(BY_NAME)})")
+        # a measured value is the model's value (the fit's bounds are set around it) and its prior
+        params = apply(r.params, {k: v for k, (v, _) in measured.items()}) if measured else r.params
+        try:
+            params.validate()
+        except ValueError as e:
+            raise DataError(f"{pathlib.Path(path).name}: measured values: {e}") from None
+        out.append(Trial(r.name, r.t, r.poses[..., :3], r.poses[..., 3:] if r.arms_tracked else None, r.gaits[0],
+                         params, r.frame_rate_hz, r.gaits, measured))
+    return out
 
 
 def load(path, model: str | None = None) -> list[Trial]:
@@ -102,3 +123,15 @@ def load(path, model: str | None = None) -> list[Trial]:
     if path.suffix.lower() != ".csv":
         raise DataError(f"measured data must be .csv with a .json sidecar, got {path.name}")
     return load_csv(path, model)
+
+
+def priors(trials: list[Trial]) -> dict:
+    """The measured values every trial's sidecar states, {name: (value, sd)}; a name measured differently
+    in two files is refused (DataError): one robot, one value."""
+    out: dict = {}
+    for tr in trials:
+        for k, v in tr.measured.items():
+            if k in out and out[k] != v:
+                raise DataError(f"measured {k} is {out[k]} in one file and {v} in another ({tr.name})")
+            out[k] = v
+    return out

@@ -216,3 +216,42 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0) -> dict:
                          "tilt_y_deg": (float(tilt[1] - 1.96 * se[1]), float(tilt[1] + 1.96 * se[1]))},
             "chi2_before": chi2_before, "chi2_after": chi2_after, "groups": len(rows),
             "magnitude_deg": float(math.hypot(*tilt))}
+
+
+def slide(t, pose, period, body_length) -> list[tuple[int, float]]:
+    """Per robot that stays alone: (robot, S) with S (mm per cycle) how far its body slides within a cycle,
+    read off its mean within-cycle motion (residuals.features' wobble: displacement and rotation since the
+    cycle's start, in the body frame, averaged over cycles per phase bin): the path of that mean curve from
+    the cycle's start through its BINS bin means, each rotation counted as the slide of a point a quarter
+    of the body's length from its centre (a bar's mean contact point). A tilt's drift is the plate-parallel
+    pull biasing the slides (Coulomb friction: drift ~ tilt / mu x slide), so two robots that slide by
+    different amounts drift differently on the same plate (docs/calibration.md)."""
+    from .residuals import features
+    lever = body_length / 4.0 * MM
+    out = []
+    feats = features(t, pose, None, period)
+    for i in range(pose.shape[1]):
+        if not robot_alone(pose, i, body_length):
+            continue
+        w = feats.wobble[0][i]  # [3, BINS]: dx, dy (mm), dtheta (deg)
+        if not np.isfinite(w).all():
+            continue
+        w = np.concatenate([np.zeros((3, 1)), w], 1)
+        d = np.diff(w, axis=1)
+        out.append((i, float(np.sum(np.hypot(d[0], d[1]) + lever * np.radians(np.abs(d[2]))))))
+    return out
+
+
+def group_slide(trials, tracks=None) -> dict:
+    """Mean slide per cycle (mm) per gait group, {key: (mean, se, n robots)}, from the measured tracks
+    (``tracks`` None) or from model tracks aligned with ``trials`` (masked like the data)."""
+    groups: dict = {}
+    for k, tr in enumerate(trials):
+        pose = tr.pose if tracks is None else masked(tracks[k], tr)[0]
+        for i, s in slide(tr.t, pose, tr.periods, tr.params.robot.body_length):
+            groups.setdefault(group_key(tr.gaits[i]), []).append(s)
+    out = {}
+    for key, v in groups.items():
+        v = np.asarray(v)
+        out[key] = (float(v.mean()), float(v.std(ddof=1) / math.sqrt(len(v))) if len(v) > 1 else float("nan"), len(v))
+    return out

@@ -58,6 +58,7 @@ NOMINAL_EFFECTS = ("servo_response", "friction_scale")
 SERVO_HYPOTHESES = ("servo_lag", "servo_dead_time")  # fitted jointly with the nominal servo
 SERVO_NOMINAL = ("servo_speed", "servo_kp", "servo_torque", "servo_armature")  # restarted at the preset for them
 NOMINAL_NFEV, HYPOTHESIS_NFEV = 15, 10  # least-squares iterations (each costs a Jacobian: one run per parameter)  # rescale parameters the nominal fit already fits
+MEASURED_Z = 3.0  # a fitted nominal value this many of its measurement's sd away is reported as a finding
 CONVENTION_FACTOR = 4.0  # an alternative convention this much better than the declared one is reported
 
 
@@ -81,6 +82,11 @@ class Problem:
         self._cache: dict = {}
         self.runs = 0
         self.nominal: dict = {}
+        self.priors: dict = {}  # {name: (measured value, sd)}: priors of the nominal fit (calibrate.data.priors)
+
+    def prior_chi2(self, nominal: dict) -> float:
+        """The priors' share of chi^2 at these nominal values."""
+        return float(sum(((nominal[k] - m) / sd) ** 2 for k, (m, sd) in self.priors.items() if k in nominal))
 
     def model(self, eff: EffectSet, nominal: dict | None = None):
         nom = self.nominal if nominal is None else nominal
@@ -337,6 +343,15 @@ def nominal_findings(nf) -> list[dict]:
     out = []
     tangled = {c[0] for c in nf.correlated} | {c[1] for c in nf.correlated} | set(nf.at_bound)
     for name, v in nf.values.items():
+        if name in nf.measured:  # measured: a finding when the fit moves it far from the measurement
+            m, sd = nf.measured[name]
+            z = (v - m) / sd
+            if abs(z) > MEASURED_Z:
+                out.append({"param": name, "value": v, "interval": list(nf.interval.get(name, (np.nan, np.nan))),
+                            "preset": m, "ratio": v / m if m else float("nan"), "at_bound": name in nf.at_bound,
+                            "correlated": [c for c in nf.correlated if name in c[:2]], "measured": [m, sd],
+                            "sd_from_measured": z})
+            continue
         lo, hi = nf.interval[name]
         pre = nf.preset[name]
         if np.isfinite([lo, hi]).all() and not lo <= pre <= hi and name not in tangled:
@@ -355,6 +370,17 @@ def where_residual(problem: Problem, eff: EffectSet) -> dict[str, float]:
     return {k: float(np.mean(np.concatenate(v) ** 2)) for k, v in acc.items()}
 
 
+def stage_tracks(train: Problem, test: Problem, trials: list[Trial], nom: dict, eff: EffectSet) -> list:
+    """Model tracks of every trial, in ``trials``' order, from the two problems' caches."""
+    order = {t.name: k for k, t in enumerate(trials)}
+    out = [None] * len(trials)
+    for prob in (train, test):
+        trk, _ = prob.model(eff, nom)
+        for tr, x in zip(prob.trials, trk):
+            out[order[tr.name]] = x
+    return out
+
+
 def observable_stages(train: Problem, test: Problem, trials: list[Trial], stages: dict) -> dict:
     """Observables (calibrate.observables) of the data and of the model at each stage.
 
@@ -362,18 +388,9 @@ def observable_stages(train: Problem, test: Problem, trials: list[Trial], stages
     the problems' caches (the fit already ran most of them). Rows of the
     model are matched to the data's by gait (and robot).
     """
-    order = {t.name: k for k, t in enumerate(trials)}
-
-    def tracks(nom, eff):
-        out = [None] * len(trials)
-        for prob in (train, test):
-            trk, _ = prob.model(eff, nom)
-            for tr, x in zip(prob.trials, trk):
-                out[order[tr.name]] = x
-        return out
-
     data = observables(trials)
-    model = {label: observables(trials, tracks(nom, eff)) for label, (nom, eff) in stages.items()}
+    model = {label: observables(trials, stage_tracks(train, test, trials, nom, eff))
+             for label, (nom, eff) in stages.items()}
 
     def key(row):
         return (row["gait"], row.get("robot"))

@@ -111,6 +111,7 @@ class NominalFit:
     err_before: float
     err_after: float
     evaluations: int
+    measured: dict = dataclasses.field(default_factory=dict)  # {name: [value, sd]} the fit used as priors
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -149,8 +150,16 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
             return EffectSet()
         return EffectSet.of({effect.name: {q.name: unit_to_value(q, x) for q, x in zip(eparams, u[kn:])}})
 
+    # measured values (the sidecar's "measured", calibrate.data.priors) enter as Gaussian priors: one
+    # residual (fitted - measured) / sd each, beside the data's
+    priors = {k: v for k, v in getattr(problem, "priors", {}).items() if k in {p.name for p in params}}
+
     def vec(u):
-        return problem.vector_with(values(u), effects(u))
+        data = problem.vector_with(values(u), effects(u))
+        if not priors:
+            return data
+        vals = values(u)
+        return np.concatenate([data, [(vals[k] - m) / sd for k, (m, sd) in priors.items()]])
 
     last: dict = {}
     step = 0.02  # of each normalised range
@@ -217,5 +226,7 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     vals = values(u)
     if effect is not None:
         vals[effect.name] = effects(u).as_dict()[effect.name]
+    nd = len(r) - len(priors)  # the data's residuals (the priors' come last)
     return NominalFit(vals, {p.name: p.preset(ref) for p in params}, interval, at_bound, corr,
-                      float(np.mean(r0 ** 2)), float(np.mean(r ** 2)), calls["n"])
+                      float(np.mean(r0[:nd] ** 2)), float(np.mean(r[:nd] ** 2)), calls["n"],
+                      {k: list(v) for k, v in priors.items()})

@@ -28,6 +28,7 @@ swings (arm delay, phase lead) or from the drift regression.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -151,7 +152,8 @@ def observables(trials, tracks=None) -> dict:
                 lead.setdefault((g, i), []).append((d0 - per[i]) / g.period())
     out: dict = {"arm_delay_ms": [], "phase_lead": [], "drift_mm_per_s": [], "body_step_mm": [], "rotation_deg": []}
     for g, parts in delays.items():
-        out["arm_delay_ms"].append({"gait": _gait_label(g), **_mean_se(np.concatenate(parts) * 1e3)})
+        out["arm_delay_ms"].append({"gait": _gait_label(g), "amplitude_deg": float(g.amplitude_deg),
+                                    **_mean_se(np.concatenate(parts) * 1e3)})
     for (g, i), parts in lead.items():
         out["phase_lead"].append({"gait": _gait_label(g), "robot": i, **_mean_se(np.concatenate(parts))})
     for key, r in sorted(group_drift(trials, tracks).items()):
@@ -178,3 +180,70 @@ def reproduced(measured: dict, model: dict | None, z: float = 1.96) -> bool | No
         return bool(np.all(np.abs(d) <= z * s))
     s = math.hypot(measured["se"], model["se"]) if np.isfinite(model["se"]) else measured["se"]
     return bool(abs(measured["mean"] - model["mean"]) <= z * s)
+
+
+# The delay test (calibrate.stages judges servo hypotheses by it). A lag or dead time delays every swing
+# by the same time whatever its amplitude; a slower servo delays it in proportion to the amplitude (its
+# arm takes amplitude / speed to get there). The measured delay's excess over the preset model's, per
+# gait, is fitted as constant + slope x amplitude; a constant above DELAY_MIN_MS, at least DELAY_Z of its
+# standard errors from 0, is a delay the model's servo does not have. Each gait's excess carries a floor
+# DELAY_FLOOR_MS for what a straight line in amplitude cannot follow (two servo laws' delays differ by a
+# few ms in a way no line removes; docs/calibration.md), so a handful of swings cannot make it certain.
+DELAY_MIN_MS = 5.0
+DELAY_Z = 2.5
+DELAY_FLOOR_MS = 2.0
+DELAY_SPAN = 1.5  # the largest amplitude must be this many times the smallest
+
+
+@dataclasses.dataclass(frozen=True)
+class DelayTest:
+    """The measured arm delay's excess over a model's, split into a constant and a part that grows with
+    the amplitude (unrounded; ms and ms per radian of amplitude).
+
+    Attributes:
+      amplitudes_deg, excess_ms, se_ms: per gait (arm delays measured on several gaits).
+      constant_ms, constant_se_ms: the excess at zero amplitude (a lag or dead time adds to it).
+      per_rad_ms, per_rad_se_ms: its growth per radian of amplitude (a slower servo adds to it).
+      applicable: at least two gaits whose amplitudes span ``DELAY_SPAN``.
+      constant_delay: applicable, constant_ms > ``DELAY_MIN_MS`` and > ``DELAY_Z`` standard errors.
+    """
+
+    amplitudes_deg: tuple
+    excess_ms: tuple
+    se_ms: tuple
+    constant_ms: float
+    constant_se_ms: float
+    per_rad_ms: float
+    per_rad_se_ms: float
+    applicable: bool
+    constant_delay: bool
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def delay_test(measured: dict, model: dict) -> DelayTest:
+    """:class:`DelayTest` from the ``arm_delay_ms`` rows of :func:`observables` of the data and of a model
+    (rows matched by gait)."""
+    rows = []
+    for r in measured.get("arm_delay_ms", []):
+        m = next((x for x in model.get("arm_delay_ms", []) if x["gait"] == r["gait"]), None)
+        if m is None or not (np.isfinite(r["mean"]) and np.isfinite(m["mean"])):
+            continue
+        se = math.sqrt(np.nan_to_num(r["se"]) ** 2 + np.nan_to_num(m["se"]) ** 2 + DELAY_FLOOR_MS ** 2)
+        rows.append((r["amplitude_deg"], r["mean"] - m["mean"], se))
+    nan = float("nan")
+    amps = np.array([x[0] for x in rows], float)
+    if len(rows) < 2 or len(set(amps)) < 2 or amps.max() < DELAY_SPAN * amps.min():
+        return DelayTest(tuple(amps.tolist()), tuple(x[1] for x in rows), tuple(x[2] for x in rows),
+                         nan, nan, nan, nan, False, False)
+    a = np.column_stack([np.ones(len(rows)), np.radians(amps)])
+    y = np.array([x[1] for x in rows])
+    w = 1.0 / np.square([x[2] for x in rows])
+    cov = np.linalg.inv(a.T @ (a * w[:, None]))
+    c, b = cov @ (a.T @ (w * y))
+    red = float(np.sum(w * (y - a @ np.array([c, b])) ** 2)) / max(len(rows) - 2, 1)
+    cov = cov * max(1.0, red) if len(rows) > 2 else cov  # scatter about the line beyond the errors widens it
+    sc, sb = math.sqrt(cov[0, 0]), math.sqrt(cov[1, 1])
+    return DelayTest(tuple(amps.tolist()), tuple(y.tolist()), tuple(x[2] for x in rows), float(c), sc, float(b), sb,
+                     True, bool(c > DELAY_MIN_MS and c > DELAY_Z * sc))

@@ -1,0 +1,179 @@
+"""Structure before numbers (calibrate.observables.delay_test), measured values as priors (the sidecar's
+``measured``), and the stress suite's generator (calibrate.independent rebuilt at random), each checked
+against a closed form or against the independent simulator, not against the calibration's own output."""
+
+import json
+import math
+import sys
+import pathlib
+
+import numpy as np
+import pytest
+
+from smarticle_mjx.calibrate import independent as I
+from smarticle_mjx.calibrate.data import DataError, load, priors
+from smarticle_mjx.calibrate.fit import nominal_findings
+from smarticle_mjx.calibrate.nominal import NOMINAL, fit_nominal
+from smarticle_mjx.calibrate.observables import DELAY_MIN_MS, delay_test, observables
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
+
+
+def _rows(amps, delays_ms, se=0.1):
+    return {"arm_delay_ms": [{"gait": f"{a}", "amplitude_deg": float(a), "mean": float(d), "se": se, "n": 30}
+                             for a, d in zip(amps, delays_ms)]}
+
+
+def test_delay_test_splits_a_constant_from_a_slope_in_amplitude():
+    """Measured delays = model's + 20 ms + 30 ms/rad x amplitude: the test returns both, exactly (the
+    excess lies on a line), and calls the 20 ms a constant delay; a pure slope (a slower servo) is not."""
+    amps = [15, 40, 70]
+    model = _rows(amps, [40.0, 90.0, 150.0])
+    meas = _rows(amps, [40.0 + 20.0 + 30.0 * math.radians(a) for a, m in zip(amps, [40.0, 90.0, 150.0])])
+    meas["arm_delay_ms"] = [{**r, "mean": m["mean"] + 20.0 + 30.0 * math.radians(r["amplitude_deg"])}
+                            for r, m in zip(meas["arm_delay_ms"], model["arm_delay_ms"])]
+    d = delay_test(meas, model)
+    assert d.applicable and d.constant_delay
+    assert d.constant_ms == pytest.approx(20.0, abs=1e-9) and d.per_rad_ms == pytest.approx(30.0, abs=1e-9)
+    slower = _rows(amps, [m["mean"] + 60.0 * math.radians(m["amplitude_deg"]) for m in model["arm_delay_ms"]])
+    d = delay_test(slower, model)
+    assert d.applicable and not d.constant_delay and abs(d.constant_ms) < 1e-9
+    # one amplitude, or amplitudes too close, cannot separate the two: not applicable
+    assert not delay_test(_rows([40], [120.0]), _rows([40], [90.0])).applicable
+    assert not delay_test(_rows([40, 50], [120.0, 130.0]), _rows([40, 50], [90.0, 100.0])).applicable
+    # a constant below DELAY_MIN_MS is not a finding however certain
+    small = _rows(amps, [m["mean"] + 0.5 * DELAY_MIN_MS for m in model["arm_delay_ms"]])
+    assert not delay_test(small, model).constant_delay
+
+
+def test_the_delay_test_finds_a_dead_time_in_the_independent_robot_and_none_in_its_clean_twin(tmp_path):
+    """The independent robot (its own servo law) with and without a 30 ms dead time, against the same
+    reference (the clean twin standing in for the model): the constant excess is the dead time within
+    3 ms, and zero within 3 ms against itself."""
+    def case(d, **kw):
+        for a in (15.0, 60.0):
+            I.write_case(d, amplitude_deg=a, name=f"a{int(a)}", trials=2, periods=4, seed=5 + int(a), **kw)
+        return observables(load(d))
+    clean, dead = case(tmp_path / "clean"), case(tmp_path / "dead", dead_s=0.03)
+    d = delay_test(dead, clean)
+    assert d.applicable and d.constant_delay and abs(d.constant_ms - 30.0) < 3.0, d
+    assert abs(d.per_rad_ms) < 5.0
+    assert not delay_test(clean, clean).constant_delay
+
+
+SIDE = {"robots": 1, "gait": {"kind": "square", "amplitude_deg": 90, "period_s": 1.6, "chirality": "ccw"},
+        "plate": {"friction": 0.37}, "frame_rate_hz": 30}
+ROWS = "trial,t,robot,x,y,theta,alpha1,alpha2\n" + "".join(f"0,{t},0,0,0,0,,\n" for t in (0.0, 0.1, 0.2))
+
+
+def _file(tmp_path, side, name="run"):
+    (tmp_path / f"{name}.csv").write_text(ROWS)
+    (tmp_path / f"{name}.json").write_text(json.dumps(side))
+    return tmp_path / f"{name}.csv"
+
+
+def test_measured_values_in_the_sidecar_become_the_models_values_and_priors(tmp_path):
+    tr = load(_file(tmp_path, {**SIDE, "measured": {"mass": [0.0348, 0.0006], "arm_length": [0.053, 0.001]}}))[0]
+    assert tr.params.robot.mass == 0.0348 and tr.params.robot.arm_lengths == (0.053, 0.053)
+    assert priors([tr]) == {"mass": (0.0348, 0.0006), "arm_length": (0.053, 0.001), "arm2_length": (0.053, 0.001)}
+
+
+@pytest.mark.parametrize("measured,msg", [
+    ({"wheels": [3, 1]}, "unknown measured values"),
+    ({"mass": [0.03]}, "must be \\[value, sd\\]"),
+    ({"mass": [0.03, 0.0]}, "sd > 0"),
+    ({"mass": ["heavy", 0.001]}, "must be \\[value, sd\\]"),
+    ([1, 2], "must be an object"),
+])
+def test_bad_measured_values_are_refused_in_one_line(tmp_path, measured, msg):
+    with pytest.raises(DataError, match=msg):
+        load(_file(tmp_path, {**SIDE, "measured": measured}))
+
+
+def test_two_files_measuring_one_robot_differently_are_refused(tmp_path):
+    _file(tmp_path, {**SIDE, "measured": {"mass": [0.035, 0.001]}}, "a")
+    _file(tmp_path, {**SIDE, "measured": {"mass": [0.030, 0.001]}}, "b")
+    with pytest.raises(DataError, match="measured mass is"):
+        priors(load(tmp_path))
+
+
+class _Linear:
+    """A fake problem whose residuals are linear in the nominal values: (mass - datum) / sd for one
+    datum. With a Gaussian prior the posterior mode is the inverse-variance mean."""
+
+    def __init__(self, params, prior, datum=0.040, sd=0.002):
+        self.trials = [type("T", (), {"params": params})()]
+        self.priors, self.datum, self.sd = prior, datum, sd
+
+    def vector_with(self, values, eff=None):
+        return np.array([(values["mass"] - self.datum) / self.sd])
+
+
+def test_a_prior_pulls_the_fit_to_the_inverse_variance_mean_and_a_far_fit_is_a_finding(tmp_path):
+    tr = load(_file(tmp_path, {**SIDE, "measured": {"mass": [0.0348, 0.0006]}}))[0]
+    mass = [p for p in NOMINAL if p.name == "mass"]
+    fit = fit_nominal(_Linear(tr.params, priors([tr])), params=tuple(mass), max_nfev=20)
+    w_d, w_p = 1 / 0.002 ** 2, 1 / 0.0006 ** 2
+    want = (0.040 * w_d + 0.0348 * w_p) / (w_d + w_p)
+    assert fit.values["mass"] == pytest.approx(want, rel=1e-4)
+    assert fit.measured == {"mass": [0.0348, 0.0006]}
+    assert nominal_findings(fit) == []  # 0.43 sd from the measurement
+    tight = fit_nominal(_Linear(tr.params, {"mass": (0.0348, 0.0001)}), params=tuple(mass), max_nfev=20)
+    assert tight.values["mass"] == pytest.approx(0.0348, abs=2e-4)
+    # data at 0.0435 +- 0.001 pull the mode to 0.0371, 3.8 sd from the measurement: reported
+    far = fit_nominal(_Linear(tr.params, priors([tr]), datum=0.0435, sd=0.001), params=tuple(mass), max_nfev=20)
+    assert far.values["mass"] == pytest.approx((0.0435 / 1e-6 + 0.0348 / 0.0006 ** 2) / (1e6 + 1 / 0.0006 ** 2),
+                                               rel=1e-4)
+    (f,) = nominal_findings(far)
+    assert f["param"] == "mass" and f["sd_from_measured"] > 3.0
+
+
+def test_the_stress_generator_draws_each_set_from_its_seed_and_keeps_two_in_five_clean():
+    import calibration_stress as S
+    a, b = S.draw_set(7, 4), S.draw_set(7, 4)
+    assert a == b and a != S.draw_set(8, 4)
+    sets = [S.draw_set(11, i) for i in range(50)]
+    assert sum(not s["hidden"] and not s["outside"] for s in sets) == 20
+    assert all(len([h for h in s["hidden"] if h in S.SERVO]) <= 1 for s in sets)
+    assert all(s["robots"] == 2 for s in sets if "phase_offset" in s["hidden"])
+    json.dumps(sets)  # JSON-ready
+
+
+def test_the_generators_anisotropic_plate_reads_mujocos_contact_frame():
+    """mu along the plate's y set twice mu along x: a robot pushed along x slides farther than one pushed
+    along y (the contact frame's tangents are read from a contact, not assumed)."""
+    import mujoco
+    slide = {}
+    for axis in (0, 1):
+        frame = I._first_tangent_along_x(1, I.DEFAULT)
+        mx, my = 0.2, 0.4
+        m = mujoco.MjModel.from_xml_string(I._mjcf(1, aniso=(mx, my) if frame else (my, mx)))
+        d = mujoco.MjData(m)
+        d.qpos[:7] = [0, 0, I.BODY["height"] / 2, 1, 0, 0, 0]
+        d.qvel[axis] = 0.2
+        for _ in range(1000):
+            mujoco.mj_step(m, d)
+        slide[axis] = abs(d.qpos[axis])
+    # v^2 / (2 mu g): twice the friction, half the distance
+    assert slide[0] / slide[1] == pytest.approx(2.0, rel=0.1)
+
+
+def test_slide_is_the_path_of_the_mean_within_cycle_motion():
+    """A body moving straight at v (no rotation) has bin means v T (k + 1/2) / B since each cycle's start:
+    their path from the start is v T (1 - 1/(2B)); a body turning at w without moving slides
+    (L/4) w T (1 - 1/(2B)); a body that stays put, 0."""
+    from smarticle_mjx.calibrate.drift import slide
+    from smarticle_mjx.calibrate.residuals import BINS
+    T, L = 0.8, 0.05
+    t = np.arange(0.0, 6 * T, T / 480)
+    f = 1.0 - 0.5 / BINS
+    v, w = 0.002, 0.3  # m/s, rad/s
+    pose = np.zeros((len(t), 1, 3))
+    pose[:, 0, 0] = v * t
+    pose[:, 0, 2] = 0.7
+    ((i, s),) = slide(t, pose, T, L)
+    assert s == pytest.approx(v * T * 1e3 * f, rel=2e-3)
+    pose = np.zeros((len(t), 1, 3))
+    pose[:, 0, 2] = w * t
+    assert slide(t, pose, T, L)[0][1] == pytest.approx(L / 4 * w * T * 1e3 * f, rel=2e-3)
+    assert slide(t, np.zeros((len(t), 1, 3)), T, L)[0][1] == 0.0
