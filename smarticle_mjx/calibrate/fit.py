@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 
 import numpy as np
 
@@ -44,7 +45,7 @@ from .effects import BY_NAME, Effect, EffectSet, unit_to_value, value_to_unit
 from .nominal import apply as apply_nominal
 from .residuals import Features, features, masked, residual_blocks
 from .observables import observables
-from .sim import simulate_trials
+from .sim import pmap, simulate_trials
 
 MIN_HELDOUT_GAIN = 0.2
 # a tilt fitted to a significant plate-frame drift (drift.P_DRIFT) is kept if its 95 % region excludes
@@ -80,6 +81,7 @@ class Problem:
         self.trials = trials
         self.meas: list[Features] = [features(tr.t, tr.pose, tr.arms, tr.periods) for tr in trials]
         self._cache: dict = {}
+        self._lock = threading.Lock()
         self.runs = 0
         self.nominal: dict = {}
         self.priors: dict = {}  # {name: (measured value, sd)}: priors of the nominal fit (calibrate.data.priors)
@@ -88,10 +90,23 @@ class Problem:
         """The priors' share of chi^2 at these nominal values."""
         return float(sum(((nominal[k] - m) / sd) ** 2 for k, (m, sd) in self.priors.items() if k in nominal))
 
-    def model(self, eff: EffectSet, nominal: dict | None = None):
+    def _key(self, eff: EffectSet, nominal: dict | None):
         nom = self.nominal if nominal is None else nominal
         key = EffectSet.of({k: v for k, v in eff.as_dict().items() if not BY_NAME[k].measurement})
-        ck = (key, tuple(sorted(nom.items())))
+        return key, nom, (key, tuple(sorted(nom.items())))
+
+    def prefetch(self, points) -> None:
+        """Run the model at every (EffectSet, nominal values or None) not yet cached, side by side
+        (calibrate.sim.pmap); the sequential code that follows then reads the cache."""
+        todo = {}
+        for eff, nom in points:
+            _, _, ck = self._key(eff, nom)
+            if ck not in self._cache:
+                todo[ck] = (eff, nom)
+        pmap(lambda en: self.model(*en), list(todo.values()))
+
+    def model(self, eff: EffectSet, nominal: dict | None = None):
+        key, nom, ck = self._key(eff, nominal)
         if ck not in self._cache:
             tracks = simulate_trials(self.trials, scene_for=lambda tr: key.scene(apply_nominal(tr.params, nom)),
                                      phase_for=lambda tr: key.phases(tr.robots, tr.periods))
@@ -99,8 +114,9 @@ class Problem:
             for tr, mt in zip(self.trials, tracks):
                 pose, arms = masked(mt, tr)
                 feats.append(features(tr.t, pose, arms, tr.periods))
-            self._cache[ck] = (tracks, feats)
-            self.runs += 1
+            with self._lock:
+                self._cache[ck] = (tracks, feats)
+                self.runs += 1
         return self._cache[ck]
 
     def blocks(self, eff: EffectSet, nominal: dict | None = None) -> list[dict[str, np.ndarray]]:
@@ -175,8 +191,11 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
     u0 = np.array([min(max(value_to_unit(p, (start or {}).get(e.name, {}).get(p.name, p.null)), 0.0), 1.0)
                    for e, p in params])
 
+    def effset(u):
+        return EffectSet.of({**fixed, **_values(effects, np.clip(u, 0.0, 1.0))})
+
     def fun(u):
-        return train.vector(EffectSet.of({**fixed, **_values(effects, np.clip(u, 0.0, 1.0))}))
+        return train.vector(effset(u))
 
     def chi2(u):
         r = fun(u)
@@ -188,9 +207,13 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
         g = 41  # no simulation needed: the model runs are cached
     axes = [np.linspace(0.0, 1.0, g) for _ in range(m)]
     best_u, best = u0.copy(), chi2(u0)
+    grid_u = []
     for point in np.array(np.meshgrid(*axes, indexing="ij")).reshape(m, -1).T:
         u = u0.copy()
         u[new:] = point
+        grid_u.append(u)
+    train.prefetch([(effset(u), None) for u in grid_u])
+    for u in grid_u:
         c = chi2(u)
         if c < best:
             best_u, best = u, c
@@ -208,6 +231,12 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
     for j, width in plan:
         xs = np.unique(np.clip(np.linspace(u[j] - width, u[j] + width, scan), 0.0, 1.0))
         ys = []
+        pts = []
+        for x in xs:
+            v = u.copy()
+            v[j] = x
+            pts.append((effset(v), None))
+        train.prefetch(pts)
         for x in xs:
             v = u.copy()
             v[j] = x
@@ -249,6 +278,20 @@ def signatures(train: Problem, base: dict, candidates: list[Effect], points: int
     r0 = train.vector(EffectSet.of(base))
     c0 = max(float(r0 @ r0), 1e-300)
     rows = []
+
+    def axes_of(e):
+        if e.measurement:  # no model run: log-spaced down to small levels (0.25 mm of noise is u = 0.0025)
+            return [0.0025 * 2.0 ** np.arange(9) for _ in e.params]
+        g = points if len(e.params) == 1 else 3
+        return [(np.arange(g) + 0.5) / g for _ in e.params]
+
+    pts = []
+    for e in candidates:
+        pts += [(EffectSet.of({**base, e.name: {**e.null(), p.name: p.probe}}), None) for p in e.params]
+        for point in np.array(np.meshgrid(*axes_of(e), indexing="ij")).reshape(len(e.params), -1).T:
+            pts.append((EffectSet.of({**base, e.name: {p.name: unit_to_value(p, x) for p, x in zip(e.params, point)}}),
+                        None))
+    train.prefetch(pts)
     for e in candidates:
         cols = []
         for p in e.params:
@@ -259,11 +302,7 @@ def signatures(train: Problem, base: dict, candidates: list[Effect], points: int
         delta, *_ = np.linalg.lstsq(J, -r0, rcond=None)
         left = r0 + J @ delta
         explained = 1.0 - float(left @ left) / c0
-        if e.measurement:  # no model run: log-spaced down to small levels (0.25 mm of noise is u = 0.0025)
-            axes = [0.0025 * 2.0 ** np.arange(9) for _ in e.params]
-        else:
-            g = points if len(e.params) == 1 else 3
-            axes = [(np.arange(g) + 0.5) / g for _ in e.params]
+        axes = axes_of(e)
         best, best_v = c0, e.null()
         for point in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(e.params), -1).T:
             v = {p.name: unit_to_value(p, x) for p, x in zip(e.params, point)}

@@ -244,7 +244,8 @@ def simulate(n, poses, amplitude_deg, period, duration, frame_times, *, chiralit
     frames = np.asarray(frame_times)
     out = np.full((len(frames), n, 5), np.nan)
     k = 0
-    steps = int(math.ceil(duration / dt)) + 1
+    # every frame gets a state, also one that jitter put just past the duration
+    steps = int(math.ceil(max(duration, float(frames.max(initial=0.0))) / dt)) + 2
     for s in range(steps):
         t = s * dt
         while k < len(frames) and frames[k] <= t + 0.5 * dt:

@@ -176,11 +176,15 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     def jac(u):
         u = np.clip(np.asarray(u, float), 0.0, 1.0)
         f0 = fun(u)
-        cols = []
+        cols, pts = [], []
         for j in range(len(u)):
             h = step if u[j] + step <= 1.0 else -step  # forward, backward at the upper bound
             v = u.copy()
             v[j] += h
+            pts.append((j, h, v))
+        if hasattr(problem, "prefetch"):  # the columns' model runs side by side
+            problem.prefetch([(effects(v), values(v)) for _, _, v in pts])
+        for j, h, v in pts:
             calls["n"] += 1
             cols.append((vec(v) - f0) / h)
         return np.stack(cols, 1)

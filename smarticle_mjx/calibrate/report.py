@@ -124,8 +124,15 @@ def markdown(r: dict) -> str:
              f"{len(r['trials']['train'])} training trials, {len(r['trials']['heldout'])} held out; "
              f"{r['model_runs']} batched model runs.", ""]
     nom = r.get("nominal")
+    measured = (nom or {}).get("measured") or {}
     if nom:
-        lines += ["## Nominal parameters (fitted first)", "",
+        bound = ("Measured values (the sidecar's `measured`, value ± sd) are the preset column and enter the fit "
+                 "as Gaussian priors; a fit pulled more than 3 sd from one is a finding (bold). "
+                 if measured else
+                 "No measured values in the sidecar: only the bounds (docs/calibration.md, × preset) and the data "
+                 "hold the nominal parameters; give weighed masses, ruler lengths or a servo speed as `measured` "
+                 "to pin them. ")
+        lines += ["## Nominal parameters (fitted first)", "", bound,
                   f"Bounded least squares over {nom['evaluations']} model runs; training error "
                   f"{nom['err_before']:.3g} → {nom['err_after']:.3g}. Bold: the 95 % interval excludes the preset "
                   "value and the parameter is neither on a bound nor correlated above 0.9 with another (the data "
@@ -138,8 +145,31 @@ def markdown(r: dict) -> str:
                 [f"r = {c[2]:+.2f} with {c[1] if c[0] == k else c[0]}" for c in nom["correlated"] if k in c[:2]]
             finding = any(f["param"] == k for f in r.get("nominal_findings", []))
             mark = "**" if finding else ""
+            if k in measured:
+                m, sd = measured[k]
+                flags.append(f"measured {_num(m, '.4g')} ± {_num(sd, '.2g')}: {(v - m) / sd:+.1f} sd")
             lines.append(f"| {mark}{k}{mark} | {_num(pre, '.4g')} | {mark}{_num(v, '.4g')}{mark} | "
                          f"[{_num(lo, '.4g')}, {_num(hi, '.4g')}] | {'; '.join(flags)} |")
+        lines.append("")
+    dt = r.get("delay_test")
+    if dt:
+        lines += ["## Arm delay by amplitude (structure before numbers)", ""]
+        if dt["applicable"]:
+            lines += ["The measured arm delay's excess over the preset model's, fitted as constant + slope × "
+                      "amplitude: a servo lag or dead time adds the same time at every amplitude, a slower servo a "
+                      f"time that grows with it. Constant {dt['constant_ms']:+.1f} ± {dt['constant_se_ms']:.1f} ms, "
+                      f"slope {dt['per_rad_ms']:+.1f} ± {dt['per_rad_se_ms']:.1f} ms/rad: "
+                      + ("**a constant delay the model's servo lacks**; a lag or dead time fitted with the nominal "
+                         "parameters is then kept if it lowers the training χ² by more than k ln n, its interval "
+                         "excludes 0 and the held-out error does not rise." if dt["constant_delay"] else
+                         "no constant delay (a lag or dead time is not tried)."), "",
+                      "| amplitude | excess over the preset model (ms) | standard error (ms) |", "|---|---|---|"]
+            lines += [f"| {a:g}° | {e:+.1f} | {s_:.1f} |" for a, e, s_ in zip(dt["amplitudes_deg"], dt["excess_ms"],
+                                                                             dt["se_ms"])]
+        else:
+            lines += ["Not applicable (arm delays on fewer than two amplitudes at least 1.5× apart): a servo lag or "
+                      "dead time is kept only if, fitted with the nominal parameters, it lowers the held-out error "
+                      "by 20 % or more."]
         lines.append("")
     dr = r.get("drift")
     if dr and dr.get("dof"):
@@ -159,6 +189,25 @@ def markdown(r: dict) -> str:
                       f"{tf['chi2_after']:.1f}; {'added' if tf.get('accepted') else 'not added'} (kept when "
                       "the drift test finds drift, the tilt's 95 % region excludes a level plate and the drift χ² at "
                       "least halves)."]
+            disc = tf.get("discrepancy")
+            if disc:
+                mi = tf["magnitude_interval"]
+                lines += ["", f"Magnitude {tf['magnitude_deg']:.3g}° toward {tf['direction_deg']:.0f}°; 95 % interval "
+                          f"with the model robot's mismatch [{mi[0]:.3g}, {mi[1]:.3g}]° (a log-sd of "
+                          f"{disc['log_sd']:.2f}: {disc['log_sd_gaits']:.2f} from the gaits' disagreement, "
+                          f"{disc['log_sd_slide']:.2f} from how differently the model robot slides)"
+                          + ("" if tf.get("size_determined") else "; **the size is not determined by this model**")
+                          + ". The drift a tilt "
+                          "causes scales with how the robot slides, which a model robot built differently gets wrong: "
+                          "the direction is read off the drift, the size only as well as the model slides like the "
+                          "robot.", "", "| gait | tilt from this gait alone (°) | slide per cycle, measured / model (mm) |",
+                          "|---|---|---|"]
+                for g in disc["per_group"]:
+                    tg = g.get("tilt_deg")
+                    sl = g.get("slide_mm")
+                    lines.append(f"| {g['amplitude_deg']:g}° {g['chirality']} | "
+                                 + (f"({tg[0]:+.3g}, {tg[1]:+.3g})" if tg else "–") + " | "
+                                 + (f"{sl[0]:.3g} / {sl[1]:.3g}" if sl else "–") + " |")
         lines.append("")
     lines += observables_markdown(r.get("observables"))
     if r["added"]:
