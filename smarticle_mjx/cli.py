@@ -10,6 +10,7 @@ import functools
 import inspect
 import pathlib
 import sys
+import time
 from typing import Optional
 
 import typer
@@ -456,7 +457,8 @@ def calibrate(
         _model(model)
     report.check_output(out, overwrite)
     trials = load(data, model)
-    result = run(trials, on_step=typer.echo, nominal=nominal)
+    t0 = time.perf_counter()
+    result = run(trials, on_step=lambda msg: typer.echo(f"[{time.perf_counter() - t0:4.0f} s] {msg}"), nominal=nominal)
     report.write(result, trials, out)
     typer.echo(f"{result.verdict}; wrote {out / 'report.md'}")
 
