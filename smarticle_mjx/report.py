@@ -14,7 +14,7 @@ import pathlib
 import numpy as np
 
 from . import plots, presets
-from .reduce import binding, gliders as GL, transport
+from .reduce import binding, gliders as GL, stepcheck, transport
 from .store import BAD_STATUS, Store
 
 
@@ -191,10 +191,33 @@ def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> 
         common += [p.name for p in plots.versus_amplitude(amps, amplitude_panels(summaries), out)]
     report = {"store": str(store_path), "model": st.model, **({"overrides": st.overrides} if st.overrides else {}),
               "versions": {k: st.attrs.get(k) for k in ("package", "mujoco", "jax")},
-              "scan": st.config["scan"], "runs": summaries, "figures": {"runs": figs, "common": common}}
+              "scan": st.config["scan"], "step_check": store_step_check(st).as_dict(), "runs": summaries,
+              "figures": {"runs": figs, "common": common}}
     (out / "report.json").write_text(json.dumps(report, indent=1, default=json_default))
     (out / "report.md").write_text(markdown(report))
     return report
+
+
+def store_step_check(st: Store) -> stepcheck.StepCheck:
+    """Whether the store's (model, imperfections, step, integrator) passed the glider-quantity check
+    (reduce.stepcheck; "not checked" where nobody measured it)."""
+    spec = st.config.get("scan") or st.config.get("relax") or {}
+    scene = st.config.get("scene") or {}
+    return stepcheck.lookup(st.model, spec.get("imperfections", "none"), float(scene.get("timestep", float("nan"))),
+                            scene.get("integrator", "implicitfast"), st.overrides, spec.get("backend", "native"))
+
+
+def step_note(c: dict) -> str:
+    """One cell: what the store's step does to its transport numbers (rounded here, for the page)."""
+    step = f"{c['timestep_s'] * 1e3:g} ms {c['integrator']}"
+    if c["status"] == stepcheck.PASSED:
+        return f"{step}: checked, passed"
+    if c["status"] == stepcheck.NOT_CHECKED:
+        return f"{step}: step not checked ({c['why']})"
+    b, v = c["beta"], c["net_speed"]
+    rel = v["value"] / v["reference"] if v["reference"] else float("nan")
+    return (f"{step}: biased against {c['reference_dt_s'] * 1e3:g} ms, β {b['value']:+.2f} "
+            f"[{b['ci95'][0]:+.2f}, {b['ci95'][1]:+.2f}], net speed {rel:+.0%}")
 
 
 def _collision_figure(st: Store, run: str, out: pathlib.Path, s: dict) -> list[str]:
@@ -299,8 +322,8 @@ def markdown(report: dict) -> str:
              f"written by {report['versions'].get('package')}, mujoco {report['versions'].get('mujoco')}.", "",
              "| α_max | valid | P_b end [95% CI] | P_b throughout [95% CI] | C1 basin | C2 basin | "
              "C1 lifetime (mean, censored) | C2 lifetime | gliders | β [95% CI] | V_com net (W/period) [95% CI] | "
-             "mean step (W/period) | median turn (°/period) | persistence | steady \\|r\\| (W) |",
-             "|" + "---|" * 15]
+             "mean step (W/period) | median turn (°/period) | persistence | steady \\|r\\| (W) | step check |",
+             "|" + "---|" * 16]
     for s in report["runs"]:
         def ci(p):
             return "–" if p[0] is None else f"{p[0]:.3f} [{p[1]:.3f}, {p[2]:.3f}]"
@@ -318,7 +341,8 @@ def markdown(report: dict) -> str:
             f"{_ci(v.get('net_W_per_period'), v.get('net_lo'), v.get('net_hi'), 4)} | "
             f"{_fmt(v.get('mean_step_W_per_period'), 4)} | {_fmt(tu.get('median_direction_change_deg'), 1)} | "
             f"{_fmt(tu.get('direction_persistence'), 2)} | "
-            f"{_pm(s['steady_r']['mean_W'], s['steady_r']['std_W'], 2)} ({s['steady_r']['pairs']}) |")
+            f"{_pm(s['steady_r']['mean_W'], s['steady_r']['std_W'], 2)} ({s['steady_r']['pairs']}) | "
+            f"{step_note(report['step_check']) if report.get('step_check') and s['gliders'] else '–'} |")
     o = report["runs"][0]["options"] if report["runs"] else {}
     lines += ["", "Definitions: bound in a period = the robots touched in it; basin = fraction of valid starts that "
               "end as that glider (bound in each of the last 10 periods, majority type); C1/C2 = k-means clusters "

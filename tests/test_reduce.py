@@ -372,3 +372,49 @@ def test_glide_summary_of_built_tracks():
     com[3, :, 1] = 0.01 * (np.arange(K) % 2)
     s = glide_summary(com, rel, touched, burn)
     assert s["net_speed_W_per_period"] < 0.001 and s["beta"] < 0.5
+
+
+def _store_with(tmp_path, name, model=None, timestep=5e-4, overrides=None):
+    path = tmp_path / f"{name}.h5"
+    cfg = ScanConfig(n=M, periods=K, amplitudes_deg=(90.0,))
+    runs = {run_name(90.0): {"amplitude_deg": 90.0, "period_s": 1.6, "chirality": "ccw", "gait": "square",
+                             "periods": K, "n_configs": M}}
+    header = {"scan": cfg.to_json(), "scene": params_json(SceneParams(timestep=timestep))}
+    if model:
+        header["model"] = model
+    if overrides:
+        header["overrides"] = overrides
+    with Writer(path, header, runs) as w:
+        w.append(run_name(90.0), 0, _synthetic_rows(np.random.default_rng(3), v=0.05))
+        w.finalize()
+    return path
+
+
+@pytest.mark.parametrize("model,timestep,overrides,want", [
+    ("lab-lag", 5e-4, None, "biased against 0.0625 ms, β +0.14 [+0.01, +0.27], net speed +39%"),
+    ("lab-lag", 2.5e-4, None, "checked, passed"),
+    ("lab-lag", 5e-4, {"robot.mass": 0.03}, "step not checked (fields changed from the preset: robot.mass)"),
+    ("paper", 5e-4, None, "step not checked (no glider-quantity check"),
+])
+def test_smx_report_puts_the_steps_check_on_the_line_of_every_transport_number(tmp_path, model, timestep,
+                                                                                overrides, want):
+    """A store of a (model, step) whose glider quantities were measured against a fine reference carries
+    that measurement, read from the package's table (benchmarks/step_checks.py), on its table row; a
+    changed model or an unmeasured step says 'step not checked'."""
+    out = tmp_path / "rep"
+    r = CliRunner().invoke(app, ["report", str(_store_with(tmp_path, "s", model, timestep, overrides)),
+                                 "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    row = next(line for line in (out / "report.md").read_text().splitlines() if line.startswith("| 90° |"))
+    assert want in row, row
+    check = json.loads((out / "report.json").read_text())["step_check"]
+    assert check["status"] == ("passed" if "passed" in want else "failed" if "biased" in want else "not checked")
+
+
+def test_a_step_passes_only_when_every_interval_holds_zero_and_the_biases_are_small():
+    from smarticle_mjx.reduce.stepcheck import BETA_MAX, Difference, verdict
+    ok = Difference(0.0, (-0.1, 0.1), 1.0)
+    assert verdict(ok, Difference(0.1, (-0.1, 0.3), 1.0), ok) == "passed"
+    assert verdict(ok, Difference(0.1, (0.01, 0.3), 1.0), ok) == "failed"  # speed interval excludes 0
+    assert verdict(Difference(BETA_MAX * 1.1, (-0.1, 0.3), 1.0), ok, ok) == "failed"  # beta bias too large
+    assert verdict(ok, Difference(0.25, (-0.1, 0.6), 1.0), ok) == "failed"  # +25 % speed

@@ -1,0 +1,57 @@
+"""Collect the glider-quantity checks of time steps into the package's table
+(smarticle_mjx/reduce/step_checks.json), which `smx report` reads to say whether a store's step has
+been checked and, if it has not passed, how it biases β and glider speed.
+
+Sources: results/glider_step.json (steps against the 0.0625 ms reference, model lab-lag, ideal robots)
+and results/step_mechanism.json (integrators at 0.5 ms against the same reference, same starts). Only
+measurements with no field changed from the preset enter; an integrator switch is a key of its own.
+
+    python benchmarks/step_checks.py        # rewrites the table; prints it
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+
+from smarticle_mjx import presets
+from smarticle_mjx.reduce import stepcheck
+
+ROOT = pathlib.Path(__file__).resolve().parent / "results"
+
+
+def collect() -> list[dict]:
+    out = {}
+    g = json.loads((ROOT / "glider_step.json").read_text())
+    base = presets.params(g["model"])
+    ref_name = next(k for k in g["runs"] if "reference" in k)
+    for name, row in g["runs"].items():
+        if name == ref_name:
+            continue
+        dt = float(name.split()[0]) * 1e-3
+        e = stepcheck.entry(g["model"], "none", dt, base.integrator, g["reference_dt_s"], "glider_step.json", row,
+                            g["runs"][ref_name])
+        out[e["key"]] = e
+    m = json.loads((ROOT / "step_mechanism.json").read_text())
+    ref_name = next(k for k in m["runs"] if "reference" in k)
+    for name, row in m["runs"].items():
+        if name == ref_name or set(row["changes"]) - {"integrator"}:
+            continue
+        e = stepcheck.entry(m["model"], "none", row["dt_s"], row["changes"].get("integrator", base.integrator),
+                            m["runs"][ref_name]["dt_s"], "step_mechanism.json", row, m["runs"][ref_name])
+        out.setdefault(e["key"], e)  # glider_step's measurement of the same key comes first
+    return list(out.values())
+
+
+def main():
+    checks = collect()
+    stepcheck.TABLE.write_text(json.dumps({"criteria": {"beta_max": stepcheck.BETA_MAX,
+                                                        "speed_max": stepcheck.SPEED_MAX},
+                                           "checks": checks}, indent=1) + "\n")
+    for e in checks:
+        c = stepcheck.lookup(e["model"], e["imperfections"], e["timestep_s"], e["integrator"])
+        print(f"{e['key']:40s} {c.status:8s} beta {c.beta.value:+.3f} {c.beta.ci95} speed {c.net_speed.relative:+.0%}")
+
+
+if __name__ == "__main__":
+    main()
