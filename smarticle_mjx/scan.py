@@ -16,7 +16,8 @@ from .gait import GaitSpec
 from .scene import SceneParams
 from .runner import prepare, run_attrs, write_rows
 from .specs import ScanConfig, run_name
-from .store import Store, longest_run
+from .reduce.binding import longest_run
+from .store import Store
 
 
 def _rows(cfg: np.ndarray, valid: np.ndarray, res, body_length: float) -> dict:

@@ -79,17 +79,6 @@ def versions() -> dict:
             "h5py": h5py.__version__, "numpy": np.__version__}
 
 
-def longest_run(flags: np.ndarray) -> np.ndarray:
-    """Longest run of True along the last axis: [..., K] -> [...]."""
-    flags = np.asarray(flags, bool)
-    best = np.zeros(flags.shape[:-1], np.int32)
-    cur = np.zeros(flags.shape[:-1], np.int32)
-    for k in range(flags.shape[-1]):
-        cur = np.where(flags[..., k], cur + 1, 0)
-        best = np.maximum(best, cur)
-    return best
-
-
 # Missing float values are stored as this one NaN (the positive quiet NaN,
 # float32 0x7fc00000, float64 0x7ff8000000000000). NaNs made by arithmetic
 # carry whatever sign and payload the CPU's vector unit gives them (x86's

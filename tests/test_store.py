@@ -16,7 +16,8 @@ from typer.testing import CliRunner
 
 from smarticle_mjx.cli import app
 from smarticle_mjx import presets
-from smarticle_mjx.store import SCHEMA_VERSION, Store, StoreError, Writer, longest_run
+from smarticle_mjx.reduce.binding import longest_run
+from smarticle_mjx.store import SCHEMA_VERSION, Store, StoreError, Writer
 
 runner = CliRunner()
 SMALL = ["--n", "16", "--periods", "3", "--batch-size", "8", "--quiet"]

@@ -13,7 +13,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..store import longest_run
+def longest_run(flags: np.ndarray) -> np.ndarray:
+    """Longest run of True along the last axis: [..., K] -> [...]."""
+    flags = np.asarray(flags, bool)
+    best = np.zeros(flags.shape[:-1], np.int32)
+    cur = np.zeros(flags.shape[:-1], np.int32)
+    for k in range(flags.shape[-1]):
+        cur = np.where(flags[..., k], cur + 1, 0)
+        best = np.maximum(best, cur)
+    return best
+
 
 # label codes for phase diagrams
 INVALID, REPELLED, ATTRACTED = -1, 0, 1

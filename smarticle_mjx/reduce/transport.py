@@ -150,27 +150,6 @@ def step_lengths(xy):
     return np.linalg.norm(np.diff(xy, axis=-2), axis=-1)
 
 
-def speed(xy, period_s: float) -> dict:
-    """Speeds of tracks sampled once per period.
-
-    Returns:
-      {"per_period": mean distance per period (the drift per cycle),
-       "mean": that divided by the period (units/s),
-       "net": mean over tracks of |end - start| / duration (units/s),
-       "sem": standard error of ``per_period`` over tracks}.
-    """
-    xy = _as_tracks(xy)
-    steps = step_lengths(xy)
-    per_track = np.array([np.nanmean(s) if np.isfinite(s).any() else np.nan for s in steps])
-    per_track = per_track[np.isfinite(per_track)]
-    nets = net_speed(xy)
-    nets = nets[np.isfinite(nets)] / period_s
-    pp = float(per_track.mean()) if len(per_track) else np.nan
-    sem = float(per_track.std(ddof=1) / np.sqrt(len(per_track))) if len(per_track) > 1 else np.nan
-    return {"per_period": pp, "mean": pp / period_s, "net": float(nets.mean()) if len(nets) else np.nan,
-            "sem": sem, "tracks": int(len(per_track))}
-
-
 def turning(heading) -> np.ndarray:
     """[M, K-1] change of heading per period (rad, wrapped to (-pi, pi])."""
     h = np.asarray(heading, float)
