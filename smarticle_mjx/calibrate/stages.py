@@ -27,7 +27,7 @@ from .observables import DelayTest, delay_test, observables
 from .nominal import apply as apply_nominal, fit_nominal
 from .phase import estimate_offset
 from .residuals import CONTACT_W
-from .sim import simulate_trials
+from .sim import pmap, simulate_trials
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,7 +102,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     # had bent to split the difference between the robots), so it is a joint hypothesis too,
     # started from the offset at which the robots' own arm curves align
     joint = SERVO_HYPOTHESES + (("phase_offset",) if max(tr.robots for tr in trials) > 1 else ())
-    hypotheses, best = [], None
+    hypotheses, best, tasks = [], None, []
     for name in joint:
         if name not in {e.name for e in library}:
             continue
@@ -116,14 +116,23 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             e_start = {"phase_offset": est["offset"]} if est else None
             if est:
                 say(f"  robots' arm curves align at a phase offset of {est['offset']:.3f} periods")
-        fe = fit_nominal(train, effect=e, start=nom0, max_nfev=HYPOTHESIS_NFEV, effect_start=e_start)
+        tasks.append((name, e, nom0, e_start))
         if name in SERVO_HYPOTHESES:
             # the nominal fit alone bends the servo to mimic a lag or dead time (a 30 ms dead time:
             # speed x0.83, gain x0.52) and, started there, the joint fit stays in that valley (14 ms);
             # so it is started a second time from the preset's servo, and the start that ends with
             # the lower training error is kept
-            fe2 = fit_nominal(train, effect=e, start={k: v for k, v in nom0.items() if k not in SERVO_NOMINAL},
-                              max_nfev=HYPOTHESIS_NFEV, effect_start=e_start)
+            tasks.append((name, e, {k: v for k, v in nom0.items() if k not in SERVO_NOMINAL}, e_start))
+    # every joint fit at once, one thread each (each fit's own runs then go one after another)
+    fits = pmap(lambda t: fit_nominal(train, effect=t[1], start=t[2], max_nfev=HYPOTHESIS_NFEV, effect_start=t[3]),
+                tasks)
+    done = {}
+    for (name, e, _, _), fe in zip(tasks, fits):
+        done.setdefault(name, (e, []))[1].append(fe)
+    for name, (e, fes) in done.items():
+        fe = fes[0]
+        if len(fes) == 2:
+            fe2 = fes[1]
             say(f"  nominal + {name}: training error {fe.err_after:.2f} started from the nominal fit, "
                 f"{fe2.err_after:.2f} from the preset servo")
             runs = fe.evaluations + fe2.evaluations
