@@ -202,7 +202,8 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
     interval scaled by exp(+-1.96 log_sd). The test that the plate is tilted
     at all stays model-free (:func:`drift_test`) and the direction is not
     widened. Intervals end at ``bound_deg`` (the library's tilt range: a
-    steeper plate would be seen by eye); ``size_determined`` is False where
+    steeper plate would be seen by eye), and so does the tilt itself
+    (``tilt_deg_unbounded`` keeps the least-squares value); ``size_determined`` is False where
     the magnitude's interval spans more than a factor 4.
     """
     meas = group_drift(trials)
@@ -252,11 +253,13 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
         ends = [f * x for f in (lo_f, hi_f) for x in (v - 1.96 * s_, v + 1.96 * s_)]
         return (float(max(min(ends), -bound_deg)), float(min(max(ends), bound_deg)))
 
+    unbounded = tilt.copy()
+    tilt = np.clip(tilt, -bound_deg, bound_deg)  # a value the library's plate_tilt can take
     mag = float(math.hypot(*tilt))
     mag_se = float(math.sqrt(max(tilt @ cov @ tilt, 0.0)) / mag) if mag > 0 else float(np.sqrt(np.trace(cov)))
     mag_lo = max(0.0, (mag - 1.96 * mag_se)) * lo_f
     mag_hi = min((mag + 1.96 * mag_se) * hi_f, bound_deg * math.sqrt(2.0))
-    return {"ok": True, "tilt_deg": tilt.tolist(), "se_deg": se.tolist(),
+    return {"ok": True, "tilt_deg": tilt.tolist(), "tilt_deg_unbounded": unbounded.tolist(), "se_deg": se.tolist(),
             "interval": {"tilt_x_deg": widened(tilt[0], se[0]), "tilt_y_deg": widened(tilt[1], se[1])},
             "interval_statistical": {"tilt_x_deg": (float(tilt[0] - 1.96 * se[0]), float(tilt[0] + 1.96 * se[0])),
                                      "tilt_y_deg": (float(tilt[1] - 1.96 * se[1]), float(tilt[1] + 1.96 * se[1]))},
