@@ -38,12 +38,26 @@ def test_delay_test_splits_a_constant_from_a_slope_in_amplitude():
     slower = _rows(amps, [m["mean"] + 60.0 * math.radians(m["amplitude_deg"]) for m in model["arm_delay_ms"]])
     d = delay_test(slower, model)
     assert d.applicable and not d.constant_delay and abs(d.constant_ms) < 1e-9
+    # a constant of 0 with three 2 ms floors is not yet shown to be below 5 ms: its standard error is the
+    # straight line's intercept error, sigma sqrt(sum x^2 / (n sum x^2 - (sum x)^2)) ...
+    x = np.radians(amps)
+    sigma = math.sqrt(2 * 0.1 ** 2 + 2.0 ** 2)
+    se = sigma * math.sqrt((x ** 2).sum() / (len(x) * (x ** 2).sum() - x.sum() ** 2))
+    assert not d.no_constant_delay and d.constant_se_ms == pytest.approx(se, rel=1e-9)
+    # ... one 8 ms short of the model's (a servo quicker to start than the library's) is
+    quicker = _rows(amps, [m["mean"] - 8.0 + 60.0 * math.radians(m["amplitude_deg"]) for m in model["arm_delay_ms"]])
+    assert delay_test(quicker, model).no_constant_delay
     # one amplitude, or amplitudes too close, cannot separate the two: not applicable
     assert not delay_test(_rows([40], [120.0]), _rows([40], [90.0])).applicable
     assert not delay_test(_rows([40, 50], [120.0, 130.0]), _rows([40, 50], [90.0, 100.0])).applicable
     # a constant below DELAY_MIN_MS is not a finding however certain
     small = _rows(amps, [m["mean"] + 0.5 * DELAY_MIN_MS for m in model["arm_delay_ms"]])
     assert not delay_test(small, model).constant_delay
+    # two close small amplitudes leave the constant uncertain: neither a delay nor its absence
+    near = _rows([10, 20], [40.0, 60.0])
+    lag = {"arm_delay_ms": [{**r, "mean": r["mean"] + 17.0 + 6.0 * k} for k, r in enumerate(near["arm_delay_ms"])]}
+    d = delay_test(lag, near)
+    assert d.applicable and not d.constant_delay and not d.no_constant_delay
 
 
 def test_the_delay_test_finds_a_dead_time_in_the_independent_robot_and_none_in_its_clean_twin(tmp_path):

@@ -186,7 +186,9 @@ def reproduced(measured: dict, model: dict | None, z: float = 1.96) -> bool | No
 # by the same time whatever its amplitude; a slower servo delays it in proportion to the amplitude (its
 # arm takes amplitude / speed to get there). The measured delay's excess over the preset model's, per
 # gait, is fitted as constant + slope x amplitude; a constant above DELAY_MIN_MS, at least DELAY_Z of its
-# standard errors from 0, is a delay the model's servo does not have. Each gait's excess carries a floor
+# standard errors from 0, is a delay the model's servo does not have; a constant whose upper bound (DELAY_Z
+# standard errors up) stays below DELAY_MIN_MS is none; between the two the test does not decide (two close
+# small amplitudes: a lag shorter than the arm's swing looks like a slower servo there). Each gait's excess carries a floor
 # DELAY_FLOOR_MS for what a straight line in amplitude cannot follow (two servo laws' delays differ by a
 # few ms in a way no line removes; docs/calibration.md), so a handful of swings cannot make it certain.
 DELAY_MIN_MS = 5.0
@@ -206,6 +208,7 @@ class DelayTest:
       per_rad_ms, per_rad_se_ms: its growth per radian of amplitude (a slower servo adds to it).
       applicable: at least two gaits whose amplitudes span ``DELAY_SPAN``.
       constant_delay: applicable, constant_ms > ``DELAY_MIN_MS`` and > ``DELAY_Z`` standard errors.
+      no_constant_delay: applicable and constant_ms + ``DELAY_Z`` standard errors < ``DELAY_MIN_MS``.
     """
 
     amplitudes_deg: tuple
@@ -217,6 +220,7 @@ class DelayTest:
     per_rad_se_ms: float
     applicable: bool
     constant_delay: bool
+    no_constant_delay: bool = False
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -246,4 +250,4 @@ def delay_test(measured: dict, model: dict) -> DelayTest:
     cov = cov * max(1.0, red) if len(rows) > 2 else cov  # scatter about the line beyond the errors widens it
     sc, sb = math.sqrt(cov[0, 0]), math.sqrt(cov[1, 1])
     return DelayTest(tuple(amps.tolist()), tuple(y.tolist()), tuple(x[2] for x in rows), float(c), sc, float(b), sb,
-                     True, bool(c > DELAY_MIN_MS and c > DELAY_Z * sc))
+                     True, bool(c > DELAY_MIN_MS and c > DELAY_Z * sc), bool(c + DELAY_Z * sc < DELAY_MIN_MS))

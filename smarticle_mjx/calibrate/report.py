@@ -162,7 +162,9 @@ def markdown(r: dict) -> str:
                       + ("**a constant delay the model's servo lacks**; a lag or dead time fitted with the nominal "
                          "parameters is then kept if it lowers the training χ² by more than k ln n, its interval "
                          "excludes 0 and the held-out error does not rise." if dt["constant_delay"] else
-                         "no constant delay (a lag or dead time is not tried)."), "",
+                         "no constant delay (a lag or dead time is not tried)." if dt.get("no_constant_delay") else
+                         "undecided (a lag or dead time is kept only if, fitted with the nominal parameters, it "
+                         "lowers the held-out error by 20 % or more)."), "",
                       "| amplitude | excess over the preset model (ms) | standard error (ms) |", "|---|---|---|"]
             lines += [f"| {a:g}° | {e:+.1f} | {s_:.1f} |" for a, e, s_ in zip(dt["amplitudes_deg"], dt["excess_ms"],
                                                                              dt["se_ms"])]

@@ -94,7 +94,8 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     if dtest.applicable:
         say(f"arm delay beyond the preset model's: {dtest.constant_ms:.1f} +- {dtest.constant_se_ms:.1f} ms constant, "
             f"{dtest.per_rad_ms:.1f} +- {dtest.per_rad_se_ms:.1f} ms per rad of amplitude: "
-            + ("a constant delay" if dtest.constant_delay else "no constant delay"))
+            + ("a constant delay" if dtest.constant_delay else "no constant delay" if dtest.no_constant_delay
+               else "undecided"))
     # a servo lag or dead time changes the arms like a slower, softer servo does at one amplitude:
     # each is fitted jointly with the nominal parameters and kept only if it beats them alone.
     # With several robots, a gait phase offset between them moves the arms of all but the first
@@ -107,7 +108,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         if name not in {e.name for e in library}:
             continue
         e, e_start = BY_NAME[name], None
-        if name in SERVO_HYPOTHESES and dtest.applicable and not dtest.constant_delay:
+        if name in SERVO_HYPOTHESES and dtest.no_constant_delay:
             hypotheses.append({"effect": name, "tried": False, "accepted": False,
                                "reason": "the arm delay has no constant excess over the preset model's"})
             continue
@@ -144,7 +145,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         interval = {p.name: fe.interval[p.name] for p in e.params}
         j = judge(e, fe.interval, chi2_0, float(v_e @ v_e) + train.prior_chi2(nom_e), n, err0, err_e)
         rule = "held-out gain"
-        if name in SERVO_HYPOTHESES and dtest.applicable:
+        if name in SERVO_HYPOTHESES and dtest.constant_delay:
             # the delay test has shown the structure; the nominal fit alone has bent the servo to mimic it, so
             # the held-out gain over that fit is not asked to reach MIN_HELDOUT_GAIN, only not to be a loss
             j = dataclasses.replace(j, accepted=j.bic_gain > 0 and j.present and j.heldout_gain >= 0)
