@@ -448,6 +448,7 @@ def calibrate(
                                                    "default preset)"),
     nominal: bool = typer.Option(True, help="fit the robot's nominal parameters first (servo, arm lengths, "
                                              "masses, plate μ); --no-nominal takes the preset's as exact"),
+    set_: list[str] = typer.Option([], "--set", help=_SET_HELP + " (before the sidecar's measured values)"),
 ):
     """Residuals of the model against measured tracks, ranked candidate effects, the fit, before/after."""
     from .calibrate import report
@@ -456,9 +457,12 @@ def calibrate(
     if model is not None:
         _model(model)
     report.check_output(out, overwrite)
-    trials = load(data, model)
+    changes = _sets(set_)
+    trials = load(data, model, changes)
     t0 = time.perf_counter()
     result = run(trials, on_step=lambda msg: typer.echo(f"[{time.perf_counter() - t0:4.0f} s] {msg}"), nominal=nominal)
+    if changes:
+        result.summary["overrides"] = dict(changes)
     report.write(result, trials, out)
     typer.echo(f"{result.verdict}; wrote {out / 'report.md'}")
 

@@ -191,3 +191,14 @@ def test_slide_is_the_path_of_the_mean_within_cycle_motion():
     pose[:, 0, 2] = w * t
     assert slide(t, pose, T, L)[0][1] == pytest.approx(L / 4 * w * T * 1e3 * f, rel=2e-3)
     assert slide(t, np.zeros((len(t), 1, 3)), T, L)[0][1] == 0.0
+
+
+def test_smx_calibrate_set_changes_the_model_before_the_measured_values_and_refuses_a_bad_field(tmp_path):
+    from typer.testing import CliRunner
+    from smarticle_mjx.cli import app
+    path = _file(tmp_path, {**SIDE, "measured": {"mass": [0.0348, 0.0006]}})
+    tr = load(path, overrides=(("robot.arm_length", 0.055), ("robot.mass", 0.05)))[0]
+    assert tr.params.robot.arm_length == 0.055 and tr.params.robot.mass == 0.0348  # the measurement wins
+    r = CliRunner().invoke(app, ["calibrate", str(path), "--out", str(tmp_path / "rep"), "--set", "robot.wheels=3"])
+    assert r.exit_code == 2 and "wheels" in r.output and len(r.output.strip().splitlines()) == 1
+    assert not (tmp_path / "rep").exists()

@@ -86,12 +86,19 @@ class Trial:
         return float(self.t[-1] - self.t[0])
 
 
-def load_csv(path, model: str | None = None) -> list[Trial]:
+def load_csv(path, model: str | None = None, overrides=()) -> list[Trial]:
     """All trials of one CSV file with its sidecar, compared with preset
-    ``model`` (default: the sidecar's, else the default preset)."""
+    ``model`` (default: the sidecar's, else the default preset) changed by ``overrides`` (``--set``;
+    presets.overrides), before the sidecar's measured values."""
+    from .. import presets
     from .nominal import BY_NAME, apply
     out = []
     for r in tracks.read_csv(path, model):
+        if overrides:
+            try:
+                r = dataclasses.replace(r, params=presets.apply(r.params, overrides))
+            except ValueError as e:
+                raise DataError(f"{pathlib.Path(path).name}: {e}") from None
         measured = {name: (v, sd) for name, v, sd in r.measured}
         if "arm_length" in measured and "arm2_length" not in measured:  # one ruler value for both arms
             measured["arm2_length"] = measured["arm_length"]
@@ -110,19 +117,20 @@ def load_csv(path, model: str | None = None) -> list[Trial]:
     return out
 
 
-def load(path, model: str | None = None) -> list[Trial]:
-    """Trials from one CSV (with sidecar) or every CSV in a directory (see :func:`load_csv` for ``model``)."""
+def load(path, model: str | None = None, overrides=()) -> list[Trial]:
+    """Trials from one CSV (with sidecar) or every CSV in a directory (see :func:`load_csv` for ``model``
+    and ``overrides``)."""
     path = pathlib.Path(path)
     if path.is_dir():
         files = sorted(path.glob("*.csv"))
         if not files:
             raise DataError(f"{path} holds no .csv files")
-        return [t for f in files for t in load_csv(f, model)]
+        return [t for f in files for t in load_csv(f, model, overrides)]
     if not path.exists():
         raise DataError(f"no data at {path}")
     if path.suffix.lower() != ".csv":
         raise DataError(f"measured data must be .csv with a .json sidecar, got {path.name}")
-    return load_csv(path, model)
+    return load_csv(path, model, overrides)
 
 
 def priors(trials: list[Trial]) -> dict:

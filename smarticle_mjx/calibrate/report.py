@@ -122,7 +122,9 @@ def markdown(r: dict) -> str:
              f"({1 - a['err_heldout'] / max(b['err_heldout'], 1e-12):+.0%}); after the nominal parameters alone "
              f"{an['err_heldout']:.2f}.", "",
              f"{len(r['trials']['train'])} training trials, {len(r['trials']['heldout'])} held out; "
-             f"{r['model_runs']} batched model runs.", ""]
+             f"{r['model_runs']} batched model runs"
+             + ("; model changed by --set " + ", ".join(f"{k}={v}" for k, v in r["overrides"].items())
+                if r.get("overrides") else "") + ".", ""]
     nom = r.get("nominal")
     measured = (nom or {}).get("measured") or {}
     if nom:
