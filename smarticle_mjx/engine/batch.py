@@ -122,7 +122,7 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
     """Run every lane of ``lanes`` for ``periods`` periods (or until retired).
 
     Args:
-      backend: a native or mjx backend built for the lanes' scene.
+      backend: any backend (engine.make_backend: native, mjx, warp, dart) built for the lanes' scene.
       lanes: all lanes, queued in order.
       periods: periods per lane.
       batch_size: slots advanced together.

@@ -1,4 +1,5 @@
-"""What both backends share: the compiled scene, lane parameters, records, status.
+"""What every backend shares (native, MJX, MuJoCo Warp, the DART twin): the compiled scene, lane parameters,
+records, status.
 
 A *lane* is one independent simulation of the same scene: its own initial
 state, amplitude, chirality, gait kind and per-robot phase offsets. Backends
