@@ -202,3 +202,37 @@ def test_smx_calibrate_set_changes_the_model_before_the_measured_values_and_refu
     r = CliRunner().invoke(app, ["calibrate", str(path), "--out", str(tmp_path / "rep"), "--set", "robot.wheels=3"])
     assert r.exit_code == 2 and "wheels" in r.output and len(r.output.strip().splitlines()) == 1
     assert not (tmp_path / "rep").exists()
+
+
+def test_the_stress_scoring_on_built_summaries():
+    """The frozen scoring: right = the hidden effect added first (both, with two hidden); a same-law
+    size within 1.5x and an interval that holds the truth; a missed effect fails both; a tilt's size is
+    its vector's length; an outside effect is reported when nothing is added and the verdict says
+    unexplained; the held-out error is compared with the clean twin's."""
+    import calibration_stress as S
+
+    def res(added, verdict="explained", err=2.0):
+        return {"added": [{"effect": e, "values": v, "interval": i} for e, v, i in added], "verdict": verdict,
+                "after": {"err_heldout": err}}
+
+    s = {"hidden": ["plate_tilt", "servo_lag"], "outside": [],
+         "truth": {"plate_tilt": {"tilt_x_deg": 0.6, "tilt_y_deg": 0.8}, "servo_lag": {"extra_lag_s": 0.03}}}
+    tilt = ("plate_tilt", {"tilt_x_deg": 0.9, "tilt_y_deg": 1.2},  # length 1.5: ratio 1.5, on the edge
+            {"tilt_x_deg": (0.5, 1.0), "tilt_y_deg": (0.7, 1.3)})
+    lag = ("servo_lag", {"extra_lag_s": 0.02}, {"extra_lag_s": (0.01, 0.03)})
+    sc = S.score(s, res([lag, tilt], err=3.0), twin_err=2.0)
+    assert sc["right"] and sc["heldout_vs_twin"] == 1.5
+    (t,) = sc["same_law"]  # the lag is not same-law: not scored for size
+    assert t["effect"] == "plate_tilt" and t["size_ratio"] == pytest.approx(1.5) and t["within_1_5"] and t["covered"]
+    sc = S.score(s, res([tilt]), twin_err=2.0)
+    assert not sc["right"]  # one of two hidden effects missing
+    one = {**s, "hidden": ["plate_tilt"], "truth": {"plate_tilt": s["truth"]["plate_tilt"]}}
+    sc = S.score(one, res([("phase_offset", {"phase_offset": 0.1}, {"phase_offset": (0.05, 0.15)}), tilt]), 2.0)
+    assert not sc["right"]  # the hidden effect added second
+    sc = S.score(one, res([]), 2.0)
+    assert not sc["right"] and sc["same_law"][0] == {"effect": "plate_tilt", "added": False, "size_ratio": None,
+                                                     "within_1_5": False, "covered": False}
+    out = {"hidden": [], "outside": ["arm_bias"], "truth": {}}
+    assert S.score(out, res([], "unexplained residual"), None)["outside_reported"]
+    assert not S.score(out, res([], "agrees within measurement error"), None)["outside_reported"]
+    assert not S.score(out, res([lag], "unexplained residual"), None)["right"]
