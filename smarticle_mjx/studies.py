@@ -35,17 +35,28 @@ def _stamp(text) -> str:
     return "".join(c for c in str(text) if c.isdigit())[:14] or "unknown"
 
 
-def _normalised(config: dict, want: dict, params: SceneParams) -> dict:
-    """A stored configuration with keys added since it was written filled in
-    with the values they implicitly had."""
+# keys a spec's JSON omits while they hold their default (ScanConfig/RelaxConfig.to_json): a stored spec
+# without one ran at the default, so the wanted spec's value is not filled in for it
+_OMITTED = {"scan": ("initial", "imperfections", "overrides"),
+            "relax": ("imperfections", "start", "headings", "start_phi", "retrigger_sd", "overrides")}
+
+
+def _kind(cfg: ScanConfig | RelaxConfig) -> str:
+    return "scan" if isinstance(cfg, ScanConfig) else "relax"
+
+
+def _normalised(config: dict, want: dict, params: SceneParams, kind: str) -> dict:
+    """A stored configuration with the keys added since it was written filled in with the values they
+    implicitly had (the same rule for scans and relaxations)."""
     have = json.loads(json.dumps(config))
     have.setdefault("model", "paper")  # stores from before presets
-    stored = have.get("scan", {})
-    have["scan"] = {**want["scan"], **stored, "model": have["model"]}
-    if "initial" not in want["scan"]:
-        have["scan"].pop("initial", None)
-    if "imperfections" not in stored:  # ideal robots (stores of them do not name the set)
-        have["scan"].pop("imperfections", None)
+    stored = have.get(kind, {})
+    have[kind] = {**want[kind], **stored}
+    if "model" in want[kind]:
+        have[kind]["model"] = have["model"]
+    for k in _OMITTED[kind]:
+        if k not in stored:
+            have[kind].pop(k, None)
     defaults = params_json(params.__class__())
     have["scene"] = {**defaults, **have.get("scene", {}),
                      "robot": {**defaults["robot"], **have.get("scene", {}).get("robot", {})}}
@@ -54,19 +65,19 @@ def _normalised(config: dict, want: dict, params: SceneParams) -> dict:
 
 def _recorded(cfg: ScanConfig | RelaxConfig) -> tuple[SceneParams, dict]:
     """The scene parameters (with the drawn robots' quirks) and the configuration a store of study
-    ``cfg`` records, as run_scan and run_relax write them."""
+    ``cfg`` records, as run_scan and run_relax write them (runner.store_header)."""
     robots = cfg.robots()
     params = robots.scene(cfg.scene_params())
-    kind = "scan" if isinstance(cfg, ScanConfig) else "relax"
-    return params, json.loads(json.dumps(store_header(cfg, kind, cfg.model, params, robots)))
+    return params, json.loads(json.dumps(store_header(cfg, _kind(cfg), cfg.model, params, robots)))
 
 
-def stale_reason(cfg: ScanConfig, path: pathlib.Path) -> str | None:
-    """Why the complete store at ``path`` cannot stand for scan ``cfg``
-    (another model, package version or configuration), or None if it can."""
+def stale_reason(cfg: ScanConfig | RelaxConfig, path: pathlib.Path) -> str | None:
+    """Why the complete store at ``path`` cannot stand for study ``cfg`` (a scan or a relaxation stage:
+    another model, package version or configuration), or None if it can. One rule for every kind: what
+    the study would write now against what the store holds, keys added since filled in."""
     params, want = _recorded(cfg)
     st = Store(path)
-    have = _normalised(st.config, want, params)
+    have = _normalised(st.config, want, params, _kind(cfg))
     if have["model"] != cfg.model:
         return f"made by model {have['model']}"
     if st.attrs.get("package") != PACKAGE:
@@ -115,7 +126,7 @@ def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict
     elif not run:
         return None
     else:
-        _check_journal(path, want, lambda config: _normalised(config, want, params), notes)
+        _check_journal(path, want, lambda config: _normalised(config, want, params, "scan"), notes)
     run_scan(cfg, path, mode="resume" if journal_path(path).exists() else "new", on_progress=on_progress)
     return path
 
@@ -176,20 +187,20 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
     paths = []
     for stage in range(rs.stages):
         cfg = rs.stage_config(stage, model, imperfections)
-        want = _recorded(cfg)[1]
+        params, want = _recorded(cfg)
         path = relax_stage_path(data, stem, stage)
         if path.exists():
-            st = Store(path)
-            if st.attrs.get("package") == PACKAGE and st.config == want:
+            why = stale_reason(cfg, path)
+            if why is None:
                 paths.append(path)
                 continue
             if not run:
                 break
-            _move_aside(path, path, "made by another configuration, model or version", st.attrs.get("created"), notes)
+            _move_aside(path, path, why, Store(path).attrs.get("created"), notes)
         elif not run:
             break
         else:
-            _check_journal(path, want, lambda config: config, notes)
+            _check_journal(path, want, lambda config: _normalised(config, want, params, "relax"), notes)
         run_relax(cfg, path, mode="resume" if journal_path(path).exists() else "new", on_progress=on_progress)
         paths.append(path)
     return paths
