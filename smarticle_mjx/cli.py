@@ -427,6 +427,7 @@ def synth(
     separation: float = typer.Option(3.0, help="distance between robots at the start (W)"),
     seed: int = typer.Option(0),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
+    set_: list[str] = typer.Option([], "--set", help=_SET_HELP),
 ):
     """Measured-like data from the model with hidden effects, in the interchange format."""
     from .calibrate.synth import parse_effect, synth as make
@@ -435,7 +436,7 @@ def synth(
                    effects=dict(parse_effect(e) for e in effect), noise_xy_mm=noise_xy_mm,
                    noise_theta_deg=noise_theta_deg, arm_noise_deg=arm_noise_deg, arms_tracked=not no_arms,
                    frame_rate_hz=frame_rate, occlusion=occlusion, arm_bias_deg=arm_bias_deg,
-                   separation_w=separation, seed=seed, model=_model(model))
+                   separation_w=separation, seed=seed, model=_model(model), overrides=_sets(set_))
     typer.echo("wrote " + ", ".join(map(str, written)))
 
 

@@ -236,3 +236,20 @@ def test_the_stress_scoring_on_built_summaries():
     assert S.score(out, res([], "unexplained residual"), None)["outside_reported"]
     assert not S.score(out, res([], "agrees within measurement error"), None)["outside_reported"]
     assert not S.score(out, res([lag], "unexplained residual"), None)["right"]
+
+
+def test_smx_synth_set_makes_data_with_the_changed_model_and_the_sidecar_says_so(tmp_path):
+    """Data made with --set robot.arm_length=0.055 carry it in their sidecar, so the loader compares them
+    with the same changed model; a bad field is one line, exit 2, and no folder."""
+    from typer.testing import CliRunner
+    from smarticle_mjx.cli import app
+    run = CliRunner()
+    out = tmp_path / "d"
+    r = run.invoke(app, ["synth", str(out), "--amplitudes", "30", "--trials", "1", "--periods", "1",
+                         "--set", "robot.arm_length=0.055"])
+    assert r.exit_code == 0, r.output
+    side = json.loads(next(out.glob("*.json")).read_text())
+    assert side["overrides"] == {"robot.arm_length": 0.055}
+    assert load(out)[0].params.robot.arm_length == 0.055
+    r = run.invoke(app, ["synth", str(tmp_path / "e"), "--set", "robot.wheels=3"])
+    assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and not (tmp_path / "e").exists()

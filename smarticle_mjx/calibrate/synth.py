@@ -69,11 +69,12 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
           arm_noise_deg: float = 0.3, arms_tracked: bool = True, frame_rate_hz: float = 30.0,
           jitter_s: float = 0.002, occlusion: float = 0.03, arm_bias_deg: float = 0.0,
           separation_w: float = 3.0, chirality: str = "ccw", seed: int = 0,
-          model: str | None = None) -> list[pathlib.Path]:
+          model: str | None = None, overrides=()) -> list[pathlib.Path]:
     """Write trials per amplitude into ``out_dir`` (created if absent); returns the CSV paths.
 
     ``model`` is the preset that makes the data (default: the default
-    preset); its name goes into every sidecar.
+    preset), changed field by field by ``overrides`` (``--set``,
+    presets.overrides); both go into every sidecar.
 
     Trials of every amplitude are interleaved in the files' trial ids so
     that a held-out split sees every amplitude.
@@ -83,7 +84,8 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
     if noise:
         noise_xy_mm, noise_theta_deg = noise["noise_xy_mm"], noise["noise_theta_deg"]
     preset = presets.get(model)
-    params = preset.params
+    overrides = presets.overrides(overrides)
+    params = presets.apply(preset.params, overrides)
     if robots < 1 or trials < 1 or periods < 1:
         raise ValueError("robots, trials and periods must be >= 1")
     if not frame_rate_hz > 0 or not 0 <= occlusion < 0.5 or jitter_s < 0 or jitter_s * frame_rate_hz >= 0.5:
@@ -136,6 +138,7 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
                         arm = [f"{a1:.6f}", f"{a2:.6f}"] if arms_tracked else ["", ""]
                         w.writerow([k, f"{tj:.5f}", i, f"{x:.7f}", f"{y:.7f}", f"{h:.6f}", *arm])
         side = {"robots": robots, "model": preset.name,
+                **({"overrides": presets.overrides_json(overrides)} if overrides else {}),
                 "gait": {"kind": "square", "amplitude_deg": float(amp), "period_s": T, "chirality": chirality},
                 "plate": {"friction": params.plate_friction}, "frame_rate_hz": frame_rate_hz}
         path.with_suffix(".json").write_text(json.dumps(side, indent=2))
