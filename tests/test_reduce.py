@@ -395,19 +395,23 @@ def _store_with(tmp_path, name, model=None, timestep=5e-4, overrides=None):
     ("lab-lag", 5e-4, {"robot.mass": 0.03}, "step not checked (fields changed from the preset: robot.mass)"),
     ("paper", 5e-4, None, "step not checked (no glider-quantity check"),
 ])
-def test_smx_report_puts_the_steps_check_on_the_line_of_every_transport_number(tmp_path, model, timestep,
-                                                                                overrides, want):
+def test_a_stores_step_check_is_read_from_its_header(tmp_path, model, timestep, overrides, want):
     """A store of a (model, step) whose glider quantities were measured against a fine reference carries
-    that measurement, read from the package's table (benchmarks/step_checks.py), on its table row; a
-    changed model or an unmeasured step says 'step not checked'."""
+    that measurement, read from the package's table (benchmarks/step_checks.py); a changed model or an
+    unmeasured step is 'step not checked'."""
+    from smarticle_mjx.report import step_note, store_step_check
+    c = store_step_check(Store(_store_with(tmp_path, "s", model, timestep, overrides)))
+    assert want in step_note(c.as_dict())
+    assert c.status == ("passed" if "passed" in want else "failed" if "biased" in want else "not checked")
+
+
+def test_smx_report_puts_the_steps_check_on_the_line_of_every_transport_number(tmp_path):
     out = tmp_path / "rep"
-    r = CliRunner().invoke(app, ["report", str(_store_with(tmp_path, "s", model, timestep, overrides)),
-                                 "--out", str(out)])
+    r = CliRunner().invoke(app, ["report", str(_store_with(tmp_path, "s", "lab-lag", 5e-4)), "--out", str(out)])
     assert r.exit_code == 0, r.output
     row = next(line for line in (out / "report.md").read_text().splitlines() if line.startswith("| 90° |"))
-    assert want in row, row
-    check = json.loads((out / "report.json").read_text())["step_check"]
-    assert check["status"] == ("passed" if "passed" in want else "failed" if "biased" in want else "not checked")
+    assert "β +0.14 [+0.01, +0.27], net speed +39%" in row, row
+    assert json.loads((out / "report.json").read_text())["step_check"]["status"] == "failed"
 
 
 def test_a_step_passes_only_when_every_interval_holds_zero_and_the_biases_are_small():
