@@ -60,10 +60,14 @@ def run(name: str) -> dict:
 
 
 def main():
-    rows = [run(n) for n in CASES]
+    import sys
+    names = sys.argv[1:] or list(CASES)  # e.g. `python benchmarks/calibration_cases.py B`
+    path = ROOT / "results" / "calibration_cases.json"
+    kept = [r for r in json.loads(path.read_text())["rows"] if r["case"] not in names] if path.exists() else []
+    rows = sorted(kept + [run(n) for n in names], key=lambda r: r["case"])
     out = {"package": __version__, "machine": platform.processor() or platform.machine(),
            "date": time.strftime("%Y-%m-%d"), "rows": rows}
-    (ROOT / "results" / "calibration_cases.json").write_text(json.dumps(out, indent=1, default=float))
+    path.write_text(json.dumps(out, indent=1, default=float))
     for r in rows:
         print(f"set {r['case']}: {r['trials']} trials, {r['wall_s']:.0f} s, {r['model_runs']} runs, {r['verdict']}")
 

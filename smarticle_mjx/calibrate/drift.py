@@ -202,8 +202,8 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
     interval scaled by exp(+-1.96 log_sd). The test that the plate is tilted
     at all stays model-free (:func:`drift_test`) and the direction is not
     widened. Intervals end at ``bound_deg`` (the library's tilt range: a
-    steeper plate would be seen by eye), and so does the tilt itself
-    (``tilt_deg_unbounded`` keeps the least-squares value); ``size_determined`` is False where
+    steeper plate would be seen by eye), and the tilt is shortened along its
+    direction to fit them (``tilt_deg_unbounded`` keeps the least-squares value); ``size_determined`` is False where
     the magnitude's interval spans more than a factor 4.
     """
     meas = group_drift(trials)
@@ -254,7 +254,9 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
         return (float(max(min(ends), -bound_deg)), float(min(max(ends), bound_deg)))
 
     unbounded = tilt.copy()
-    tilt = np.clip(tilt, -bound_deg, bound_deg)  # a value the library's plate_tilt can take
+    # a value the library's plate_tilt can take, shortened along its own direction (the drift fixes the
+    # direction; clipping each axis would turn it)
+    tilt = tilt * min(1.0, bound_deg / max(float(np.abs(tilt).max()), 1e-300))
     mag = float(math.hypot(*tilt))
     mag_se = float(math.sqrt(max(tilt @ cov @ tilt, 0.0)) / mag) if mag > 0 else float(np.sqrt(np.trace(cov)))
     mag_lo = max(0.0, (mag - 1.96 * mag_se)) * lo_f
