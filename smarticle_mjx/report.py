@@ -15,6 +15,7 @@ import numpy as np
 
 from . import plots, presets
 from .reduce import binding, gliders as GL, stepcheck, transport
+from .scene import SceneParams
 from .store import BAD_STATUS, Store
 
 
@@ -204,7 +205,7 @@ def store_step_check(st: Store) -> stepcheck.StepCheck:
     spec = st.config.get("scan") or st.config.get("relax") or {}
     scene = st.config.get("scene") or {}
     return stepcheck.lookup(st.model, spec.get("imperfections", "none"), float(scene.get("timestep", float("nan"))),
-                            scene.get("integrator", "implicitfast"), st.overrides, spec.get("backend", "native"))
+                            scene.get("integrator", SceneParams.integrator), st.overrides, spec.get("backend", "native"))
 
 
 def step_note(c: dict) -> str:
@@ -214,10 +215,9 @@ def step_note(c: dict) -> str:
         return f"{step}: checked, passed"
     if c["status"] == stepcheck.NOT_CHECKED:
         return f"{step}: step not checked ({c['why']})"
-    b, v = c["beta"], c["net_speed"]
-    rel = v["value"] / v["reference"] if v["reference"] else float("nan")
+    b = c["beta"]
     return (f"{step}: biased against {c['reference_dt_s'] * 1e3:g} ms, β {b['value']:+.2f} "
-            f"[{b['ci95'][0]:+.2f}, {b['ci95'][1]:+.2f}], net speed {rel:+.0%}")
+            f"[{b['ci95'][0]:+.2f}, {b['ci95'][1]:+.2f}], net speed {c['net_speed']['relative']:+.0%}")
 
 
 def _collision_figure(st: Store, run: str, out: pathlib.Path, s: dict) -> list[str]:

@@ -96,14 +96,15 @@ def _move_aside(path: pathlib.Path, what: pathlib.Path, why: str, created, notes
         notes.append(f"{path.name}: {why}; kept as {aside.name} and rerun")
 
 
-def _check_journal(path: pathlib.Path, want: dict, normalise, notes: list | None) -> None:
-    """Move aside the journal of an interrupted run at ``path`` that another configuration
-    (``normalise(its config) != want``) or package version made, so that the study starts anew."""
+def _check_journal(cfg: ScanConfig | RelaxConfig, path: pathlib.Path, notes: list | None) -> None:
+    """Move aside the journal of an interrupted run of study ``cfg`` at ``path`` that another configuration
+    or package version made (the staleness rule of :func:`stale_reason`), so that the study starts anew."""
     journal = journal_path(path)
     if not journal.exists():
         return
     meta = json.loads((journal / "meta.json").read_text()) if (journal / "meta.json").exists() else {}
-    if meta.get("package") != PACKAGE or normalise(meta.get("config", {})) != want:
+    params, want = _recorded(cfg)
+    if meta.get("package") != PACKAGE or _normalised(meta.get("config", {}), want, params, _kind(cfg)) != want:
         _move_aside(path, journal, "an interrupted run of another configuration or version", meta.get("created"),
                     notes)
 
@@ -115,7 +116,6 @@ def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict
     if interrupted; else run (or, with ``run=False``, None). A store (or
     journal) made otherwise is moved aside, never deleted, and the scan is
     rerun."""
-    params, want = _recorded(cfg)
     if path.exists():
         why = stale_reason(cfg, path)
         if why is None:
@@ -126,7 +126,7 @@ def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict
     elif not run:
         return None
     else:
-        _check_journal(path, want, lambda config: _normalised(config, want, params, "scan"), notes)
+        _check_journal(cfg, path, notes)
     run_scan(cfg, path, mode="resume" if journal_path(path).exists() else "new", on_progress=on_progress)
     return path
 
@@ -187,7 +187,6 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
     paths = []
     for stage in range(rs.stages):
         cfg = rs.stage_config(stage, model, imperfections)
-        params, want = _recorded(cfg)
         path = relax_stage_path(data, stem, stage)
         if path.exists():
             why = stale_reason(cfg, path)
@@ -200,7 +199,7 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
         elif not run:
             break
         else:
-            _check_journal(path, want, lambda config: _normalised(config, want, params, "relax"), notes)
+            _check_journal(cfg, path, notes)
         run_relax(cfg, path, mode="resume" if journal_path(path).exists() else "new", on_progress=on_progress)
         paths.append(path)
     return paths

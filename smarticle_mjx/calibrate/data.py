@@ -107,11 +107,13 @@ def load_csv(path, model: str | None = None, overrides=()) -> list[Trial]:
             raise DataError(f"{pathlib.Path(path).name}: unknown measured values {unknown} "
                             f"(known: {', '.join(BY_NAME)})")
         # a measured value is the model's value (the fit's bounds are set around it) and its prior
-        params = apply(r.params, {k: v for k, (v, _) in measured.items()}) if measured else r.params
-        try:
-            params.validate()
-        except ValueError as e:
-            raise DataError(f"{pathlib.Path(path).name}: measured values: {e}") from None
+        params = r.params
+        if measured:
+            params = apply(params, {k: v for k, (v, _) in measured.items()})
+            try:
+                params.validate()
+            except ValueError as e:
+                raise DataError(f"{pathlib.Path(path).name}: measured values: {e}") from None
         out.append(Trial(r.name, r.t, r.poses[..., :3], r.poses[..., 3:] if r.arms_tracked else None, r.gaits[0],
                          params, r.frame_rate_hz, r.gaits, measured))
     return out

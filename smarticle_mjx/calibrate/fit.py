@@ -230,18 +230,13 @@ def fit_effects(train: Problem, test: Problem, effects: list[Effect], start: dic
         plan += [(j, cell / 4) for j in range(new, len(params))]
     for j, width in plan:
         xs = np.unique(np.clip(np.linspace(u[j] - width, u[j] + width, scan), 0.0, 1.0))
-        ys = []
-        pts = []
+        vs = []
         for x in xs:
             v = u.copy()
             v[j] = x
-            pts.append((effset(v), None))
-        train.prefetch(pts)
-        for x in xs:
-            v = u.copy()
-            v[j] = x
-            ys.append(chi2(v))
-        ys = np.array(ys)
+            vs.append(v)
+        train.prefetch([(effset(v), None) for v in vs])
+        ys = np.array([chi2(v) for v in vs])
         vtx, a, scatter = _parabola(xs, ys)
         u[j] = min(max(vtx, xs[0]), xs[-1])
         red = max(1.0, float(ys.min()) / max(n - len(params), 1))
@@ -279,34 +274,31 @@ def signatures(train: Problem, base: dict, candidates: list[Effect], points: int
     c0 = max(float(r0 @ r0), 1e-300)
     rows = []
 
-    def axes_of(e):
+    def grid(e) -> list[dict]:
+        """The candidate's grid of values."""
         if e.measurement:  # no model run: log-spaced down to small levels (0.25 mm of noise is u = 0.0025)
-            return [0.0025 * 2.0 ** np.arange(9) for _ in e.params]
-        g = points if len(e.params) == 1 else 3
-        return [(np.arange(g) + 0.5) / g for _ in e.params]
+            axes = [0.0025 * 2.0 ** np.arange(9) for _ in e.params]
+        else:
+            g = points if len(e.params) == 1 else 3
+            axes = [(np.arange(g) + 0.5) / g for _ in e.params]
+        return [{p.name: unit_to_value(p, x) for p, x in zip(e.params, point)}
+                for point in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(e.params), -1).T]
 
-    pts = []
+    plans = {}  # every candidate's probes and grid points, built once: run side by side, then read
     for e in candidates:
-        pts += [(EffectSet.of({**base, e.name: {**e.null(), p.name: p.probe}}), None) for p in e.params]
-        for point in np.array(np.meshgrid(*axes_of(e), indexing="ij")).reshape(len(e.params), -1).T:
-            pts.append((EffectSet.of({**base, e.name: {p.name: unit_to_value(p, x) for p, x in zip(e.params, point)}}),
-                        None))
-    train.prefetch(pts)
+        plans[e.name] = ([EffectSet.of({**base, e.name: {**e.null(), p.name: p.probe}}) for p in e.params],
+                         [(v, EffectSet.of({**base, e.name: v})) for v in grid(e)])
+    train.prefetch([(x, None) for probes, pts in plans.values() for x in probes + [es for _, es in pts]])
     for e in candidates:
-        cols = []
-        for p in e.params:
-            probe = {**base, e.name: {**e.null(), p.name: p.probe}}
-            rp = train.vector(EffectSet.of(probe))
-            cols.append((rp - r0) / (p.probe - p.null))
+        probes, pts = plans[e.name]
+        cols = [(train.vector(x) - r0) / (p.probe - p.null) for x, p in zip(probes, e.params)]
         J = np.stack(cols, 1)
         delta, *_ = np.linalg.lstsq(J, -r0, rcond=None)
         left = r0 + J @ delta
         explained = 1.0 - float(left @ left) / c0
-        axes = axes_of(e)
         best, best_v = c0, e.null()
-        for point in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(e.params), -1).T:
-            v = {p.name: unit_to_value(p, x) for p, x in zip(e.params, point)}
-            r = train.vector(EffectSet.of({**base, e.name: v}))
+        for v, es in pts:
+            r = train.vector(es)
             c = float(r @ r)
             if c < best:
                 best, best_v = c, v

@@ -155,10 +155,10 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     priors = {k: v for k, v in getattr(problem, "priors", {}).items() if k in {p.name for p in params}}
 
     def vec(u):
-        data = problem.vector_with(values(u), effects(u))
+        vals = values(u)
+        data = problem.vector_with(vals, effects(u))
         if not priors:
             return data
-        vals = values(u)
         return np.concatenate([data, [(vals[k] - m) / sd for k, (m, sd) in priors.items()]])
 
     last: dict = {}

@@ -112,6 +112,11 @@ def write(cal, trials: list[Trial], out_dir) -> dict:
     return result
 
 
+# what decides a servo lag or dead time where the delay test does not
+HELDOUT_RULE = ("a lag or dead time is kept only if, fitted with the nominal parameters, it lowers the held-out "
+                "error by 20 % or more")
+
+
 def markdown(r: dict) -> str:
     b, a = r["before"], r["after"]
     an = r.get("after_nominal") or b
@@ -165,15 +170,12 @@ def markdown(r: dict) -> str:
                          "parameters is then kept if it lowers the training χ² by more than k ln n, its interval "
                          "excludes 0 and the held-out error does not rise." if dt["constant_delay"] else
                          "no constant delay (a lag or dead time is not tried)." if dt.get("no_constant_delay") else
-                         "undecided (a lag or dead time is kept only if, fitted with the nominal parameters, it "
-                         "lowers the held-out error by 20 % or more)."), "",
+                         f"undecided ({HELDOUT_RULE})."), "",
                       "| amplitude | excess over the preset model (ms) | standard error (ms) |", "|---|---|---|"]
             lines += [f"| {a:g}° | {e:+.1f} | {s_:.1f} |" for a, e, s_ in zip(dt["amplitudes_deg"], dt["excess_ms"],
                                                                              dt["se_ms"])]
         else:
-            lines += ["Not applicable (arm delays on fewer than two amplitudes at least 1.5× apart): a servo lag or "
-                      "dead time is kept only if, fitted with the nominal parameters, it lowers the held-out error "
-                      "by 20 % or more."]
+            lines += [f"Not applicable (arm delays on fewer than two amplitudes at least 1.5× apart): {HELDOUT_RULE}."]
         lines.append("")
     dr = r.get("drift")
     if dr and dr.get("dof"):

@@ -19,7 +19,7 @@ from ..engine import Lanes, Scene, make_backend
 from ..engine.core import Record, on_step_grid
 from .data import Trial
 
-SIM_SAMPLE_S = 0.004
+SIM_SAMPLE_S = 0.004  # the model is sampled every 4 ms and interpolated to the frames
 _local = threading.local()
 
 
@@ -41,7 +41,7 @@ def pmap(fn, items: list, workers: int | None = None) -> list:
     if n <= 1 or in_pool():
         return [fn(x) for x in items]
     with ThreadPoolExecutor(n, initializer=_mark_worker) as ex:
-        return list(ex.map(fn, items))  # the model is sampled every 4 ms and interpolated to the frames
+        return list(ex.map(fn, items))
 
 
 def _interp_track(t_sim, track, t_frames):
@@ -112,9 +112,5 @@ def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int
         finally:
             be.close()
 
-    if in_pool():
-        for item in groups.items():
-            run_group(item)
-    else:
-        pmap(run_group, list(groups.items()))
+    pmap(run_group, list(groups.items()))  # in order inside a worker
     return out  # type: ignore[return-value]

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+
 def longest_run(flags: np.ndarray) -> np.ndarray:
     """Longest run of True along the last axis: [..., K] -> [...]."""
     flags = np.asarray(flags, bool)

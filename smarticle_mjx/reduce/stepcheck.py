@@ -28,6 +28,7 @@ BETA_MAX = 0.068  # |beta - beta_ref|
 SPEED_MAX = 0.20  # |net speed / reference - 1|
 TABLE = pathlib.Path(__file__).with_name("step_checks.json")
 PASSED, FAILED, NOT_CHECKED = "passed", "failed", "not checked"
+QUANTITIES = ("beta", "net_speed", "persistence")  # the glider quantities a check measures
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,7 +74,12 @@ class StepCheck:
         return self.status == PASSED
 
     def as_dict(self) -> dict:
-        return dataclasses.asdict(self)
+        """JSON-ready, each difference with its ``relative`` size beside it."""
+        out = dataclasses.asdict(self)
+        for k in QUANTITIES:
+            if out[k] is not None:
+                out[k]["relative"] = getattr(self, k).relative
+        return out
 
 
 def verdict(beta: Difference, net_speed: Difference, persistence: Difference) -> str:
@@ -105,8 +111,7 @@ def lookup(model: str, imperfections: str, timestep_s: float, integrator: str, o
     e = (table() if checks is None else checks).get(_key(model, imperfections, timestep_s, integrator))
     if e is None:
         return StepCheck(**base, status=NOT_CHECKED, why="no glider-quantity check at this model, step and integrator")
-    diff = {k: Difference(e[k]["value"], tuple(e[k]["ci95"]), e[k]["reference"]) for k in
-            ("beta", "net_speed", "persistence")}
+    diff = {k: Difference(e[k]["value"], tuple(e[k]["ci95"]), e[k]["reference"]) for k in QUANTITIES}
     return StepCheck(**base, status=verdict(**diff), reference_dt_s=e["reference_dt_s"], source=e["source"], **diff)
 
 
@@ -117,7 +122,7 @@ def entry(model: str, imperfections: str, timestep_s: float, integrator: str, re
     out = {"key": _key(model, imperfections, timestep_s, integrator), "model": model,
            "imperfections": imperfections, "timestep_s": timestep_s, "integrator": integrator,
            "reference_dt_s": reference_dt_s, "source": source}
-    for k in ("beta", "net_speed", "persistence"):
+    for k in QUANTITIES:
         out[k] = {"value": runs_row[k]["minus_reference"], "ci95": list(runs_row[k]["minus_reference_ci95"]),
                   "reference": reference_row[k]["value"]}
     return out
