@@ -10,6 +10,11 @@ Variants change numerics only (the robot's physical parameters stay lab-lag's):
     candidate; the contact's solref time constant is physics (absolute seconds), so stiffer contacts
     are a model change, not a switch of this table.
 
+The kick level (``--kicks``, seconds): a lone robot's slip per arm move at 90 deg (12 periods, the
+body's mean displacement per quarter period, twin.py's measure) for each integrator and step, and with
+the servo's velocity gain kv halved and doubled and without armature at a fine and the default step
+(a probe of the mechanism, not a model change). Writes results/step_kicks.json.
+
 Per variant: gliders, beta, net speed and direction persistence with 95 % bootstrap intervals and the
 paired bootstrap interval of each difference from the reference (starts resampled together).
 Resumable: each variant's per-period tracks are kept in results/step_mechanism_runs/ and reused.
@@ -40,37 +45,89 @@ VARIANTS = {  # name -> (time step s, SceneParams changes)
     "0.5 ms implicit": (5e-4, {"integrator": "implicit"}),
     "0.5 ms Euler": (5e-4, {"integrator": "Euler"}),
     "0.5 ms RK4": (5e-4, {"integrator": "RK4"}),
+    # candidates for a default that keeps the paper scan under twice today's cost (added after the rows
+    # above had been measured): a smaller implicitfast step, and RK4 at a larger one
+    "0.35 ms implicitfast": (3.5e-4, {}),
+    "1 ms RK4": (1e-3, {"integrator": "RK4"}),
 }
 
 
-def run(name: str, poses: np.ndarray) -> pathlib.Path:
+def run(name: str, poses: np.ndarray, imperfections: str | None = None) -> pathlib.Path:
     dt, changes = VARIANTS[name]
     slug = name.split(" (")[0].replace(" ", "_")
-    path = RUNS / f"lab-lag_{slug}_{POOL}x{PERIODS}_s{SEED}.npz"
+    model = "lab-lag" + (f"+{imperfections}" if imperfections else "")
+    path = RUNS / f"{model}_{slug}_{POOL}x{PERIODS}_s{SEED}.npz"
     if path.exists() and np.array_equal(np.load(path)["poses"], poses):
         print(f"reusing {path.name}", flush=True)
         return path
     params = dataclasses.replace(presets.params("lab-lag"), timestep=dt, **changes)
     t = time.perf_counter()
-    gliding(params, POOL, PERIODS, SEED, BURN_IN, save=path)
+    robots = None
+    if imperfections:  # the same two drawn robots in every start, as fidelity_screen.py --imperfections
+        from smarticle_mjx import imperfections as imp
+        robots = imp.draw(imperfections, 2, SEED)
+    gliding(params, POOL, PERIODS, SEED, BURN_IN, save=path, robots=robots)
     print(f"{name}: {POOL} starts x {PERIODS} periods in {time.perf_counter() - t:.0f} s", flush=True)
     return path
 
 
+# kick level: name -> (time step s, integrator, RobotParams changes as factors of lab-lag's kv or values)
+KICKS = {f"implicitfast {dt * 1e3:g} ms": (dt, "implicitfast", {}) for dt in (6.25e-5, 1.25e-4, 2.5e-4, 3.5e-4, 5e-4, 1e-3)}
+KICKS.update({f"{i} 0.5 ms": (5e-4, i, {}) for i in ("implicit", "Euler", "RK4")})
+KICKS["RK4 1 ms"] = (1e-3, "RK4", {})
+for _f in (0.5, 2.0):
+    for _dt, _i in ((6.25e-5, "implicitfast"), (5e-4, "implicitfast"), (5e-4, "RK4")):
+        KICKS[f"kv x{_f:g}, {_i} {_dt * 1e3:g} ms"] = (_dt, _i, {"kv_factor": _f})
+for _dt, _i in ((6.25e-5, "implicitfast"), (5e-4, "implicitfast"), (5e-4, "RK4"), (1e-3, "RK4")):
+    KICKS[f"armature 0, {_i} {_dt * 1e3:g} ms"] = (_dt, _i, {"servo_armature": 0.0})
+
+
+def kicks(out: pathlib.Path, periods: int = 12) -> dict:
+    """The lone robot's slip per arm move and drift for every row of ``KICKS``; writes ``out``."""
+    from twin import mujoco_variant_lone
+    base = presets.params("lab-lag")
+    rows = {}
+    for name, (dt, integrator, rb) in KICKS.items():
+        rb = dict(rb)
+        if "kv_factor" in rb:
+            rb["servo_kv"] = base.robot.kv * rb.pop("kv_factor")
+        p = dataclasses.replace(base, timestep=dt, integrator=integrator, robot=dataclasses.replace(base.robot, **rb))
+        p.validate()
+        t = time.perf_counter()
+        r = mujoco_variant_lone(p, lambda m: None, 90.0, periods)
+        rows[name] = {"dt_s": dt, "integrator": integrator, "kv": p.robot.kv, "armature": p.robot.servo_armature,
+                      "slip_per_edge_W": r["slip_per_edge_W"], "drift_W_per_cycle": r["drift_W_per_cycle"],
+                      "wall_s": time.perf_counter() - t}
+        print(f"{name:>34}: slip per arm move {r['slip_per_edge_W']:.3e} W, drift {r['drift_W_per_cycle']:.1e} W/cycle",
+              flush=True)
+    save_json(out, {"model": "lab-lag", "amplitude_deg": 90.0, "periods": periods, "rows": rows})
+    print(f"wrote {out}")
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--kicks", action="store_true", help="the kick level only (a lone robot; seconds)")
     ap.add_argument("--only", default=None, help="comma-separated variant names (the reference always runs)")
     ap.add_argument("--boot", type=int, default=1000)
-    ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "step_mechanism.json")
+    ap.add_argument("--imperfections", default=None, help="robots drawn from this imperfection set (e.g. lab)")
+    ap.add_argument("--out", type=pathlib.Path, default=None,
+                    help="default results/step_mechanism.json (results/step_mechanism_<set>.json with --imperfections)")
     args = ap.parse_args()
+    if args.kicks:
+        kicks(ROOT / "results" / "step_kicks.json")
+        return
+    if args.out is None:
+        args.out = ROOT / "results" / ("step_mechanism.json" if not args.imperfections
+                                       else f"step_mechanism_{args.imperfections}.json")
     names = [REFERENCE] + [n for n in VARIANTS if n != REFERENCE and (not args.only or n in args.only.split(","))]
     poses = pair_starts(presets.params("lab-lag"), POOL, SEED, 90.0)
     data = {}
     for n in names:
-        z = np.load(run(n, poses))
+        z = np.load(run(n, poses, args.imperfections))
         data[n] = (z["com"], z["touched"])
     rows = paired_rows(data, REFERENCE, args.boot, width=30)
-    res = {"model": "lab-lag", "starts": POOL, "periods": PERIODS, "burn_in": BURN_IN, "seed": SEED,
+    res = {"model": "lab-lag", "imperfections": args.imperfections or "none", "starts": POOL, "periods": PERIODS, "burn_in": BURN_IN, "seed": SEED,
            "runs": {k: {"dt_s": VARIANTS[k][0], "changes": VARIANTS[k][1], **row} for k, row in rows.items()}}
     save_json(args.out, res)
     print(f"wrote {args.out}")
