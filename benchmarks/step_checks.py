@@ -2,8 +2,9 @@
 (smarticle_mjx/reduce/step_checks.json), which `smx report` reads to say whether a store's step has
 been checked and, if it has not passed, how it biases β and glider speed.
 
-Sources: results/glider_step.json (steps against the 0.0625 ms reference, model lab-lag, ideal robots)
-and results/step_mechanism.json (integrators at 0.5 ms against the same reference, same starts). Only
+Sources: results/glider_step.json (steps against the 0.0625 ms reference, model lab-lag, ideal robots),
+results/step_mechanism.json (integrators and steps against the same reference, same starts) and
+results/step_mechanism_lab.json (the same with the `lab` imperfection set, against its own reference). Only
 measurements with no field changed from the preset enter; an integrator switch is a key of its own.
 
     python benchmarks/step_checks.py        # rewrites the table; prints it
@@ -32,14 +33,18 @@ def collect() -> list[dict]:
         e = stepcheck.entry(g["model"], "none", dt, base.integrator, g["reference_dt_s"], "glider_step.json", row,
                             g["runs"][ref_name])
         out[e["key"]] = e
-    m = json.loads((ROOT / "step_mechanism.json").read_text())
-    ref_name = next(k for k in m["runs"] if "reference" in k)
-    for name, row in m["runs"].items():
-        if name == ref_name or set(row["changes"]) - {"integrator"}:
+    for source in ("step_mechanism.json", "step_mechanism_lab.json"):
+        if not (ROOT / source).exists():
             continue
-        e = stepcheck.entry(m["model"], "none", row["dt_s"], row["changes"].get("integrator", base.integrator),
-                            m["runs"][ref_name]["dt_s"], "step_mechanism.json", row, m["runs"][ref_name])
-        out.setdefault(e["key"], e)  # glider_step's measurement of the same key comes first
+        m = json.loads((ROOT / source).read_text())
+        ref_name = next(k for k in m["runs"] if "reference" in k)
+        for name, row in m["runs"].items():
+            if name == ref_name or set(row["changes"]) - {"integrator"}:
+                continue
+            e = stepcheck.entry(m["model"], m.get("imperfections", "none"), row["dt_s"],
+                                row["changes"].get("integrator", base.integrator), m["runs"][ref_name]["dt_s"],
+                                source, row, m["runs"][ref_name])
+            out.setdefault(e["key"], e)  # glider_step's measurement of the same key comes first
     return list(out.values())
 
 

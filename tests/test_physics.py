@@ -264,3 +264,45 @@ def test_mjx_contact_forces_are_converged_and_match_mujoco_at_impacts():
     assert got[LS_ITERATIONS].unconverged == 0, got[LS_ITERATIONS]
     assert got[2].unconverged > 0, got[2]
     assert got["vs_c"].unconverged <= 0.01 * got["vs_c"].multi_iteration_solves, got["vs_c"]
+
+
+def _slip_per_arm_move(params, periods=4):
+    """Mean displacement of a lone robot's body per quarter period (one arm move and its dwell), in W,
+    after the first period."""
+    from smarticle_mjx.reduce import transport
+    res = simulate(params, [(0, 0, 0, A0[0], A0[1])], GAIT, periods=periods, track_stride=1)
+    t = np.concatenate([[0.0], res.track_t])
+    xy = np.concatenate([[[0.0, 0.0]], res.track[:, 0, :2]])
+    T = res.track_t[-1] / periods
+    idx = [int(np.argmin(np.abs(t - q * T / 4))) for q in range(4 * periods + 1)]
+    return transport.lone_robot(xy[idx], samples_per_cycle=4, skip_cycles=1,
+                                unit=params.robot.body_length)["slip_per_edge_W"]
+
+
+def test_an_implicit_step_slips_a_lone_robot_in_proportion_to_dt_times_the_servo_gain():
+    """MuJoCo's implicit integrators solve the contacts with the mass matrix M, then advance the
+    velocities with M + dt * kv on the arms' hinges (the servo's velocity gain, linearised): friction
+    computed to hold the body no longer does, and each arm move slips the body by an amount that grows
+    with dt * kv. RK4 takes the servo explicitly and has no such term. Facts checked: RK4's slip per arm
+    move is the same at 1 ms and 0.25 ms (within 3 %); implicitfast at 0.5 ms slips more than 3x as
+    much, and its excess over RK4 roughly doubles with kv doubled (1.6x to 2.5x)."""
+    base = presets.params("lab-lag")
+    rk4 = _slip_per_arm_move(base.replace(integrator="RK4", timestep=1e-3))
+    rk4_fine = _slip_per_arm_move(base.replace(integrator="RK4", timestep=2.5e-4))
+    assert abs(rk4 / rk4_fine - 1) < 0.03, (rk4, rk4_fine)
+    implicit = _slip_per_arm_move(base.replace(integrator="implicitfast", timestep=5e-4))
+    assert implicit > 3 * rk4_fine, (implicit, rk4_fine)
+    stiffer = base.replace(integrator="implicitfast", timestep=5e-4,
+                           robot=dataclasses.replace(base.robot, servo_kv=2 * base.robot.kv))
+    ratio = (_slip_per_arm_move(stiffer) - rk4_fine) / (implicit - rk4_fine)
+    assert 1.6 < ratio < 2.5, ratio
+
+
+def test_an_explicit_integrator_is_refused_for_a_servo_it_would_misintegrate():
+    """RK4 at 0.5 ms slips a lone robot with the stiff servo 0.1 W per arm move (implicitfast: 3.5e-3):
+    timestep * kv / hinge inertia above 1 is refused in one line, below it accepted."""
+    stiff = presets.params("lab-stiff")
+    with pytest.raises(ValueError, match="takes the servo's velocity gain explicitly"):
+        stiff.replace(integrator="RK4", timestep=1e-3).validate()
+    stiff.replace(integrator="RK4", timestep=1e-4).validate()
+    presets.params("lab-lag").replace(integrator="RK4", timestep=1e-3).validate()
