@@ -55,19 +55,29 @@ def tracks(poses: np.ndarray, dt: float) -> pathlib.Path:
         print(f"reusing {path.name}")
         return path
     t = time.perf_counter()
-    gliding(dataclasses.replace(presets.params("lab-lag"), timestep=dt), POOL, PERIODS, SEED, BURN_IN, save=path)
+    gliding(dataclasses.replace(presets.params("lab-lag"), timestep=dt, integrator="implicitfast"), POOL, PERIODS, SEED, BURN_IN, save=path)
     print(f"ran {POOL} starts x {PERIODS} periods at {dt * 1e3:g} ms in {time.perf_counter() - t:.0f} s")
     return path
 
 
-def paired_rows(data: dict, ref: str, boot: int, width: int = 20) -> dict:
+def quantities_runs30(com: np.ndarray, touched: np.ndarray) -> dict:
+    """As :func:`quantities`, but a glider is each start's longest bound run of at least 30 periods (the
+    validation page's rule, ``reduce.gliders.glider_runs``), its track from the run's first period."""
+    from smarticle_mjx.reduce.gliders import glider_tracks
+    tr = glider_tracks(com, touched, 30)
+    if len(tr) < 3:
+        return dict(gliders=int(len(tr)), beta=np.nan, net_speed=np.nan, persistence=np.nan)
+    return dict(gliders=int(len(tr)), **glider_transport(tr))
+
+
+def paired_rows(data: dict, ref: str, boot: int, width: int = 20, measure=quantities) -> dict:
     """Per run (name -> (com, touched) of the same starts): gliders and each quantity with its 95 %
     bootstrap interval and, but for the reference ``ref``, its difference from the reference with the
     paired bootstrap interval (starts resampled together in all runs). Prints a line per run."""
     rng = np.random.default_rng(0)
     idx = [rng.integers(0, POOL, POOL) for _ in range(boot)]
-    point = {k: quantities(*v) for k, v in data.items()}
-    boots = {k: [quantities(v[0][i], v[1][i]) for i in idx] for k, v in data.items()}
+    point = {k: measure(*v) for k, v in data.items()}
+    boots = {k: [measure(v[0][i], v[1][i]) for i in idx] for k, v in data.items()}
     rows = {}
     for k in data:
         row = {"gliders": point[k]["gliders"]}

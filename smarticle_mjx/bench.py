@@ -21,24 +21,25 @@ from .reduce import binding, gliders, transport
 
 # Candidate numerics of the time-step study (docs/timestep.md): name -> SceneParams changes.
 NUMERICS_REFERENCE = "ref"
+# every candidate names its integrator, so that a preset's own numerics never leak into a candidate
 NUMERICS: dict[str, dict] = {
-    NUMERICS_REFERENCE: dict(timestep=6.25e-5),
-    "implicitfast-0.25ms": dict(timestep=2.5e-4),  # the default before the study
-    "implicitfast-0.5ms": dict(timestep=5e-4),
-    "implicitfast-1ms": dict(timestep=1e-3),
+    NUMERICS_REFERENCE: dict(timestep=6.25e-5, integrator="implicitfast"),
+    "implicitfast-0.25ms": dict(timestep=2.5e-4, integrator="implicitfast"),  # the default before the study
+    "implicitfast-0.5ms": dict(timestep=5e-4, integrator="implicitfast"),
+    "implicitfast-1ms": dict(timestep=1e-3, integrator="implicitfast"),
     "implicit-0.5ms": dict(timestep=5e-4, integrator="implicit"),
     "implicit-1ms": dict(timestep=1e-3, integrator="implicit"),
     "discrete-0.5ms": dict(timestep=5e-4, integrator="discrete"),
     "discrete-1ms": dict(timestep=1e-3, integrator="discrete"),
     "Euler-0.5ms": dict(timestep=5e-4, integrator="Euler"),
-    "implicitfast-0.5ms-tol1e-6": dict(timestep=5e-4, tolerance=1e-6),
-    "implicitfast-0.5ms-iter5": dict(timestep=5e-4, iterations=5, ls_iterations=20),
+    "implicitfast-0.5ms-tol1e-6": dict(timestep=5e-4, integrator="implicitfast", tolerance=1e-6),
+    "implicitfast-0.5ms-iter5": dict(timestep=5e-4, integrator="implicitfast", iterations=5, ls_iterations=20),
     # after the kick-level mechanism (docs/timestep.md): RK4 has no implicit servo term to make the
     # contact solve inconsistent, and is converged at the kick level at 1 ms
     "RK4-1ms": dict(timestep=1e-3, integrator="RK4"),
     "RK4-1.5ms": dict(timestep=1.5e-3, integrator="RK4"),
     "RK4-2ms": dict(timestep=2e-3, integrator="RK4"),
-    "implicitfast-0.35ms": dict(timestep=3.5e-4),
+    "implicitfast-0.35ms": dict(timestep=3.5e-4, integrator="implicitfast"),
 }
 
 

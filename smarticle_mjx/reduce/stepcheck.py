@@ -118,7 +118,18 @@ def lookup(model: str, imperfections: str, timestep_s: float, integrator: str, o
 def entry(model: str, imperfections: str, timestep_s: float, integrator: str, reference_dt_s: float, source: str,
           runs_row: dict, reference_row: dict) -> dict:
     """One table entry from a benchmark row ({quantity: {value, minus_reference, minus_reference_ci95}}) and
-    its reference row ({quantity: {value}}); quantities beta, net_speed, persistence."""
+    its reference row ({quantity: {value}}); quantities beta, net_speed, persistence.
+
+    Raises:
+      ValueError: a quantity is not a number (a run without gliders measures nothing; it is no check).
+    """
+    import math
+    bad = [k for k in QUANTITIES if not all(math.isfinite(float(v)) for v in
+                                             (runs_row[k]["minus_reference"], *runs_row[k]["minus_reference_ci95"],
+                                              reference_row[k]["value"]))]
+    if bad:
+        raise ValueError(f"no {', '.join(bad)} measured for {model}+{imperfections} at {timestep_s * 1e3:g} ms "
+                         "(no gliders in a run): not a check")
     out = {"key": _key(model, imperfections, timestep_s, integrator), "model": model,
            "imperfections": imperfections, "timestep_s": timestep_s, "integrator": integrator,
            "reference_dt_s": reference_dt_s, "source": source}
