@@ -364,14 +364,20 @@ def validate(
     quiet: bool = typer.Option(False, help="no progress bar"),
     model: Optional[str] = typer.Option(None, help=_MODEL_HELP),
     imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP + "; stores go to DATA/MODEL+NAME"),
+    set_: list[str] = typer.Option([], "--set", help=_SET_HELP + "; every study and lone robot; stores go to "
+                                   "DATA/MODEL~FIELD=VALUE"),
 ):
     """Measure the paper's claims from the studies in sweeps/ and write docs/validation.md."""
     from .validate import SWEEPS, parse_studies, run_validation
     chosen = parse_studies(studies)
+    from . import presets
+    overrides = _sets(set_)
+    presets.apply(presets.params(_model(model)), overrides)  # a bad value: one line before anything runs
     bar, progress = _progress(quiet)
     with bar:
         res = run_validation(data, out, sweeps or SWEEPS, model=_model(model), on_progress=progress,
-                             single_periods=single_periods, studies=chosen, imperfections=imperfections)
+                             single_periods=single_periods, studies=chosen, imperfections=imperfections,
+                             overrides=overrides)
     _echo([f"{r['verdict']:>16}: {r['claim']}" for r in res["rows"]]
           + [f"note: {n}" for n in res["extra"].get("notes", [])] + [f"wrote {out}"])
 

@@ -143,9 +143,17 @@ def glider_starts(store: Store, kind: str, pairs: int) -> np.ndarray:
     return rel[lanes, -1].astype(np.float64)
 
 
+def with_overrides(cfg, overrides=()):
+    """``cfg`` (a ScanConfig or RelaxConfig) with the scene ``overrides`` added to its own (a field set in
+    both takes the value given here): how ``smx validate --set`` changes every study it runs."""
+    if not overrides:
+        return cfg
+    return dataclasses.replace(cfg, overrides=tuple(sorted({**dict(cfg.overrides), **dict(overrides)}.items())))
+
+
 def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.Path, model: str,
                  on_progress=None, notes: list | None = None, run: bool = True,
-                 imperfections: str = "none") -> list[pathlib.Path]:
+                 imperfections: str = "none", overrides=()) -> list[pathlib.Path]:
     """Run (or reuse, or resume) every stage of a started-bound study; one
     store per amplitude, ``<stem>_aNNNN.h5`` (tenths of a degree). Stops
     early when no pair is left bound to carry on (continuation), or, with
@@ -157,7 +165,7 @@ def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.
             if notes is not None:
                 notes.append(f"{stem}: no {bs.glider} pair left bound before {a:g}°; later stages not run")
             break
-        cfg = bs.stage_config(a, starts, model, imperfections)
+        cfg = with_overrides(bs.stage_config(a, starts, model, imperfections), overrides)
         # amplitude in tenths of a degree: descent_a0900.h5 is 90 deg
         path = ensure_scan(cfg, pathlib.Path(data) / f"{stem}_a{int(round(a * 10)):04d}.h5", on_progress, notes,
                            run=run)
@@ -178,7 +186,8 @@ def relax_stage_path(data: pathlib.Path, stem: str, stage: int) -> pathlib.Path:
 
 
 def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_progress=None,
-                 notes: list | None = None, run: bool = True, imperfections: str = "none") -> list[pathlib.Path]:
+                 notes: list | None = None, run: bool = True, imperfections: str = "none",
+                 overrides=()) -> list[pathlib.Path]:
     """Run (or reuse, or resume) the stages of a relaxation study in order,
     ``<stem>_sNN.h5``; with ``run=False`` stop at the first stage without a
     current complete store. A stage made by another configuration, model or
@@ -186,7 +195,7 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
     from .relax import run_relax
     paths = []
     for stage in range(rs.stages):
-        cfg = rs.stage_config(stage, model, imperfections)
+        cfg = with_overrides(rs.stage_config(stage, model, imperfections), overrides)
         path = relax_stage_path(data, stem, stage)
         if path.exists():
             why = stale_reason(cfg, path)
@@ -207,22 +216,24 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
 
 def ensure(spec: ScanConfig | BoundStudy | RelaxStudy, data: pathlib.Path, stem: str, model: str,
            sources: dict | None = None, on_progress: Callable[[dict], None] | None = None,
-           notes: list | None = None, run: bool = True, imperfections: str = "none") -> list[pathlib.Path]:
+           notes: list | None = None, run: bool = True, imperfections: str = "none",
+           overrides=()) -> list[pathlib.Path]:
     """The complete stores of study ``spec`` (file stem ``stem``) made by model ``model`` in ``data``,
     one per stage (a scan has one): reused, resumed or run as :func:`ensure_scan` says; with
     ``run=False`` only those that already stand for it. A started-bound study needs its source's
     stores in ``sources`` (study name -> stores) and returns none without them. ``imperfections``: the
     robots' imperfection set (smarticle_mjx/imperfections.py) every stage is run with, unless a relaxation
-    study file names its own."""
+    study file names its own; ``overrides``: scene fields changed in every stage (:func:`with_overrides`)."""
     data = pathlib.Path(data)
     if isinstance(spec, RelaxStudy):
-        return ensure_relax(spec, stem, data, model, on_progress, notes, run=run, imperfections=imperfections)
+        return ensure_relax(spec, stem, data, model, on_progress, notes, run=run, imperfections=imperfections,
+                            overrides=overrides)
     if isinstance(spec, BoundStudy):
         src = (sources or {}).get(spec.source)
         return ensure_bound(spec, stem, src[0], data, model, on_progress, notes, run=run,
-                            imperfections=imperfections) if src else []
-    got = ensure_scan(dataclasses.replace(spec, model=model, imperfections=imperfections), data / f"{stem}.h5",
-                      on_progress, notes, run=run)
+                            imperfections=imperfections, overrides=overrides) if src else []
+    got = ensure_scan(with_overrides(dataclasses.replace(spec, model=model, imperfections=imperfections), overrides),
+                      data / f"{stem}.h5", on_progress, notes, run=run)
     return [got] if got is not None else []
 
 

@@ -176,6 +176,8 @@ def _two_amplitudes(tmp_path, trials=2, periods=4, seed=5, **effects):
     return tmp_path
 
 
+@pytest.mark.slow  # 55 s on 2 cores; the delay test (test_calibrate_structure.py) names lags in seconds, and
+# benchmarks/calibration_stress.py and calibration_cases.py run this path on many builds
 def test_a_hidden_servo_lag_in_another_simulators_robot_is_named_through_smx_calibrate(tmp_path):
     # a robot built differently (arm shape, masses, hinge, servo law, time step), with a 30 ms servo lag:
     # the nominal fit absorbs the build; the lag, fitted with it, beats it alone and is named

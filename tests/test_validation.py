@@ -183,3 +183,29 @@ def test_validate_rejects_unknown_imperfections_in_one_line(tmp_path):
                                  "--imperfections", "wobbly"])
     assert r.exit_code == 2 and "wobbly" in r.output and len(r.output.strip().splitlines()) == 1
     assert not (tmp_path / "d").exists() and not (tmp_path / "v.md").exists()
+
+
+def test_validate_with_set_runs_every_study_with_the_change_and_keeps_its_stores_apart(tmp_path):
+    """--set timestep=0.00025 (the step the default-step study names) runs the studies and lone robots with
+    that field changed, into DATA/MODEL~timestep=0.00025 (the default model's folder is not made), each
+    store records the override and the step, the page names the change and its regenerate command carries
+    it; a bad field is one line, exit 2, before anything is written."""
+    sweeps, data, out = _sweeps(tmp_path), tmp_path / "data", tmp_path / "v.md"
+    args = ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps), "--single-periods", "3",
+            "--quiet", "--studies", "polar,relax"]
+    r = CliRunner().invoke(app, args + ["--set", "timestep=0.00025"])
+    assert r.exit_code == 0, r.output
+    assert {p.name for p in data.iterdir()} == {f"{DEFAULT}~timestep=0.00025"}
+    folder = data / f"{DEFAULT}~timestep=0.00025"
+    polar = Store(folder / "validation_polar.h5")
+    assert polar.config["scan"]["overrides"] == {"timestep": 0.00025}
+    assert polar.config["scene"]["timestep"] == 0.00025
+    relax = Store(folder / "validation_relax_s00.h5")
+    assert relax.config["relax"]["overrides"] == {"timestep": 0.00025}
+    page = out.read_text()
+    assert "`timestep=0.00025` changed from the preset" in page and "--set timestep=0.00025" in page
+    assert "time step 0.25 ms" in page
+    before = {p.name for p in data.iterdir()}
+    r = CliRunner().invoke(app, args + ["--set", "robot.wobble=1"])
+    assert r.exit_code == 2 and "wobble" in r.output and len(r.output.strip().splitlines()) == 1
+    assert {p.name for p in data.iterdir()} == before

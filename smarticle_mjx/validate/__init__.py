@@ -97,17 +97,20 @@ def check_inputs(data, out_md, sweeps, single_periods: int, studies=None) -> Non
 def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Path = SWEEPS,
                    model: str = presets.DEFAULT, on_progress=None, command: str | None = None,
                    single_periods: int = SINGLE_PERIODS, studies: list[str] | None = None,
-                   imperfections: str = "none") -> dict:
+                   imperfections: str = "none", overrides=()) -> dict:
     """Run or reuse the studies (all, or those named in ``studies``) with model preset ``model`` in
     ``data/<model>/``, measure every claim from the complete stores there are, write the page.
 
     ``imperfections``: run every study with the robots' imperfections of that set (drawn from each
-    study's seed; smarticle_mjx/imperfections.py), in ``data/<model>+<set>/``."""
+    study's seed; smarticle_mjx/imperfections.py), in ``data/<model>+<set>/``. ``overrides``: scene
+    fields changed in every study and lone robot (``--set``; a step, say), in
+    ``data/<model>[+<set>]~<field>=<value>.../``."""
     from .. import imperfections as imp
+    overrides = presets.overrides(overrides)
     check_inputs(data, out_md, sweeps, single_periods, studies)
     ideal = imp.get(imperfections).ideal
-    params = presets.params(model)
-    label = model if ideal else f"{model}+{imperfections}"
+    params = presets.apply(presets.params(model), overrides)
+    label = (model if ideal else f"{model}+{imperfections}") + "".join(f"~{k}={v}" for k, v in overrides)
     data = pathlib.Path(data) / label
     data.mkdir(parents=True, exist_ok=True)
     wanted = list(STUDIES) if studies is None else list(studies)
@@ -117,7 +120,7 @@ def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Pat
     for name, spec in specs.items():
         got = ensure(spec, data, pathlib.Path(STUDIES[name]).stem, model,
                      {k: (v if isinstance(v, list) else [v]) for k, v in stores.items()}, on_progress, notes,
-                     run=name in wanted, imperfections=imperfections)
+                     run=name in wanted, imperfections=imperfections, overrides=overrides)
         if got:
             # a scan is one store; a staged study (started-bound, relaxation) a list of them
             stores[name] = got[0] if isinstance(spec, ScanConfig) else got
@@ -128,6 +131,7 @@ def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Pat
     if not ideal:
         result["extra"]["imperfections"] = {"set": imperfections, "lone_robots_per_amplitude": LONE_ROBOTS_DRAWN}
     page.write_page(result, stores, out_md, figures,
-                    command or page.relative_command(pathlib.Path(data).parent, out_md, model, imperfections=imperfections),
-                    model, imperfections=imperfections)
+                    command or page.relative_command(pathlib.Path(data).parent, out_md, model, imperfections=imperfections,
+                                                     overrides=overrides),
+                    model, imperfections=imperfections, overrides=overrides)
     return result

@@ -120,13 +120,13 @@ def step_check(result: dict, model: str, step_ms: set, check: pathlib.Path = STE
 
 
 def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathlib.Path, command: str,
-               model: str, check: pathlib.Path = STEP_CHECK, imperfections: str = "none") -> None:
+               model: str, check: pathlib.Path = STEP_CHECK, imperfections: str = "none", overrides=()) -> None:
     rel = pathlib.Path(figures).name
     every = [q for v in stores.values() for q in (v if isinstance(v, list) else [v])]
     held = sum(r["verdict"] == "holds" for r in result["rows"])
     made = made_with(every)
     lines = ["# Validation against the paper", "",
-             f"Model `{model}` (docs/model.md){robots_line(imperfections)}. {provenance(made)} Regenerate with `{command}`: it reuses complete stores made by the "
+             f"Model `{model}` (docs/model.md){overrides_line(overrides)}{robots_line(imperfections)}. {provenance(made)} Regenerate with `{command}`: it reuses complete stores made by the "
              "same model and package version, resumes interrupted ones and runs the missing studies "
              f"(these took {wall_minutes(every):.0f} minutes of wall time on 2 cores). "
              "`--studies NAME,...` runs a subset; the page is written from the complete stores there are.", "",
@@ -159,6 +159,13 @@ def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathli
         {"model": model, "rows": result["rows"], "extra": result["extra"]}, indent=1, default=json_default))
 
 
+def overrides_line(overrides) -> str:
+    """The fields changed from the preset (``--set``), as the page's model line names them."""
+    if not overrides:
+        return ""
+    return " with " + ", ".join(f"`{k}={v}`" for k, v in overrides) + " changed from the preset (`--set`)"
+
+
 def robots_line(imperfections: str) -> str:
     """How the page's robots were drawn: nothing for ideal robots (the paper's simulation)."""
     if imperfections == "none":
@@ -170,7 +177,7 @@ def robots_line(imperfections: str) -> str:
 
 
 def relative_command(data: pathlib.Path, out_md: pathlib.Path, model: str, studies=None,
-                     imperfections: str = "none") -> str:
+                     imperfections: str = "none", overrides=()) -> str:
     """The regenerate command, with paths relative to the repository when they
     lie inside it (``DIR`` / ``PAGE`` placeholders otherwise), never one
     machine's absolute path."""
@@ -181,4 +188,5 @@ def relative_command(data: pathlib.Path, out_md: pathlib.Path, model: str, studi
         except ValueError:
             return placeholder
     cmd = f"smx validate --data {rel(data, 'DIR')} --out {rel(out_md, 'PAGE')} --model {model}"
-    return cmd if imperfections == "none" else f"{cmd} --imperfections {imperfections}"
+    cmd = cmd if imperfections == "none" else f"{cmd} --imperfections {imperfections}"
+    return cmd + "".join(f" --set {k}={v}" for k, v in overrides)
