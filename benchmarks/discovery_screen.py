@@ -29,6 +29,7 @@ from smarticle_mjx.bench import save_json
 from smarticle_mjx.labels import BAD_STATUS
 from smarticle_mjx.reduce import binding, relaxation as RX
 from smarticle_mjx.specs import read_relax_screen
+from smarticle_mjx import formatting
 from smarticle_mjx.store import read_relax
 from smarticle_mjx.studies import ensure_relax
 
@@ -98,7 +99,7 @@ def measure(data: dict, seed: int = 0) -> dict:
 
 
 def f(x, nd=1):
-    return "–" if x is None or not np.isfinite(x) else f"{x:.{nd}f}"
+    return formatting.num(x, f".{nd}f")
 
 
 def table(rows: dict, screen: dict) -> list[str]:

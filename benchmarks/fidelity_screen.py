@@ -34,7 +34,7 @@ import time
 
 ROOT = pathlib.Path(__file__).resolve().parent
 
-from smarticle_mjx import presets
+from smarticle_mjx import formatting, presets
 from smarticle_mjx.bench import NUMERICS, gliding, lone_drift, pb, relaxation, save_json
 
 PAPER = {"drift90_W": 1.5e-3, "beta": 1.8, "persistence": None, "straightness": None}
@@ -148,7 +148,7 @@ def doc_tables(data: dict) -> str:
 
 
 def _fmt(v, spec=".2f"):
-    return "—" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, spec)
+    return formatting.num(v, spec, dash="—")  # the docs tables' em dash
 
 
 def table(data: dict, names, confirm: int | None = None, sample: str | None = None) -> str:

@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from smarticle_mjx import presets
+from smarticle_mjx import formatting, presets
 from smarticle_mjx.bench import save_json
 from smarticle_mjx.engine.simulate import simulate
 from smarticle_mjx.gait import GaitSpec
@@ -378,7 +378,7 @@ def diagnose(names, out: pathlib.Path, lone_periods: int):
 
 
 def _f(v, spec=".2f"):
-    return "—" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, spec)
+    return formatting.num(v, spec, dash="—")  # the docs tables' em dash
 
 
 def _glide_cells(g: dict) -> list[str]:

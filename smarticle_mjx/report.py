@@ -13,7 +13,7 @@ import pathlib
 
 import numpy as np
 
-from . import plots, presets
+from . import formatting, plots, presets
 from .reduce import binding, gliders as GL, stepcheck, transport
 from .scene import SceneParams
 from .store import BAD_STATUS, Store
@@ -300,15 +300,15 @@ def json_default(x):
 
 
 def _fmt(x, nd=3):
-    return "–" if x is None else f"{x:.{nd}f}"
+    return formatting.num(x, f".{nd}f")
 
 
 def _ci(v, lo, hi, nd=3):
-    return "–" if v is None else f"{v:.{nd}f} [{_fmt(lo, nd)}, {_fmt(hi, nd)}]"
+    return formatting.DASH if v is None else formatting.ci(v, lo, hi, f".{nd}f")
 
 
 def _pm(v, e, nd=3):
-    return "–" if v is None else f"{v:.{nd}f} ± {_fmt(e, nd)}"
+    return formatting.DASH if v is None else formatting.pm(v, e, f".{nd}f")
 
 
 def markdown(report: dict) -> str:
@@ -507,7 +507,7 @@ def crowd_rows(c: dict | None, f) -> list[str]:
 
 def relax_markdown(rep: dict) -> str:
     s, lab = rep["settings"], rep["lab"]
-    f = lambda x, nd=2: "–" if x is None or not np.isfinite(x) else f"{x:.{nd}f}"  # noqa: E731
+    f = lambda x, nd=2: formatting.num(x, f".{nd}f")  # noqa: E731
     d, gl, fit, ty = rep["distance"], rep["glider_lifetime"], rep["fit"], rep["typed"]
     rt = rep["relaxation_periods"]
     lines = [f"# Relaxation report: {', '.join(pathlib.Path(p).name for p in rep['stores'])}", "",

@@ -82,3 +82,17 @@ def test_the_circle_check_sees_a_lazy_circle(tmp_path):
     assert _circles(_import_graph(pkg))[0] == ["pkg.c", "pkg.sub.a", "pkg.sub.b", "pkg.c"]
     (pkg / "c.py").write_text("")
     assert _circles(_import_graph(pkg)) == []
+
+
+def test_one_number_formatter_prints_missing_values_as_a_dash():
+    """Pages, reports and benchmark tables round through smarticle_mjx.formatting alone: a missing or
+    non-finite value is a dash (never "nan"), an interval keeps its value when a bound is missing."""
+    import math
+    from smarticle_mjx import formatting, report
+    from smarticle_mjx.validate import claims
+    assert formatting.num(None) == formatting.num(math.nan) == formatting.num(math.inf) == "–"
+    assert formatting.num(0.12345, ".3f") == "0.123" and formatting.num(2.5e-5, ".1e", dash="—") == "2.5e-05"
+    assert formatting.ci(0.5, None, 0.75) == "0.50 [–, 0.75]"
+    assert formatting.pm(1.0, math.nan, ".1f") == "1.0 ± –"
+    assert claims.ci(0.1, 0.05, 0.2, ".2f") == formatting.ci(0.1, 0.05, 0.2)
+    assert report._pm(1.0, math.nan) == "1.000 ± –" and report._ci(None, 0.0, 1.0) == "–"

@@ -124,16 +124,16 @@ def entry(model: str, imperfections: str, timestep_s: float, integrator: str, re
       ValueError: a quantity is not a number (a run without gliders measures nothing; it is no check).
     """
     import math
-    bad = [k for k in QUANTITIES if not all(math.isfinite(float(v)) for v in
-                                             (runs_row[k]["minus_reference"], *runs_row[k]["minus_reference_ci95"],
-                                              reference_row[k]["value"]))]
-    if bad:
-        raise ValueError(f"no {', '.join(bad)} measured for {model}+{imperfections} at {timestep_s * 1e3:g} ms "
-                         "(no gliders in a run): not a check")
     out = {"key": _key(model, imperfections, timestep_s, integrator), "model": model,
            "imperfections": imperfections, "timestep_s": timestep_s, "integrator": integrator,
            "reference_dt_s": reference_dt_s, "source": source}
+    bad = []
     for k in QUANTITIES:
-        out[k] = {"value": runs_row[k]["minus_reference"], "ci95": list(runs_row[k]["minus_reference_ci95"]),
-                  "reference": reference_row[k]["value"]}
+        value, ci95, ref = runs_row[k]["minus_reference"], runs_row[k]["minus_reference_ci95"], reference_row[k]["value"]
+        if not all(math.isfinite(float(x)) for x in (value, *ci95, ref)):
+            bad.append(k)
+        out[k] = {"value": value, "ci95": list(ci95), "reference": ref}
+    if bad:
+        raise ValueError(f"no {', '.join(bad)} measured for {model}+{imperfections} at {timestep_s * 1e3:g} ms "
+                         "(no gliders in a run): not a check")
     return out

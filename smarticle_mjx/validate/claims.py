@@ -16,6 +16,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .. import formatting
+
 from ..reduce import binding, gliders as GL
 
 VERDICTS = {True: "holds", False: "does not hold", None: "not measurable"}
@@ -34,8 +36,8 @@ ALPHA = 0.05
 
 
 def f(x, spec=".2f") -> str:
-    """A number for the table; a dash for missing or NaN."""
-    return "–" if x is None or not np.isfinite(x) else format(x, spec)
+    """A number for the table; a dash for missing or NaN (``formatting.num``)."""
+    return formatting.num(x, spec)
 
 
 def finite(x) -> bool:
@@ -43,7 +45,7 @@ def finite(x) -> bool:
 
 
 def ci(v, lo, hi, spec=".2f") -> str:
-    return f"{f(v, spec)} [{f(lo, spec)}, {f(hi, spec)}]"
+    return formatting.ci(v, lo, hi, spec)
 
 
 @dataclasses.dataclass(frozen=True)
