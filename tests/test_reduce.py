@@ -393,6 +393,8 @@ def _store_with(tmp_path, name, model=None, timestep=5e-4, overrides=None):
     ("lab-lag", 5e-4, None, "biased against 0.0625 ms, β +0.14 [+0.01, +0.27], net speed +39%"),
     ("lab-lag", 2.5e-4, None, "checked, passed"),
     ("lab-lag", 5e-4, {"robot.mass": 0.03}, "step not checked (fields changed from the preset: robot.mass)"),
+    ("lab-lag", 2.5e-4, {"timestep": 2.5e-4}, "checked, passed"),  # --set timestep: the check at that step
+    ("lab-lag", 2.5e-4, {"timestep": 2.5e-4, "robot.mass": 0.03}, "step not checked (fields changed from the preset: robot.mass)"),
     ("paper", 5e-4, None, "step not checked (no glider-quantity check"),
 ])
 def test_a_stores_step_check_is_read_from_its_header(tmp_path, model, timestep, overrides, want):

@@ -29,6 +29,7 @@ SPEED_MAX = 0.20  # |net speed / reference - 1|
 TABLE = pathlib.Path(__file__).with_name("step_checks.json")
 PASSED, FAILED, NOT_CHECKED = "passed", "failed", "not checked"
 QUANTITIES = ("beta", "net_speed", "persistence")  # the glider quantities a check measures
+KEYED_NUMERICS = ("timestep", "integrator")  # scene fields a check is keyed by (changing them is no other model)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -106,8 +107,11 @@ def lookup(model: str, imperfections: str, timestep_s: float, integrator: str, o
     base = dict(model=model, imperfections=imperfections, timestep_s=float(timestep_s), integrator=integrator)
     if backend == "dart":
         return StepCheck(**base, status=NOT_CHECKED, why="the DART twin runs its own step")
-    if overrides:
-        return StepCheck(**base, status=NOT_CHECKED, why="fields changed from the preset: " + ", ".join(sorted(overrides)))
+    # a check is keyed by the step and the integrator, so a store that changed only those (``--set
+    # timestep=...``) is looked up like the preset at that step; any other change is another model
+    changed = sorted(set(overrides or ()) - set(KEYED_NUMERICS))
+    if changed:
+        return StepCheck(**base, status=NOT_CHECKED, why="fields changed from the preset: " + ", ".join(changed))
     e = (table() if checks is None else checks).get(_key(model, imperfections, timestep_s, integrator))
     if e is None:
         return StepCheck(**base, status=NOT_CHECKED, why="no glider-quantity check at this model, step and integrator")
