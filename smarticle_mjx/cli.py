@@ -372,7 +372,8 @@ def validate(
     chosen = parse_studies(studies)
     from . import presets
     overrides = _sets(set_)
-    presets.apply(presets.params(_model(model)), overrides)  # a bad value: one line before anything runs
+    # a bad value: one line before the progress bar starts (run_validation would refuse it too, inside the bar)
+    presets.apply(presets.params(_model(model)), overrides)
     bar, progress = _progress(quiet)
     with bar:
         res = run_validation(data, out, sweeps or SWEEPS, model=_model(model), on_progress=progress,

@@ -169,14 +169,22 @@ def parse_amplitudes(text: str) -> tuple[float, ...]:
         raise ValueError(f"amplitudes must look like '10:90:10' or '10,40,90', got {text!r}") from None
 
 
+def with_overrides(cfg, overrides=()):
+    """``cfg`` (a ScanConfig or RelaxConfig) with the scene ``overrides`` (checked pairs,
+    ``presets.overrides``) added to its own; a field set in both takes the value given here (``--set`` on
+    top of a study file's ``[scene]``)."""
+    if not overrides:
+        return cfg
+    return dataclasses.replace(cfg, overrides=tuple(sorted({**dict(cfg.overrides), **dict(overrides)}.items())))
+
+
 def sweep_config(study=None, amplitudes: str | None = None, sets=(), **changes) -> ScanConfig:
     """A sweep's spec: the study file ``study`` (or the default scan) with ``amplitudes``
     ('10:90:10' or '10,40,90'), the non-None ``changes`` (ScanConfig fields) and the scene overrides
     ``sets`` (FIELD=VALUE, on top of the study file's [scene]) applied."""
     cfg = load_study(study) if study is not None else ScanConfig()
+    cfg = with_overrides(cfg, presets.overrides(sets))
     changes = {k: v for k, v in changes.items() if v is not None}
-    if sets:
-        changes["overrides"] = tuple(sorted({**dict(cfg.overrides), **dict(presets.overrides(sets))}.items()))
     if amplitudes is not None:
         changes["amplitudes_deg"] = parse_amplitudes(amplitudes)
     elif study is None:

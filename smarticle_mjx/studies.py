@@ -27,7 +27,7 @@ from .reduce import gliders as GL
 from .report import analyse_run
 from .runner import store_header
 from .scan import run_scan
-from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, params_json
+from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, params_json, with_overrides
 from .scene import SceneParams
 from .store import PACKAGE, Store, journal_path
 
@@ -143,14 +143,6 @@ def glider_starts(store: Store, kind: str, pairs: int) -> np.ndarray:
     return rel[lanes, -1].astype(np.float64)
 
 
-def with_overrides(cfg, overrides=()):
-    """``cfg`` (a ScanConfig or RelaxConfig) with the scene ``overrides`` added to its own (a field set in
-    both takes the value given here): how ``smx validate --set`` changes every study it runs."""
-    if not overrides:
-        return cfg
-    return dataclasses.replace(cfg, overrides=tuple(sorted({**dict(cfg.overrides), **dict(overrides)}.items())))
-
-
 def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.Path, model: str,
                  on_progress=None, notes: list | None = None, run: bool = True,
                  imperfections: str = "none", overrides=()) -> list[pathlib.Path]:
@@ -223,7 +215,7 @@ def ensure(spec: ScanConfig | BoundStudy | RelaxStudy, data: pathlib.Path, stem:
     ``run=False`` only those that already stand for it. A started-bound study needs its source's
     stores in ``sources`` (study name -> stores) and returns none without them. ``imperfections``: the
     robots' imperfection set (smarticle_mjx/imperfections.py) every stage is run with, unless a relaxation
-    study file names its own; ``overrides``: scene fields changed in every stage (:func:`with_overrides`)."""
+    study file names its own; ``overrides``: scene fields changed in every stage (``specs.with_overrides``)."""
     data = pathlib.Path(data)
     if isinstance(spec, RelaxStudy):
         return ensure_relax(spec, stem, data, model, on_progress, notes, run=run, imperfections=imperfections,

@@ -206,6 +206,7 @@ def test_validate_with_set_runs_every_study_with_the_change_and_keeps_its_stores
     assert "`timestep=0.00025` changed from the preset" in page and "--set timestep=0.00025" in page
     assert "time step 0.25 ms" in page
     before = {p.name for p in data.iterdir()}
-    r = CliRunner().invoke(app, args + ["--set", "robot.wobble=1"])
-    assert r.exit_code == 2 and "wobble" in r.output and len(r.output.strip().splitlines()) == 1
-    assert {p.name for p in data.iterdir()} == before
+    for bad, says in (("robot.wobble=1", "wobble"), ("robot.mass=0.001", "must exceed the two arms' mass")):
+        r = CliRunner().invoke(app, args + ["--set", bad])
+        assert r.exit_code == 2 and says in r.output and len(r.output.strip().splitlines()) == 1, r.output
+        assert {p.name for p in data.iterdir()} == before

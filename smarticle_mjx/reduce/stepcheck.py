@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import pathlib
 
 BETA_MAX = 0.068  # |beta - beta_ref|
@@ -127,7 +128,6 @@ def entry(model: str, imperfections: str, timestep_s: float, integrator: str, re
     Raises:
       ValueError: a quantity is not a number (a run without gliders measures nothing; it is no check).
     """
-    import math
     out = {"key": _key(model, imperfections, timestep_s, integrator), "model": model,
            "imperfections": imperfections, "timestep_s": timestep_s, "integrator": integrator,
            "reference_dt_s": reference_dt_s, "source": source}

@@ -17,7 +17,6 @@ from typing import Any, Callable
 import numpy as np
 
 from .. import formatting
-
 from ..reduce import binding, gliders as GL
 
 VERDICTS = {True: "holds", False: "does not hold", None: "not measurable"}
