@@ -14,9 +14,9 @@ import pathlib
 import numpy as np
 
 from . import formatting, plots, presets
-from .reduce import binding, gliders as GL, stepcheck, transport
+from .reduce import analysis, binding, stepcheck
 from .scene import SceneParams
-from .store import BAD_STATUS, Store
+from .store import Store
 
 
 @dataclasses.dataclass(frozen=True)
@@ -44,107 +44,37 @@ class ReportOptions:
     clusters: int = 8
 
     def resolve(self, k: int) -> "ReportOptions":
-        burn = self.burn_in if self.burn_in is not None else min(30, k // 3)
-        gmin = self.glider_min_periods if self.glider_min_periods is not None else max(2, min(30, k // 2))
-        win = self.steady_window if self.steady_window is not None else max(1, min(20, k // 3))
-        lags = self.fit_lags if self.fit_lags is not None else (min(5, max(1, gmin // 4)), max(3, min(15, gmin // 2)))
-        return dataclasses.replace(self, burn_in=burn, glider_min_periods=gmin, steady_window=win, fit_lags=lags)
+        o = self.options(k)
+        return dataclasses.replace(self, burn_in=o.burn_in, glider_min_periods=o.glider_min_periods,
+                                   steady_window=o.steady_window, fit_lags=o.fit_lags)
 
-
-def _finite_mean(v) -> float:
-    v = np.asarray(v, float)
-    v = v[np.isfinite(v)]
-    return float(v.mean()) if len(v) else float("nan")
+    def options(self, k: int) -> analysis.Options:
+        """The reducers' options for a run of ``k`` periods (``reduce.analysis.Options.for_periods``)."""
+        return analysis.Options.for_periods(k, self.burn_in, self.glider_min_periods, self.steady_window,
+                                            self.fit_lags, self.clusters)
 
 
 def _r(x, nd=4):
     return None if x is None or not np.isfinite(x) else round(float(x), nd)
 
 
+def analyse_store_run(store: Store, run: str, opts: ReportOptions = ReportOptions()) -> analysis.RunAnalysis:
+    """The typed, unrounded measures of one run (``reduce.analysis.RunAnalysis``)."""
+    a = store.analysis_arrays(run)
+    return analysis.analyse(a["touched"], a["valid"], a["rel"], a["com_xy"], a["heading"], a["status"],
+                            opts.options(a["periods"]), run=run, amplitude_deg=a["amplitude_deg"],
+                            chirality=a["chirality"], gait=a["gait"], period_s=a["period_s"])
+
+
 def analyse_run(store: Store, run: str, opts: ReportOptions = ReportOptions()) -> dict:
-    """Numbers and per-period arrays of one run.
+    """Numbers and per-period arrays of one run, as the report prints and draws them.
 
     Returns:
-      ``summary`` (JSON-ready numbers) and ``arrays`` (for the figures).
+      ``summary`` (JSON-ready numbers, rounded as report.json prints them) and ``arrays`` (for the
+      figures); the typed, unrounded result is :func:`analyse_store_run`'s.
     """
-    d = store.run(run, fields=("config", "valid", "touched", "rel", "com", "status"))
-    attrs = store.run_attrs[run]
-    k = int(attrs["periods"])
-    o = opts.resolve(k)
-    w = float(store.config["scene"]["robot"]["body_length"])
-    period = float(attrs["period_s"])
-    valid = d["valid"]
-    touched = d["touched"][:, :, 0] & valid[:, None]
-    rel = d["rel"].astype(float)
-    com = d["com"][..., :2].astype(float) / w
-    s: dict = {"run": run, "amplitude_deg": float(attrs["amplitude_deg"]), "chirality": str(attrs["chirality"]),
-               "gait": str(attrs["gait"]), "period_s": period, "periods": k, "configs": int(len(valid)),
-               "valid": int(valid.sum()), "options": dataclasses.asdict(o)}
-    pb = binding.binding_probability(touched, valid)
-    s["pb_end"], s["pb_throughout"] = [list(map(_r, pb["end"][:3])), list(map(_r, pb["throughout"][:3]))]
-    s["bad_status"] = int(((d["status"] & int(BAD_STATUS)) != 0).sum())
-    runs = binding.bound_runs(touched)
-    s["bound_runs"] = int(len(runs["length"]))
-    arrays: dict = {"touched": touched}
-    # glider anatomy
-    steady = GL.steady_mask(touched, o.burn_in) & np.isfinite(rel).all(-1)
-    samples = rel[steady]
-    s["steady_samples"] = int(len(samples))
-    if len(samples) >= 5 * o.clusters:  # fewer samples than this would be clustered into noise
-        cl = GL.find_clusters(samples, k=o.clusters)
-        kinds = GL.period_kinds(cl, rel, touched)
-        final = GL.final_type(kinds, touched, window=min(10, k))
-        typed = GL.typed_lifetimes(kinds, touched)
-        s["clusters"] = [{"kind": GL.NAMES[int(kd)], "r_W": _r(c[0]), "theta_deg": _r(np.degrees(c[1]) % 360, 1),
-                          "phi_deg": _r(np.degrees(c[2]) % 360, 1), "samples": int(n)}
-                         for c, kd, n in zip(cl.centers, cl.kind, cl.sizes)]
-        nv = max(int(valid.sum()), 1)
-        for kind in (GL.C1, GL.C2):
-            name = GL.NAMES[kind]
-            sel = typed["kind"] == kind
-            lt = typed["length"][sel]
-            s[name] = {"steady_samples": int((kinds[steady] == kind).sum()),
-                       "basin_fraction": _r((final == kind).sum() / nv),
-                       "basin_configs": int((final == kind).sum()),
-                       "runs": int(sel.sum()),
-                       "lifetime_mean": _r(lt.mean()) if len(lt) else None,
-                       "lifetime_median": _r(np.median(lt)) if len(lt) else None,
-                       "censored_fraction": _r(typed["censored"][sel].mean()) if len(lt) else None}
-        arrays.update(clusters=cl, kinds=kinds, samples=samples, sample_kinds=kinds[steady], typed=typed,
-                      final=final)
-    # transport of gliders, measured as the paper measured it
-    heading = d["com"][..., 2].astype(float)
-    tracks3 = GL.glider_tracks(np.concatenate([com, heading[..., None]], -1), touched,
-                               min_periods=o.glider_min_periods)
-    tracks = tracks3[..., :2]
-    s["gliders"] = int(len(tracks))
-    if len(tracks):
-        ex = transport.msd_exponent(tracks, lag_range=o.fit_lags, centered=True)
-        lags, m, _ = transport.msd(tracks, centered=True)
-        s["beta"] = {"value": _r(ex.beta, 3), "err": _r(ex.err, 3), "lo": _r(ex.lo, 3), "hi": _r(ex.hi, 3),
-                     "tracks": ex.tracks, "lag_range": list(ex.lag_range), "method": ex.method, "centered": True}
-        net = transport.net_speed(tracks)
-        v, vlo, vhi, _ = transport.bootstrap_interval(net)
-        steps = transport.step_lengths(tracks)
-        per_track_step = np.array([np.nanmean(x) for x in steps])
-        st_m, st_lo, st_hi, _ = transport.bootstrap_interval(per_track_step)
-        s["v_com"] = {"net_W_per_period": _r(v, 5), "net_lo": _r(vlo, 5), "net_hi": _r(vhi, 5),
-                      "net_W_per_s": _r(v / period, 5),
-                      "glide_W_per_period": _r(_finite_mean(transport.glide_speed(tracks)), 5),
-                      "mean_step_W_per_period": _r(st_m, 5), "step_lo": _r(st_lo, 5), "step_hi": _r(st_hi, 5)}
-        s["turning"] = {"median_direction_change_deg": _r(np.degrees(transport.median_direction_change(tracks)), 2),
-                        "direction_persistence": _r(transport.direction_persistence(tracks), 3),
-                        "straightness_20": _r(transport.straightness(tracks, min(20, tracks.shape[1] - 1)), 3)}
-        turn_g = np.degrees(transport.signed_turn_per_track(tracks3[..., 2]))
-        t, tlo, thi, _ = transport.bootstrap_interval(turn_g)
-        s["signed_heading_turn"] = {"deg_per_period": _r(t, 3), "lo": _r(tlo, 3), "hi": _r(thi, 3),
-                                    "gliders": int(np.isfinite(turn_g).sum())}
-        arrays.update(msd=(lags, m), tracks=tracks, heading_turn_per_glider=turn_g)
-    turn = transport.turning(heading)[touched[:, 1:] & touched[:, :-1]]
-    s["signed_heading_turn_deg_per_period"] = _r(np.degrees(np.nanmean(turn)), 3) if turn.size else None
-    ss = GL.steady_separation(rel, touched, window=o.steady_window)
-    s["steady_r"] = {"mean_W": _r(ss["mean"]), "std_W": _r(ss["std"]), "sem_W": _r(ss["sem"]), "pairs": ss["pairs"]}
-    return {"summary": s, "arrays": arrays}
+    res = analyse_store_run(store, run, opts)
+    return {"summary": res.summary(_r), "arrays": res.arrays()}
 
 
 def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> dict:

@@ -509,6 +509,22 @@ class Store:
             g = f["runs"][name]
             return {k: g[k][()] for k in fields}
 
+    def analysis_arrays(self, name: str | None = None) -> dict:
+        """One scan run's per-period arrays as ``reduce.analysis`` reads them (its module docstring) and the
+        run's attributes: ``touched`` (invalid starts cleared), ``valid``, ``rel``, ``com_xy`` (in body
+        lengths W), ``heading``, ``status``, ``periods``, ``period_s``, ``amplitude_deg``, ``chirality``,
+        ``gait``."""
+        name = name or self.runs[0]
+        d = self.run(name, fields=("valid", "touched", "rel", "com", "status"))
+        attrs = self.run_attrs[name]
+        w = float(self.config["scene"]["robot"]["body_length"])
+        valid = d["valid"].astype(bool)
+        return {"touched": d["touched"][:, :, 0] & valid[:, None], "valid": valid, "rel": d["rel"].astype(float),
+                "com_xy": d["com"][..., :2].astype(float) / w, "heading": d["com"][..., 2].astype(float),
+                "status": d["status"], "periods": int(attrs["periods"]), "period_s": float(attrs["period_s"]),
+                "amplitude_deg": float(attrs["amplitude_deg"]), "chirality": str(attrs["chirality"]),
+                "gait": str(attrs["gait"])}
+
 
 # stage-independent settings of a relaxation store: two stores with the same
 # values of everything else are stages of one study

@@ -23,8 +23,7 @@ from typing import Callable
 
 import numpy as np
 
-from .reduce import gliders as GL
-from .report import analyse_run
+from .reduce import analysis, gliders as GL
 from .runner import store_header
 from .scan import run_scan
 from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, params_json, with_overrides
@@ -133,14 +132,15 @@ def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict
 
 def glider_starts(store: Store, kind: str, pairs: int) -> np.ndarray:
     """[P, 3] (|r|, theta, phi) at the end of the last period of the first
-    ``pairs`` lanes (lane order) that end as steady ``kind`` gliders."""
-    a = analyse_run(store, store.runs[0])
-    if "final" not in a["arrays"]:
+    ``pairs`` lanes (lane order) that end as steady ``kind`` gliders (the glider types alone:
+    ``reduce.analysis.glider_types``, with the report's default options)."""
+    a = store.analysis_arrays(store.runs[0])
+    o = analysis.Options.for_periods(a["periods"])
+    types = analysis.glider_types(a["rel"], a["touched"], a["valid"], o.burn_in, o.clusters)
+    if types is None:
         return np.zeros((0, 3))
-    final = a["arrays"]["final"]
-    lanes = np.flatnonzero(final == {"C1": GL.C1, "C2": GL.C2}[kind])[:pairs]
-    rel = store.run(store.runs[0], fields=("rel",))["rel"]
-    return rel[lanes, -1].astype(np.float64)
+    lanes = np.flatnonzero(types.final == {"C1": GL.C1, "C2": GL.C2}[kind])[:pairs]
+    return a["rel"][lanes, -1].astype(np.float64)
 
 
 def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.Path, model: str,

@@ -96,3 +96,17 @@ def test_one_number_formatter_prints_missing_values_as_a_dash():
     assert formatting.pm(1.0, math.nan, ".1f") == "1.0 ± –"
     assert claims.ci(0.1, 0.05, 0.2, ".2f") == formatting.ci(0.1, 0.05, 0.2)
     assert report._pm(1.0, math.nan) == "1.000 ± –" and report._ci(None, 0.0, 1.0) == "–"
+
+
+def test_the_reducers_import_no_store_engine_or_page_and_the_study_runner_no_report():
+    """reduce/ is numpy on plain arrays: it imports nothing that reads stores, runs the engine or writes
+    pages (it may use labels and formatting-free helpers); studies/runner pick stores' contents through the
+    typed layer (reduce.analysis), not through the report that formats it."""
+    graph = _import_graph(PACKAGE)
+    upstream = ("smarticle_mjx.store", "smarticle_mjx.engine", "smarticle_mjx.report", "smarticle_mjx.validate",
+                "smarticle_mjx.studies", "smarticle_mjx.runner", "smarticle_mjx.plots", "smarticle_mjx.cli")
+    bad = [f"{m} imports {d}" for m, deps in sorted(graph.items()) if m.startswith("smarticle_mjx.reduce")
+           for d in sorted(deps) if d.startswith(upstream)]
+    bad += [f"{m} imports {d}" for m in ("smarticle_mjx.studies", "smarticle_mjx.runner")
+            for d in sorted(graph.get(m, ())) if d == "smarticle_mjx.report"]
+    assert not bad, "\n".join(bad)

@@ -308,6 +308,42 @@ def test_analyse_run_recovers_the_constructed_answers(synthetic_store):
     assert s["steady_r"]["mean_W"] == pytest.approx(1.6, abs=0.01) and s["steady_r"]["pairs"] == 10
 
 
+def test_the_typed_parts_carry_the_constructed_answers_unrounded(synthetic_store):
+    """The typed layer (reduce.analysis) on the built store's arrays: each part is a frozen dataclass of
+    unrounded numbers, the glider types alone give the same lanes as the whole analysis, and the store's
+    JSON summary is the rounded serialisation of the same object."""
+    import dataclasses
+
+    from smarticle_mjx.reduce import analysis
+    from smarticle_mjx.studies import glider_starts
+    st = Store(synthetic_store)
+    a = st.analysis_arrays("a090.00")
+    o = analysis.Options.for_periods(a["periods"])
+    res = analysis.analyse(a["touched"], a["valid"], a["rel"], a["com_xy"], a["heading"], a["status"], o,
+                           run="a090.00", amplitude_deg=a["amplitude_deg"], chirality=a["chirality"], gait=a["gait"],
+                           period_s=a["period_s"])
+    for part in (res, res.binding, res.types, res.types.c1, res.transport, res.separation, res.binding.end):
+        assert dataclasses.is_dataclass(part) and type(part).__dataclass_params__.frozen
+    assert res.binding.end.value == 10 / 35 and res.binding.end.n == 35  # exactly, not to 4 decimals
+    assert res.binding.end.lo < 10 / 35 < res.binding.end.hi
+    assert res.binding.bad_status == 0 and res.valid == 35
+    assert (res.types.c1.basin_configs, res.types.c2.basin_configs) == (10, 0)
+    assert res.types.c2.lifetime_mean == 26.0 and res.types.c2.censored_fraction == 0.0
+    assert res.transport.gliders == 10 and abs(res.transport.net_speed.value - 0.10) < 1e-6
+    assert np.degrees(res.transport.signed_heading_turn.value) == pytest.approx(1.5, abs=1e-4)
+    alone = analysis.glider_types(a["rel"], a["touched"], a["valid"], o.burn_in, o.clusters)
+    np.testing.assert_array_equal(alone.final, res.types.final)
+    c1_lanes = np.flatnonzero(res.types.final == GL.C1)
+    assert list(c1_lanes) == list(range(10))
+    run0 = st.runs[0]  # glider_starts reads the store's first run (50 deg here), by the glider types alone
+    b = st.analysis_arrays(run0)
+    first = analysis.glider_types(b["rel"], b["touched"], b["valid"], o.burn_in, o.clusters)
+    want = b["rel"][np.flatnonzero(first.final == GL.C1)[:4], -1]
+    np.testing.assert_allclose(glider_starts(st, "C1", 4), want)
+    assert analyse_run(st, "a090.00", ReportOptions())["summary"] == res.summary(lambda x, nd=4: (
+        None if x is None or not np.isfinite(x) else round(float(x), nd)))
+
+
 def test_smx_report_writes_every_figure_and_the_table(synthetic_store, tmp_path):
     out = tmp_path / "rep"
     r = CliRunner().invoke(app, ["report", str(synthetic_store), "--out", str(out)])
