@@ -54,7 +54,8 @@ class ReportOptions:
                                             self.fit_lags, self.clusters)
 
 
-def _r(x, nd=4):
+def round_for_report(x, nd=4):
+    """How report.json and the report's tables round a number (None for a missing or non-finite one)."""
     return None if x is None or not np.isfinite(x) else round(float(x), nd)
 
 
@@ -74,7 +75,7 @@ def analyse_run(store: Store, run: str, opts: ReportOptions = ReportOptions()) -
       figures); the typed, unrounded result is :func:`analyse_store_run`'s.
     """
     res = analyse_store_run(store, run, opts)
-    return {"summary": res.summary(_r), "arrays": res.arrays()}
+    return {"summary": res.summary(round_for_report), "arrays": res.arrays()}
 
 
 def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> dict:

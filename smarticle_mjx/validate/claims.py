@@ -124,40 +124,40 @@ def lone_drift(ev: dict) -> Outcome:
 
 
 # ----------------------------------------------------- the random study at 90 deg
-# evidence: report.analyse_run of the store ({"summary": ..., "arrays": ...})
+# evidence: the study's reduce.analysis.RunAnalysis (typed, unrounded; rounded only where printed here)
 
-def _untyped(a90: dict) -> Outcome | None:
+def _untyped(a90) -> Outcome | None:
     """Not measurable (nothing tested) when the study has too few steady samples of both glider types."""
-    s90 = a90["summary"]
-    if s90.get("C1") and s90.get("C2"):
+    if a90.types is not None:
         return None
-    return Outcome(None, f"too few steady bound samples of both types to cluster ({s90['steady_samples']})", "", "–")
+    return Outcome(None, f"too few steady bound samples of both types to cluster ({a90.steady_samples})", "", "–")
 
 
 @claim("both_types", "both C1 (φ ≈ 180°) and C2 (φ ≈ 0°) gliders form", "Fig. 2C–D, 4D",
        "each type holds > 5 % of the steady bound samples (k-means, named by φ)", ("random_90",), needs=_untyped)
-def both_types(a90: dict) -> Outcome:
-    s90 = a90["summary"]
-    c1, c2, tot = s90["C1"], s90["C2"], s90["steady_samples"]
-    both = c1["steady_samples"] > TYPE_SHARE * tot and c2["steady_samples"] > TYPE_SHARE * tot
+def both_types(a90) -> Outcome:
+    ty, tot, o = a90.types, a90.steady_samples, a90.options
+    c1, c2 = ty.c1.steady_samples, ty.c2.steady_samples
+    both = c1 > TYPE_SHARE * tot and c2 > TYPE_SHARE * tot
+    cl = ty.clusters
     return Outcome(bool(both),
-                   f"C1 {c1['steady_samples']}, C2 {c2['steady_samples']} of {tot} steady bound samples; clusters: "
-                   + "; ".join(f"{c['kind']} \\|r\\| {c['r_W']:.2f} W, θ {c['theta_deg']:.0f}°, "
-                               f"φ {c['phi_deg']:.0f}° ({c['samples']})" for c in s90["clusters"]),
-                   f"k-means ({s90['options']['clusters']} clusters) on per-period (\\|r\\|, θ, φ) of bound pairs "
-                   f"after period {s90['options']['burn_in']}, each cluster named by its mean φ (C1 within 90° of "
-                   f"180°). {s90['valid']} valid random starts, {s90['periods']} periods.")
+                   f"C1 {c1}, C2 {c2} of {tot} steady bound samples; clusters: "
+                   + "; ".join(f"{GL.NAMES[int(kd)]} \\|r\\| {f(c[0], '.2f')} W, θ {f(np.degrees(c[1]) % 360, '.0f')}°, "
+                               f"φ {f(np.degrees(c[2]) % 360, '.0f')}° ({int(n)})"
+                               for c, kd, n in zip(cl.centers, cl.kind, cl.sizes)),
+                   f"k-means ({o.clusters} clusters) on per-period (\\|r\\|, θ, φ) of bound pairs "
+                   f"after period {o.burn_in}, each cluster named by its mean φ (C1 within 90° of "
+                   f"180°). {a90.valid} valid random starts, {a90.periods} periods.")
 
 
 @claim("c1_basin", "C1's basin is larger than C2's", "Fig. 4C–D (text)",
        "95 % intervals of the two basin fractions do not overlap, C1 above", ("random_90",), needs=_untyped)
-def c1_basin(a90: dict) -> Outcome:
-    s90 = a90["summary"]
-    c1, c2, n = s90["C1"], s90["C2"], s90["valid"]
-    lo1, hi1 = binding.binomial_interval(c1["basin_configs"], n)
-    lo2, hi2 = binding.binomial_interval(c2["basin_configs"], n)
+def c1_basin(a90) -> Outcome:
+    c1, c2, n = a90.types.c1, a90.types.c2, a90.valid
+    lo1, hi1 = binding.binomial_interval(c1.basin_configs, n)
+    lo2, hi2 = binding.binomial_interval(c2.basin_configs, n)
     return Outcome(bool(lo1 > hi2),
-                   f"C1 {ci(c1['basin_fraction'], lo1, hi1, '.3f')}, C2 {ci(c2['basin_fraction'], lo2, hi2, '.3f')} "
+                   f"C1 {ci(c1.basin_fraction, lo1, hi1, '.3f')}, C2 {ci(c2.basin_fraction, lo2, hi2, '.3f')} "
                    f"of {n} valid starts",
                    "Basin = valid starts that end as that glider (bound in each of the last 10 periods, majority "
                    "type); exact binomial intervals.")
@@ -166,19 +166,19 @@ def c1_basin(a90: dict) -> Outcome:
 @claim("c1_lifetime", "C1 lives longer than C2", "Fig. 6B",
        "mean C1 lifetime > mean C2 lifetime, and C1 longer by a one-sided Mann–Whitney test at p < 0.05 "
        "(stricter than before)", ("random_90",), needs=_untyped)
-def c1_lifetime(a90: dict) -> Outcome:
-    s90 = a90["summary"]
-    c1, c2 = s90["C1"], s90["C2"]
-    typed = a90["arrays"]["typed"]
+def c1_lifetime(a90) -> Outcome:
+    c1, c2, typed = a90.types.c1, a90.types.c2, a90.types.typed
     l1, l2 = typed["length"][typed["kind"] == GL.C1], typed["length"][typed["kind"] == GL.C2]
     from scipy.stats import mannwhitneyu
     p = float(mannwhitneyu(l1, l2, alternative="greater").pvalue) if len(l1) and len(l2) else np.nan
-    ok = bool((c1["lifetime_mean"] or 0) > (c2["lifetime_mean"] or 0) and p < ALPHA) if np.isfinite(p) else None
+    m1 = c1.lifetime_mean if finite(c1.lifetime_mean) else 0.0
+    m2 = c2.lifetime_mean if finite(c2.lifetime_mean) else 0.0
+    ok = bool(m1 > m2 and p < ALPHA) if np.isfinite(p) else None
     return Outcome(ok,
-                   f"mean bound-run length C1 {f(c1['lifetime_mean'], '.1f')} ({len(l1)} runs), "
-                   f"C2 {f(c2['lifetime_mean'], '.1f')} ({len(l2)} runs) periods; one-sided Mann–Whitney p = "
-                   f"{f(p, '.2g')} (still bound at the end: C1 {f(c1['censored_fraction'], '.0%')}, "
-                   f"C2 {f(c2['censored_fraction'], '.0%')}; {s90['periods']}-period trials)",
+                   f"mean bound-run length C1 {f(c1.lifetime_mean, '.1f')} ({len(l1)} runs), "
+                   f"C2 {f(c2.lifetime_mean, '.1f')} ({len(l2)} runs) periods; one-sided Mann–Whitney p = "
+                   f"{f(p, '.2g')} (still bound at the end: C1 {f(c1.censored_fraction, '.0%')}, "
+                   f"C2 {f(c2.censored_fraction, '.0%')}; {a90.periods}-period trials)",
                    "Lifetime = length of a bound run typed by its majority; runs still bound at the end are cut "
                    "there (censored), which shortens the longer-lived type, so the test is conservative.")
 
@@ -190,22 +190,21 @@ def beta_holds(beta) -> bool | None:
 
 @claim("beta", "gliders at 90° move nearly ballistically (β ≈ 1.8)", "Fig. 3A, 3C",
        f"|β − {BETA_PAPER:g}| < {BETA_TOLERANCE:g}", ("random_90",))
-def beta(a90: dict) -> Outcome:
-    s90 = a90["summary"]
-    b = s90.get("beta") or {}
-    v, tu, ht = s90.get("v_com") or {}, s90.get("turning") or {}, s90.get("signed_heading_turn") or {}
-    o = s90["options"]
-    measured = (f"β = {ci(b.get('value'), b.get('lo'), b.get('hi'))} ({b['tracks']} gliders ≥ "
-                f"{o['glider_min_periods']} periods, delays {b['lag_range']}); net gliding speed V_com "
-                f"{ci(v.get('net_W_per_period'), v.get('net_lo'), v.get('net_hi'), '.4f')} W/period (mean step "
-                f"{f(v.get('mean_step_W_per_period'), '.4f')}); direction of travel turns a median "
-                f"{f(tu.get('median_direction_change_deg'), '.0f')}° per period, persistence "
-                f"{f(tu.get('direction_persistence'))}; signed body-heading turn "
-                f"{ci(ht.get('deg_per_period'), ht.get('lo'), ht.get('hi'))}°/period") if b else "no gliders"
-    return Outcome(beta_holds(b.get("value")), measured,
-                   f"Gliders = each lane's longest bound run ≥ {o['glider_min_periods']} periods (the paper: > 30 "
+def beta(a90) -> Outcome:
+    tr, o = a90.transport, a90.options
+    measured = "no gliders"
+    if tr is not None:
+        b, v, ht = tr.beta, tr.net_speed, tr.signed_heading_turn
+        measured = (f"β = {ci(b.beta, b.lo, b.hi)} ({b.tracks} gliders ≥ {o.glider_min_periods} periods, delays "
+                    f"{list(b.lag_range)}); net gliding speed V_com {ci(v.value, v.lo, v.hi, '.4f')} W/period (mean "
+                    f"step {f(tr.mean_step.value, '.4f')}); direction of travel turns a median "
+                    f"{f(np.degrees(tr.median_direction_change), '.0f')}° per period, persistence "
+                    f"{f(tr.direction_persistence)}; signed body-heading turn "
+                    f"{ci(np.degrees(ht.value), np.degrees(ht.lo), np.degrees(ht.hi))}°/period")
+    return Outcome(beta_holds(tr.beta.beta if tr is not None else None), measured,
+                   f"Gliders = each lane's longest bound run ≥ {o.glider_min_periods} periods (the paper: > 30 "
                    "cycles); the paper's centred MSD ⟨x²⟩ − ⟨x⟩² pooled over gliders and time origins, slope over "
-                   f"delays {o['fit_lags']} periods; 95 % bootstrap interval over gliders. V_com = \\|end − start\\| / "
+                   f"delays {o.fit_lags} periods; 95 % bootstrap interval over gliders. V_com = \\|end − start\\| / "
                    "periods of a glider's once-per-period centre of mass (mean over gliders, bootstrap interval).")
 
 

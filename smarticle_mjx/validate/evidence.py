@@ -15,7 +15,8 @@ import numpy as np
 from .. import plots
 from ..configs import TWO_PI
 from ..reduce import binding, gliders as GL, transport
-from ..report import amplitude_panels, analyse_run
+from ..reduce import analysis
+from ..report import amplitude_panels, analyse_store_run, round_for_report
 from ..store import Store
 from .claims import pb_groups
 
@@ -65,20 +66,23 @@ def polar(path) -> dict:
             "fraction_range": (float(np.nanmin(frac)), float(np.nanmax(frac)))}
 
 
-def mirror(a90: dict, acw: dict) -> dict:
-    """Mean signed body-heading turn per glider under each chirality (bootstrap intervals) and C1's
-    mean θ counter-clockwise beside the mirrored (180 deg − θ) clockwise one."""
+def mirror(a90: analysis.RunAnalysis, acw: analysis.RunAnalysis) -> dict:
+    """Mean signed body-heading turn per glider under each chirality (degrees per period, bootstrap
+    intervals) and C1's mean θ counter-clockwise beside the mirrored (180 deg − θ) clockwise one."""
     def c1_theta(a):
-        ar = a["arrays"]
-        if "samples" not in ar:
+        if a.types is None:
             return float("nan")
-        s = ar["samples"][ar["sample_kinds"] == GL.C1]
+        s = a.types.samples[a.types.sample_kinds == GL.C1]
         return circ_mean_deg(s[:, 1]) if len(s) else float("nan")
 
-    turns = {name: transport.bootstrap_interval(a["arrays"].get("heading_turn_per_glider", np.zeros(0)))
-             for name, a in (("ccw", a90), ("cw", acw))}
-    return {"ccw": turns["ccw"], "cw": turns["cw"], "c1_theta_ccw": c1_theta(a90),
-            "c1_theta_cw_mirrored": (180 - c1_theta(acw)) % 360, "cw_summary": acw["summary"]}
+    def turns(a):
+        per_glider = a.transport.heading_turn_per_glider if a.transport is not None else np.zeros(0)
+        return transport.bootstrap_interval(np.degrees(per_glider))
+
+    return {"ccw": turns(a90), "cw": turns(acw), "c1_theta_ccw": c1_theta(a90),
+            "c1_theta_cw_mirrored": (180 - c1_theta(acw)) % 360,
+            "cw_summary": {"valid": acw.valid, "periods": acw.periods,
+                           "options": {"glider_min_periods": acw.options.glider_min_periods}}}
 
 
 def descent(paths: list, window: int) -> list[dict]:
@@ -96,18 +100,19 @@ def descent(paths: list, window: int) -> list[dict]:
     return [dict(zip(("amplitude_deg", "r_W", "lo", "hi", "pairs", "started"), x)) for x in sep]
 
 
-def pb(sums: list[dict]) -> dict:
+def pb(runs: list[analysis.RunAnalysis]) -> dict:
     """P_b at the end per amplitude and pooled over the claim's amplitude groups (exact intervals)."""
-    amps = np.array([s_["amplitude_deg"] for s_ in sums])
-    n = np.array([s_["valid"] for s_ in sums])
-    k = np.array([round((s_["pb_end"][0] or 0) * v) for s_, v in zip(sums, n)])
+    amps = np.array([a.amplitude_deg for a in runs])
+    n = np.array([a.binding.end.n for a in runs])
+    k = np.array([int(round(a.binding.end.value * a.binding.end.n)) if a.binding.end.n else 0 for a in runs])
     pooled = {}
     for g, sel in pb_groups(amps).items():
         kk, nn = int(k[sel].sum()), int(n[sel].sum())
         lo, hi = binding.binomial_interval(kk, nn)
         pooled[g] = (kk / nn if nn else np.nan, float(lo), float(hi), nn)
-    return {"amplitudes_deg": amps, "pb_end": [s_["pb_end"] for s_ in sums], "valid": n, "pooled": pooled,
-            "periods": sums[0]["periods"]}
+    return {"amplitudes_deg": amps,
+            "pb_end": [[a.binding.end.value, a.binding.end.lo, a.binding.end.hi] for a in runs], "valid": n,
+            "pooled": pooled, "periods": runs[0].periods}
 
 
 def relax(paths: list, figures: pathlib.Path, made: list) -> dict:
@@ -153,21 +158,20 @@ def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | Non
     a90 = None
     if "random_90" in stores:
         st = Store(stores["random_90"])
-        a90 = analyse_run(st, st.runs[0])
+        a90 = analyse_store_run(st, st.runs[0])
         for key in ("both_types", "c1_basin", "c1_lifetime", "beta"):
             ev[key] = a90
-        arr, s90 = a90["arrays"], a90["summary"]
-        extra["random_90"] = s90
-        if "clusters" in arr:
-            made += fig(plots.relative_coordinates(arr["samples"], arr["sample_kinds"], arr["clusters"], figures,
+        extra["random_90"] = a90.summary()
+        if a90.types is not None:
+            ty = a90.types
+            made += fig(plots.relative_coordinates(ty.samples, ty.sample_kinds, ty.clusters, figures,
                                                    "relcoords_90", title="random scan, 90°, bound periods ≥ "
-                                                   f"{s90['options']['burn_in']}"))
-            made += fig(plots.lifetimes(arr["typed"], s90["periods"], figures, "lifetimes_90",
-                                        title="random scan, 90°"))
+                                                   f"{a90.options.burn_in}"))
+            made += fig(plots.lifetimes(ty.typed, a90.periods, figures, "lifetimes_90", title="random scan, 90°"))
         made += fig(plots.phase_diagram(stores["random_90"], figures, st.runs[0], formats=("png",),
                                         stem="phase_diagram_random_90"))
-        if "tracks" in arr:
-            tr = arr["tracks"][:12]
+        if a90.transport is not None:
+            tr = a90.transport.tracks[:12]
             made += fig(plots.tracks([t[np.isfinite(t).all(-1)] for t in tr], [f"glider {i}" for i in range(len(tr))],
                                      figures, "gliders_90", title="glider tracks, 90° (first 12)"))
 
@@ -186,14 +190,13 @@ def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | Non
                 continue
             path = stores[name][0] if isinstance(stores[name], list) else stores[name]
             sd = Store(path)
-            a = analyse_run(sd, sd.runs[0])
-            sm = a["summary"]
-            extra[name] = sm
-            lags = sm["options"]["fit_lags"]
-            parts.append(f"{sm['gliders']} of {sm['valid']} {what} bound ≥ {sm['options']['glider_min_periods']} "
-                         "periods")
-            if "tracks" in a["arrays"]:
-                tracks.append(a["arrays"]["tracks"])
+            a = analyse_store_run(sd, sd.runs[0])
+            extra[name] = a.summary()
+            lags = a.options.fit_lags
+            parts.append(f"{a.transport.gliders if a.transport else 0} of {a.valid} {what} bound ≥ "
+                         f"{a.options.glider_min_periods} periods")
+            if a.transport is not None:
+                tracks.append(a.transport.tracks)
             if name == "diagonal_90":
                 adiag = a
         bd = None
@@ -206,7 +209,7 @@ def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | Non
 
     if "cw_90" in stores and a90 is not None:
         sc = Store(stores["cw_90"])
-        ev["mirror"] = extra["mirror"] = mirror(a90, analyse_run(sc, sc.runs[0]))
+        ev["mirror"] = extra["mirror"] = mirror(a90, analyse_store_run(sc, sc.runs[0]))
 
     if "descent" in stores:
         spec = (specs or {}).get("descent")
@@ -225,12 +228,12 @@ def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | Non
     amp_runs = []
     if "amplitude" in stores:
         sa = Store(stores["amplitude"])
-        amp_runs = [analyse_run(sa, r) for r in sa.runs]
-        sums = [a["summary"] for a in amp_runs]
-        extra["amplitude"] = sums
-        ev["pb_dip"] = pb(sums)
+        amp_runs = [analyse_store_run(sa, r) for r in sa.runs]
+        extra["amplitude"] = [a.summary() for a in amp_runs]
+        ev["pb_dip"] = pb(amp_runs)
         extra["pb_pooled"] = ev["pb_dip"]["pooled"]
-        amps = [s_["amplitude_deg"] for s_ in sums]
+        sums = [a.summary(round_for_report) for a in amp_runs]
+        amps = [a.amplitude_deg for a in amp_runs]
         made += fig(plots.pb_curve(amps, [s_["pb_end"] for s_ in sums], [s_["pb_throughout"] for s_ in sums],
                                    figures))
         made += fig(plots.versus_amplitude(amps, amplitude_panels(sums), figures, "vs_amplitude"))
@@ -242,11 +245,11 @@ def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | Non
 
     curves = {}
     for label, a in (("90° square", a90), ("90° diagonal, started bound", adiag)):
-        if a is not None and "msd" in a["arrays"]:
-            curves[label] = a["arrays"]["msd"]
+        if a is not None and a.transport is not None:
+            curves[label] = (a.transport.msd_lags, a.transport.msd)
     for a in amp_runs:
-        if a["summary"]["amplitude_deg"] in (10, 50, 90) and "msd" in a["arrays"]:
-            curves[f"{a['summary']['amplitude_deg']:g}° (sweep)"] = a["arrays"]["msd"]
+        if a.amplitude_deg in (10, 50, 90) and a.transport is not None:
+            curves[f"{a.amplitude_deg:g}° (sweep)"] = (a.transport.msd_lags, a.transport.msd)
     if curves:
         made += fig(plots.msd_curves(curves, figures))
     return ev, extra, made
