@@ -4,7 +4,7 @@ page's glider verdicts the model's or the step's?
 
 Runs the study's 400 starts x 75 periods at ``--dt`` (default 0.0625 ms, the reference of
 docs/timestep.md) into ``--store`` (resumed if interrupted), then reduces it and every
-``--compare`` store exactly as `smx validate` does (report.analyse_run): gliders, beta
+``--compare`` store exactly as `smx validate` does (report.analyse_store_run): gliders, beta
 (centred MSD over delays 5-15, bootstrap interval over gliders), net gliding speed, bound
 fraction at the end. Writes results/validation_step.json.
 
@@ -22,7 +22,7 @@ import time
 
 ROOT = pathlib.Path(__file__).resolve().parent
 from smarticle_mjx import presets
-from smarticle_mjx.report import analyse_run
+from smarticle_mjx.report import analyse_store_run
 from smarticle_mjx.scan import run_scan
 from smarticle_mjx.specs import load_study
 from smarticle_mjx.store import Store
@@ -32,7 +32,7 @@ STUDY = ROOT.parent / "sweeps" / "validation_random.toml"
 
 def reduce(path: pathlib.Path) -> dict:
     st = Store(path)
-    s = analyse_run(st, st.runs[0])["summary"]  # one amplitude, one run, as smx validate reads it
+    s = analyse_store_run(st, st.runs[0]).summary()  # one amplitude, one run, unrounded, as smx validate reads it
     b, v = s.get("beta") or {}, s.get("v_com") or {}
     return {"store": path.name, "timestep_ms": float(st.config["scene"]["timestep"]) * 1e3,
             "package": str(st.attrs.get("package")), "valid": s["valid"], "gliders": s["gliders"],
