@@ -161,3 +161,44 @@ def test_crowd_reads_a_relaxation_store_layout_and_skips_flagged_trials():
     # within a window of period 12
     assert 12 - RX.PLATEAU_WINDOW <= s.plateau.median <= 12 and s.plateau.censored == 0
     assert s.phi_plateau.median == pytest.approx(s.phi_start.median / 1.02 ** 24, rel=1e-3)
+
+
+# ------------------------------------------------------------------ pairs inside the crowd
+
+def test_an_isolated_pair_run_its_speed_its_escape_and_what_ended_it():
+    """Robots 0 and 1 touch each other alone for 20 periods while their centre moves 0.01 W per period
+    straight away from robot 2, parked 3 W off: one run of 20 periods, speed 0.01 W/period, escape
+    0.01 W/period (the gap grows by the full step), ended when robot 0 touches robot 2. Robots 2 and 3
+    touch each other for 5 periods only (< PAIR_RUN_MIN): a passing collision, no run."""
+    n, k = 4, 30
+    touched = _touch(n, k, {(0, 20): [(0, 1)], (20, 22): [(0, 2)], (3, 8): [(2, 3)]})
+    xy = np.array([[0.0, 0.0], [W, 0.0], [-3 * W + 0.5 * W, 0.0], [-6 * W, 0.0]])
+    poses, start = _still(xy, k)
+    v = 0.01 * W
+    poses[:20, 0:2, 0] += v * np.arange(1, 21)[:, None]  # the pair moves +x, away from robots 2 and 3
+    poses[20:, 0:2, 0] += v * 20
+    runs = RX.pair_runs(poses, touched, start, W)
+    assert [(q.pair, q.start, q.length, q.ended_by) for q in runs] == [((0, 1), 0, 20, "third")]
+    q = runs[0]
+    assert q.speed == pytest.approx(0.01) and q.escape == pytest.approx(0.01)
+    assert q.gap_end == pytest.approx(3.0 + 0.2)
+
+
+def test_a_pair_run_is_broken_by_a_third_touch_and_ends_censored_unbound_or_off_the_plate():
+    n, k = 3, 60
+    # pair (0, 1): periods 0-14 alone, period 15 robot 1 also touches robot 2 (not isolated), 16-59 alone
+    touched = _touch(n, k, {(0, 60): [(0, 1)], (15, 16): [(1, 2)]})
+    poses, start = _still(np.array([[0, 0], [W, 0], [5 * W, 0]]), k)
+    runs = RX.pair_runs(poses, touched, start, W)
+    assert [(q.start, q.length, q.ended_by) for q in runs] == [(0, 15, "third"), (16, 44, "end")]
+    assert runs[0].speed == 0.0 and runs[0].escape == 0.0  # parked: no speed, no escape
+    runs = RX.pair_runs(poses, touched, start, W, periods_run=40)
+    assert [(q.length, q.ended_by) for q in runs] == [(15, "third"), (24, "end")]
+    runs = RX.pair_runs(poses, touched, start, W, left_plate=np.array([0, 31, 0]))  # robot 1 off in period 31
+    assert [(q.length, q.ended_by) for q in runs] == [(15, "third"), (14, "plate")]
+    touched2 = _touch(n, k, {(0, 25): [(0, 1)]})
+    assert [q.ended_by for q in RX.pair_runs(poses, touched2, start, W)] == ["unbound"]
+    s = RX.pair_run_summary([RX.pair_runs(poses, touched, start, W), ()])
+    assert (s.trials, s.runs, s.trials_with_run) == (2, 2, 1)
+    assert s.ended_by == {"third": 1, "unbound": 0, "plate": 0, "end": 1} and s.length.censored == 1
+    assert s.length.mean == pytest.approx((15 + 44) / 2)

@@ -578,6 +578,140 @@ def crowd_summary(trials: list[CrowdTrial]) -> CrowdSummary:
         phi_cut_by_plate=sum(1 for t in trials if not np.isfinite(t.phi[-1])))
 
 
+# ----------------------------------------------------------------- pairs inside the crowd
+# (added November 2026, after version 0.3.5, for the discovery issue's collision-level diagnosis; defined
+# and tested on built tracks before any model trial was measured with it)
+
+PAIR_RUN_MIN = 10  # periods: the lab's chain lifetime (8-10); a shorter bound episode is a passing collision
+
+
+@dataclasses.dataclass(frozen=True)
+class PairRun:
+    """One pair bound on its own inside or beside the crowd.
+
+    A pair is *isolated-bound* in a period when its two robots touched each other in it, neither touched
+    a third robot in it, and both were on the plate; a run is a maximal stretch of consecutive such
+    periods of at least ``PAIR_RUN_MIN``. Unlike a glider episode (:func:`trial_episodes`) no distance
+    from the rest is asked: this is the pair before it has (or has not) left.
+
+    Attributes:
+      pair: the robots (i, j), i < j.
+      start: first period (0-based); ``length``: periods.
+      ended_by: what ended it: "third" (in the next period a robot of the pair touched a third robot),
+        "unbound" (the two stopped touching and neither touched a third), "plate" (a robot left the
+        plate) or "end" (the trial ended: censored).
+      speed: |c_end - c_before| / length, W per period; c is the pair's centre (the mean of the two body
+        centres) at the end of a period, c_before at the end of the period before the run (the start).
+      escape: (g_end - g_before) / length, W per period; g is the distance from c to the nearest body
+        centre of a third robot on the plate (NaN with no third robot): > 0 when the pair moved away
+        from the rest.
+      gap_end: g at the run's last period (W).
+    """
+
+    pair: tuple[int, int]
+    start: int
+    length: int
+    ended_by: str
+    speed: float
+    escape: float
+    gap_end: float
+
+
+def pair_runs(poses, touched, start, body_length: float, left_plate=None, periods_run=None,
+              min_periods: int = PAIR_RUN_MIN) -> tuple[PairRun, ...]:
+    """Every isolated bound pair run of one trial (see :class:`PairRun`), in order of start and pair.
+
+    Args: as :func:`crowd_trial` (poses [K, N, 5] in m, touched [K, P], start [N, 5], left_plate [N]
+    1-based first period off the plate, 0 never; periods_run the periods simulated)."""
+    poses = np.asarray(poses, float)
+    touched = np.asarray(touched, bool)
+    k, n = poses.shape[:2]
+    run = k if periods_run is None else int(periods_run)
+    pairs = pairs_of(n)
+    if touched.shape != (k, len(pairs)):
+        raise ValueError(f"touched has shape {touched.shape}, {n} robots over {k} periods need {(k, len(pairs))}")
+    on = np.ones((k, n), bool)
+    if left_plate is not None:
+        for r, lp in enumerate(np.asarray(left_plate)):
+            if lp > 0:
+                on[lp - 1:, r] = False
+    on[run:] = False
+    xy = np.concatenate([np.asarray(start, float)[None, :, :2], poses[..., :2]]) / body_length  # [K + 1, N, 2]
+    live_on = np.concatenate([np.ones((1, n), bool), on])
+    third = _third_touch(touched, pairs)
+    out = []
+    for p, (i, j) in enumerate(pairs):
+        ok = touched[:, p] & ~third[:, p] & on[:, i] & on[:, j]
+        if not ok.any():
+            continue
+        others = [c for c in range(n) if c not in (i, j)]
+        c = (xy[:, i] + xy[:, j]) / 2  # [K + 1, 2], index 0 the start
+        if others:
+            d = np.linalg.norm(xy[:, others] - c[:, None], axis=-1)
+            d = np.where(live_on[:, others], d, np.inf).min(1)
+            gap = np.where(np.isfinite(d), d, np.nan)
+        else:
+            gap = np.full(k + 1, np.nan)
+        r = binding.bound_runs(ok[None])
+        for s0, length in zip(r["start"], r["length"]):
+            s0, length = int(s0), int(length)
+            if length < min_periods:
+                continue
+            e = s0 + length  # first period after the run (0-based)
+            if e >= run:
+                why = "end"
+            elif not (on[e, i] and on[e, j]):
+                why = "plate"
+            elif third[e, p]:
+                why = "third"
+            else:
+                why = "unbound"
+            out.append(PairRun((int(i), int(j)), s0, length, why,
+                               float(np.linalg.norm(c[e] - c[s0]) / length),
+                               float((gap[e] - gap[s0]) / length), float(gap[e])))
+    out.sort(key=lambda q: (q.start, q.pair))
+    return tuple(out)
+
+
+@dataclasses.dataclass(frozen=True)
+class PairRunSummary:
+    """Isolated bound pair runs pooled over a study's usable trials.
+
+    Attributes:
+      trials: trials measured; ``runs``: runs in all; ``trials_with_run``: trials with at least one.
+      length: run lengths (periods; ``censored`` those cut by the trial's end).
+      speed, escape: per run, W per period (:class:`PairRun`).
+      ended_by: run count per cause ("third", "unbound", "plate", "end").
+    """
+
+    trials: int
+    runs: int
+    trials_with_run: int
+    length: Spread
+    speed: Spread
+    escape: Spread
+    ended_by: dict
+
+
+def pair_run_summary(per_trial: list[tuple[PairRun, ...]]) -> PairRunSummary:
+    runs = [q for t in per_trial for q in t]
+    causes = {c: sum(1 for q in runs if q.ended_by == c) for c in ("third", "unbound", "plate", "end")}
+    esc = [q.escape for q in runs if np.isfinite(q.escape)]
+    return PairRunSummary(len(per_trial), len(runs), sum(1 for t in per_trial if t),
+                          Spread.of([q.length for q in runs], causes["end"]), Spread.of([q.speed for q in runs]),
+                          Spread.of(esc), causes)
+
+
+def crowd_pairs(data: dict, min_periods: int = PAIR_RUN_MIN) -> tuple[PairRunSummary, list[tuple[PairRun, ...]]]:
+    """:func:`pair_runs` of every usable trial of :func:`smarticle_mjx.store.read_relax` output (the trials
+    :func:`crowd` measures), and their summary."""
+    W = float(data["body_length"])
+    ok = np.asarray(data["valid"], bool) & ((np.asarray(data["status"]) & int(BAD_STATUS)) == 0)
+    per = [pair_runs(data["poses"][t], data["touched"][t], data["start_poses"][t], W, data["left_plate"][t],
+                     data["periods_run"][t], min_periods) for t in np.flatnonzero(ok)]
+    return pair_run_summary(per), per
+
+
 def crowd(data: dict) -> tuple[CrowdSummary, list[CrowdTrial]]:
     """The crowd measures of every usable trial of :func:`smarticle_mjx.store.read_relax` output
     (the trials :func:`analyse` counts: valid, no bad status)."""
