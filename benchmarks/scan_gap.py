@@ -18,6 +18,14 @@ engine; what the scan's wall time adds beyond its time inside the engine is
 
     python benchmarks/scan_gap.py            # ~3 minutes on 2 cores
 
+Each workload is also timed with single-thread ``mj_step`` (MuJoCo's rollout on
+one MjData, controls computed beforehand) over the same lanes and periods (a
+prefix of ``--reference-lanes``): the fraction printed is the backend's rate
+over threads x that, what the native path (gait controls, sensors, slicing,
+Python between calls) keeps of the physics' own speed on the same work. The
+default-step issue's target is >= 0.9 on the touching lanes. ``--timestep``
+times another step.
+
 It also times single-thread ``mj_step`` on engine.py's pair scene, the unit
 engine.json gives each machine's speed in.
 """
@@ -58,15 +66,48 @@ def timed(backend, lanes: Lanes, periods: int) -> float:
     return lanes.size * periods * steps_per_period(lanes.period, backend.scene.params.timestep) / wall
 
 
+def mj_step_same_lanes(scene: Scene, lanes: Lanes, periods: int) -> float:
+    """Steps per second of single-thread ``mj_step`` (MuJoCo's rollout on one MjData, no Python between
+    steps) over the same lanes and periods from rest, the controls computed before the clock starts: what
+    the physics alone costs on this workload."""
+    import mujoco
+    from mujoco import rollout as mj_rollout
+    from smarticle_mjx.engine.core import lane_controls
+    from smarticle_mjx.engine.native import NativeBackend
+    m = scene.model
+    nstep = steps_per_period(lanes.period, m.opt.timestep)
+    be = NativeBackend(scene, nthread=1)
+    state = be.initial_state(lanes)
+    be.close()
+    ctrl = lane_controls(scene, lanes, m.opt.timestep * np.arange(nstep))  # one period serves every period
+    d = mujoco.MjData(m)
+    t, steps = 0.0, 0
+    for i in range(lanes.size):
+        init = state[i:i + 1]
+        for _ in range(periods):
+            t0 = time.perf_counter()
+            states, _ = mj_rollout.rollout(m, d, init, ctrl[i:i + 1], nstep=nstep)
+            t += time.perf_counter() - t0
+            init = states[:, -1]
+            steps += nstep
+    return steps / t
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--batch", type=int, default=256)
     ap.add_argument("--periods", type=int, default=2, help="periods timed per workload")
     ap.add_argument("--classify-periods", type=int, default=3, help="periods that decide touching or apart")
+    ap.add_argument("--timestep", type=float, default=None, help="the scene's step (default: the preset's)")
+    ap.add_argument("--reference-lanes", type=int, default=32,
+                    help="lanes of each workload timed with single-thread mj_step (a prefix of the batch)")
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "scan_gap.json"))
     args = ap.parse_args()
     cfg = ScanConfig()  # smx scan's defaults: 5000 starts in 0.5-2.5 W, seed 0, 90 degrees
     params = presets.params(cfg.model)
+    if args.timestep is not None:
+        import dataclasses
+        params = dataclasses.replace(params, timestep=args.timestep)
     inputs = RunInputs.of(cfg, params, 90.0)
     backend = make_backend("native", Scene.build(params, 2))
     valid = np.flatnonzero(inputs.valid)[: 4 * args.batch]
@@ -85,15 +126,25 @@ def main():
         "scan starts that stay apart": lanes.take(apart_idx),
     }
     rows = {}
+    threads = backend.nthread
     for name, ln in workloads.items():
-        rows[name] = {"lanes": int(ln.size), "steps_per_s": timed(backend, ln, args.periods)}
-        print(f"{name}: {ln.size} lanes, {rows[name]['steps_per_s']:,.0f} steps/s", flush=True)
+        rate = timed(backend, ln, args.periods)
+        # the same lanes' physics alone: single-thread mj_step over a prefix of them (same periods from rest)
+        ref = mj_step_same_lanes(backend.scene, ln.take(np.arange(min(ln.size, args.reference_lanes))),
+                                 args.periods)
+        rows[name] = {"lanes": int(ln.size), "steps_per_s": rate, "mj_step_same_lanes_steps_per_s": ref,
+                      "reference_lanes": int(min(ln.size, args.reference_lanes)),
+                      "fraction_of_threads_x_mj_step": rate / (threads * ref)}
+        print(f"{name}: {ln.size} lanes, {rate:,.0f} steps/s on {threads} threads; single-thread mj_step on "
+              f"the same lanes {ref:,.0f} steps/s: {rows[name]['fraction_of_threads_x_mj_step']:.2f} of "
+              f"{threads}x", flush=True)
     backend.close()
     from smarticle_mjx import scene as S
     # the machine's speed in engine.py's own unit, so results of other machines can be scaled
     single = mj_step_rate(S.compile_model(S.build_mjcf(params, S.standard_poses("pair"))))
     print(f"single-thread mj_step, engine.py's pair scene: {single:,.0f} steps/s")
-    out = {"model": cfg.model, "timestep": params.timestep, "batch": args.batch, "periods": args.periods,
+    out = {"model": cfg.model, "timestep": params.timestep, "integrator": params.integrator, "threads": threads,
+           "batch": args.batch, "periods": args.periods,
            "mj_step_single_thread_steps_per_s": single, "machine": platform.platform(),
            "processor": _cpu(),
            "touching_fraction_of_first_valid": float(touched.mean()), "rows": rows}
