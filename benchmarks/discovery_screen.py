@@ -76,7 +76,22 @@ def measure(data: dict, seed: int = 0) -> dict:
     md = np.where(np.isfinite(md), md, np.inf)
     depth_mm = -1e3 * np.minimum(md.min(axis=(1, 2)), 0.0)
     first_flag = [int(np.argmax((md[i] < -2e-3).any(-1))) + 1 for i in range(len(md)) if (md[i] < -2e-3).any()]
+    # pairs inside the crowd (reduce.relaxation.pair_runs; added after the first screens, defined before it ran
+    # on any of them): runs >= 10 periods in which a pair touched only itself, how fast its centre moved,
+    # whether it drew away from the nearest third robot, and what ended the run
+    pr, per_trial = RX.crowd_pairs(data)
+    rng_pairs = np.random.default_rng(seed + 1)  # its own stream: the other rows' intervals stay as they were
+    pairs = {"runs": pr.runs, "trials_with_run": pr.trials_with_run, "length_median": pr.length.median,
+             "length_censored": pr.length.censored, "speed_median": pr.speed.median,
+             "speed_median_ci": _boot([[q.speed for q in t] for t in per_trial], np.median, rng_pairs),
+             "escape_median": pr.escape.median,
+             "escape_median_ci": _boot([[q.escape for q in t if np.isfinite(q.escape)] for t in per_trial],
+                                       np.median, rng_pairs),
+             "gap_end_max": max((q.gap_end for t in per_trial for q in t if np.isfinite(q.gap_end)),
+                                default=float("nan")),
+             "ended_by": pr.ended_by}
     return {
+        "pairs": pairs,
         "depth_mm_median": float(np.median(depth_mm)), "depth_mm_max": float(depth_mm.max()),
         "depth_mm": [float(x) for x in depth_mm], "first_flag_period": first_flag,
         "trials": int(len(data["valid"])), "flagged": flagged, "usable": usable,
@@ -122,6 +137,23 @@ def table(rows: dict, screen: dict) -> list[str]:
     return out
 
 
+def pair_table(rows: dict) -> list[str]:
+    """Pairs inside the crowd: runs of >= 10 periods in which a pair touched only itself."""
+    out = ["| variant | runs (trials with one) | length median (censored) | speed median (W/period) | "
+           "escape median (W/period) | largest gap at a run's end (W) | ended by a third robot / unbinding / "
+           "plate / trial's end |", "|---|---|---|---|---|---|---|"]
+    for name, r in rows.items():
+        p = r.get("pairs")
+        if not p:
+            continue
+        sc, ec, e = p["speed_median_ci"], p["escape_median_ci"], p["ended_by"]
+        out.append(f"| {name} | {p['runs']} ({p['trials_with_run']}/{r['usable']}) | {f(p['length_median'], 0)} "
+                   f"({p['length_censored']}) | {f(p['speed_median'], 4)} [{f(sc[0], 4)}, {f(sc[1], 4)}] | "
+                   f"{f(p['escape_median'], 4)} [{f(ec[0], 4)}, {f(ec[1], 4)}] | {f(p['gap_end_max'], 2)} | "
+                   f"{e['third']} / {e['unbound']} / {e['plate']} / {e['end']} |")
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--study", type=pathlib.Path, default=ROOT.parent / "sweeps" / "screens" / "discovery.toml")
@@ -162,6 +194,8 @@ def main(argv=None):
         print(f"{v['name']}: done in {row['wall_s']:.0f} s", flush=True)
     rows = {n: res["variants"][n] for n in names if n in res["variants"] and "refused" not in res["variants"][n]}
     print("\n".join(table(rows, screen)))
+    print()
+    print("\n".join(pair_table(rows)))
 
 
 if __name__ == "__main__":
