@@ -89,7 +89,12 @@ def measure(data: dict, seed: int = 0) -> dict:
                                        np.median, rng_pairs),
              "gap_end_max": max((q.gap_end for t in per_trial for q in t if np.isfinite(q.gap_end)),
                                 default=float("nan")),
-             "ended_by": pr.ended_by}
+             "ended_by": pr.ended_by,
+             # which kind of pair (PairRun.kind, added after the first rows were measured)
+             "kinds": {k: sum(1 for t in per_trial for q in t if q.kind == k) for k in ("C1", "C2")},
+             "speed_median_by_kind": {k: float(np.median(v)) if (v := [q.speed for t in per_trial for q in t
+                                                                         if q.kind == k]) else float("nan")
+                                      for k in ("C1", "C2")}}
     return {
         "pairs": pairs,
         "depth_mm_median": float(np.median(depth_mm)), "depth_mm_max": float(depth_mm.max()),
@@ -139,16 +144,19 @@ def table(rows: dict, screen: dict) -> list[str]:
 
 def pair_table(rows: dict) -> list[str]:
     """Pairs inside the crowd: runs of >= 10 periods in which a pair touched only itself."""
-    out = ["| variant | runs (trials with one) | length median (censored) | speed median (W/period) | "
-           "escape median (W/period) | largest gap at a run's end (W) | ended by a third robot / unbinding / "
-           "plate / trial's end |", "|---|---|---|---|---|---|---|"]
+    out = ["| variant | runs (trials with one) | C1 / C2 | length median (censored) | speed median (W/period) | "
+           "speed median C1 · C2 | escape median (W/period) | largest gap at a run's end (W) | ended by a third "
+           "robot / unbinding / plate / trial's end |", "|---|---|---|---|---|---|---|---|---|"]
     for name, r in rows.items():
         p = r.get("pairs")
         if not p:
             continue
         sc, ec, e = p["speed_median_ci"], p["escape_median_ci"], p["ended_by"]
-        out.append(f"| {name} | {p['runs']} ({p['trials_with_run']}/{r['usable']}) | {f(p['length_median'], 0)} "
+        kd, sk = p.get("kinds", {}), p.get("speed_median_by_kind", {})
+        out.append(f"| {name} | {p['runs']} ({p['trials_with_run']}/{r['usable']}) | {kd.get('C1', '–')} / "
+                   f"{kd.get('C2', '–')} | {f(p['length_median'], 0)} "
                    f"({p['length_censored']}) | {f(p['speed_median'], 4)} [{f(sc[0], 4)}, {f(sc[1], 4)}] | "
+                   f"{f(sk.get('C1'), 4)} · {f(sk.get('C2'), 4)} | "
                    f"{f(p['escape_median'], 4)} [{f(ec[0], 4)}, {f(ec[1], 4)}] | {f(p['gap_end_max'], 2)} | "
                    f"{e['third']} / {e['unbound']} / {e['plate']} / {e['end']} |")
     return out

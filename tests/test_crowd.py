@@ -182,6 +182,10 @@ def test_an_isolated_pair_run_its_speed_its_escape_and_what_ended_it():
     q = runs[0]
     assert q.speed == pytest.approx(0.01) and q.escape == pytest.approx(0.01)
     assert q.gap_end == pytest.approx(3.0 + 0.2)
+    assert q.kind == "C2" and q.mean_cos_phi == pytest.approx(1.0)  # both headings 0: aligned
+    poses[:, 1, 2] = math.pi  # robot 1 turned round: anti-aligned, a C1 pair
+    q = RX.pair_runs(poses, touched, start, W)[0]
+    assert q.kind == "C1" and q.mean_cos_phi == pytest.approx(-1.0)
 
 
 def test_a_pair_run_is_broken_by_a_third_touch_and_ends_censored_unbound_or_off_the_plate():

@@ -606,6 +606,9 @@ class PairRun:
         centre of a third robot on the plate (NaN with no third robot): > 0 when the pair moved away
         from the rest.
       gap_end: g at the run's last period (W).
+      mean_cos_phi, kind: the mean cos(phi) over the run's periods and the type it names, C1
+        (anti-aligned, < 0) or C2, as for a glider episode (added after the first screen rows had been
+        measured, to tell which kind of pair sits still; the other fields' definitions are unchanged).
     """
 
     pair: tuple[int, int]
@@ -615,6 +618,8 @@ class PairRun:
     speed: float
     escape: float
     gap_end: float
+    mean_cos_phi: float = float("nan")
+    kind: str = ""
 
 
 def pair_runs(poses, touched, start, body_length: float, left_plate=None, periods_run=None,
@@ -666,9 +671,11 @@ def pair_runs(poses, touched, start, body_length: float, left_plate=None, period
                 why = "third"
             else:
                 why = "unbound"
+            _, _, phi = C.relative_coordinates(poses[s0:e, i], poses[s0:e, j], body_length)
+            mc = float(np.mean(np.cos(phi)))
             out.append(PairRun((int(i), int(j)), s0, length, why,
                                float(np.linalg.norm(c[e] - c[s0]) / length),
-                               float((gap[e] - gap[s0]) / length), float(gap[e])))
+                               float((gap[e] - gap[s0]) / length), float(gap[e]), mc, C1 if mc < 0 else C2))
     out.sort(key=lambda q: (q.start, q.pair))
     return tuple(out)
 
