@@ -59,6 +59,8 @@ def measure(data: dict, seed: int = 0) -> dict:
     usable = len(trials)
     a = RX.analyse(data, min_periods=APART_PERIODS)
     apart = a["emerged"]
+    # the lab's own rule (bound and apart >= 100 periods), where the trials are long enough for it
+    lab_rule = RX.analyse(data, min_periods=100)["emerged"] if int(np.max(data["periods_run"])) >= 100 else None
     plateau = [[np.nan if t.plateau.censored else t.plateau.period] for t in trials]
     plateau_c = [[t.plateau.period] for t in trials]  # censored ones at their (lower-bound) end
     chains = [[e.lifetime for e in t.chains] for t in trials]
@@ -111,7 +113,7 @@ def measure(data: dict, seed: int = 0) -> dict:
         "loop_fraction": summary.loop_fraction, "chained_at_end": summary.chained_at_end,
         "contact_relaxation_median": summary.contact_relaxation.median,
         "contact_relaxation_ci": _boot(contact, np.median, rng),
-        "apart_30": apart, "apart_30_ci": (float(lo), float(hi)),
+        "apart_30": apart, "apart_30_ci": (float(lo), float(hi)), "apart_100": lab_rule,
         "moved_W": float(np.mean([m[0] for m in moved])) if moved else float("nan"),
         "moved_W_ci": _boot(moved, np.mean, rng),
         "plateau_values": [p[0] for p in plateau],
@@ -146,7 +148,8 @@ def pair_table(rows: dict) -> list[str]:
     """Pairs inside the crowd: runs of >= 10 periods in which a pair touched only itself."""
     out = ["| variant | runs (trials with one) | C1 / C2 | length median (censored) | speed median (W/period) | "
            "speed median C1 · C2 | escape median (W/period) | largest gap at a run's end (W) | ended by a third "
-           "robot / unbinding / plate / trial's end |", "|---|---|---|---|---|---|---|---|---|"]
+           "robot / unbinding / plate / trial's end | apart ≥ 100 (the lab's rule) |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for name, r in rows.items():
         p = r.get("pairs")
         if not p:
@@ -158,7 +161,8 @@ def pair_table(rows: dict) -> list[str]:
                    f"({p['length_censored']}) | {f(p['speed_median'], 4)} [{f(sc[0], 4)}, {f(sc[1], 4)}] | "
                    f"{f(sk.get('C1'), 4)} · {f(sk.get('C2'), 4)} | "
                    f"{f(p['escape_median'], 4)} [{f(ec[0], 4)}, {f(ec[1], 4)}] | {f(p['gap_end_max'], 2)} | "
-                   f"{e['third']} / {e['unbound']} / {e['plate']} / {e['end']} |")
+                   f"{e['third']} / {e['unbound']} / {e['plate']} / {e['end']} | "
+                   + (f"{r['apart_100']}/{r['usable']} |" if r.get("apart_100") is not None else "– |"))
     return out
 
 
