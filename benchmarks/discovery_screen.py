@@ -187,7 +187,7 @@ def main(argv=None):
     args.stores.mkdir(parents=True, exist_ok=True)
     res = json.loads(args.out.read_text()) if args.out.exists() else {}
     res.setdefault("variants", {})
-    res.update(screen=screen, model=args.model, study=str(args.study.relative_to(ROOT.parent)))
+    res.update(screen=screen, model=args.model, study=str(args.study.resolve().relative_to(ROOT.parent)))
     for v in variants:
         if v["name"] not in only:
             continue
