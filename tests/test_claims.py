@@ -210,3 +210,13 @@ def test_contour_length_grows_linearly_with_lifetime_when_correlated_and_signifi
     assert verdict("contour", relax_ev(50, 100, r=0.5, p=1e-5)) == "does not hold"  # r must exceed 0.5
     assert verdict("contour", relax_ev(50, 100, r=0.9, p=0.2)) == "does not hold"
     assert verdict("contour", relax_ev(50, 100, r=0.9, p=0.01, n_episodes=2)) == "not measurable"
+
+
+def test_every_claim_names_a_builder_that_reads_its_studies():
+    """The page gathers each claim's evidence through the builder the claim names (validate/evidence.py):
+    every name resolves, and the builder reads exactly the studies the claim says it needs."""
+    from smarticle_mjx.validate import evidence
+    for c in K.CLAIMS:
+        b = evidence.BUILDERS.get(c.evidence)
+        assert b is not None, f"{c.key}: no evidence builder {c.evidence!r}"
+        assert set(b.studies) == set(c.studies), (c.key, b.studies, c.studies)

@@ -62,7 +62,8 @@ class Outcome:
 class Claim:
     """One claim of the paper: ``text``, the ``paper``'s value, the ``test`` (stated before any number),
     the ``studies`` whose stores it needs (the first missing one is named when it cannot be measured) and
-    ``measure`` (evidence -> :class:`Outcome`)."""
+    ``measure`` (evidence -> :class:`Outcome`), and ``evidence``: the name of the builder in
+    :mod:`.evidence` that reads that evidence from the stores (``evidence.BUILDERS``)."""
 
     key: str
     text: str
@@ -70,6 +71,7 @@ class Claim:
     test: str
     studies: tuple[str, ...]
     measure: Callable[[Any], Outcome]
+    evidence: str = ""
 
     def outcome(self, evidence) -> Outcome:
         return self.measure(evidence)
@@ -90,12 +92,13 @@ CLAIMS: list[Claim] = []
 
 
 def claim(key: str, text: str, paper: str, test: str, studies: tuple[str, ...],
-          needs: Callable[[Any], Outcome | None] | None = None):
+          needs: Callable[[Any], Outcome | None] | None = None, *, evidence: str):
     """Register the decorated function as the measure of a claim (the page lists them in this order).
-    ``needs``: a precondition checked first; the Outcome it returns (not measurable) stands for the claim's."""
+    ``needs``: a precondition checked first; the Outcome it returns (not measurable) stands for the claim's.
+    ``evidence``: the builder in :mod:`.evidence` whose result the measure takes."""
     def deco(fn):
         measure = fn if needs is None else functools.wraps(fn)(lambda ev: needs(ev) or fn(ev))
-        CLAIMS.append(Claim(key, text, paper, test, studies, measure))
+        CLAIMS.append(Claim(key, text, paper, test, studies, measure, evidence))
         return measure
     return deco
 
@@ -107,7 +110,7 @@ def get(key: str) -> Claim:
 # ----------------------------------------------------------------- lone robot
 
 @claim("lone_drift", "a lone robot drifts about 0.0015 W per cycle at 90°", "0.0015 W/cycle (text)",
-       "net drift within a factor 3 of 0.0015 W/cycle", ())
+       "net drift within a factor 3 of 0.0015 W/cycle", (), evidence="lone_robots")
 def lone_drift(ev: dict) -> Outcome:
     """``ev``: net and mean step per cycle (W) of the lone robot at 90 deg, cycles."""
     n90 = ev["net_W_per_cycle"]
@@ -134,7 +137,8 @@ def _untyped(a90) -> Outcome | None:
 
 
 @claim("both_types", "both C1 (φ ≈ 180°) and C2 (φ ≈ 0°) gliders form", "Fig. 2C–D, 4D",
-       "each type holds > 5 % of the steady bound samples (k-means, named by φ)", ("random_90",), needs=_untyped)
+       "each type holds > 5 % of the steady bound samples (k-means, named by φ)", ("random_90",), needs=_untyped,
+       evidence="random_90")
 def both_types(a90) -> Outcome:
     ty, tot, o = a90.types, a90.steady_samples, a90.options
     c1, c2 = ty.c1.steady_samples, ty.c2.steady_samples
@@ -142,7 +146,8 @@ def both_types(a90) -> Outcome:
     cl = ty.clusters
     return Outcome(bool(both),
                    f"C1 {c1}, C2 {c2} of {tot} steady bound samples; clusters: "
-                   + "; ".join(f"{GL.NAMES[int(kd)]} \\|r\\| {f(c[0], '.2f')} W, θ {f(np.degrees(c[1]) % 360, '.0f')}°, "
+                   + "; ".join(f"{GL.NAMES[int(kd)]} \\|r\\| {f(c[0], '.2f')} W, "
+                               f"θ {f(np.degrees(c[1]) % 360, '.0f')}°, "
                                f"φ {f(np.degrees(c[2]) % 360, '.0f')}° ({int(n)})"
                                for c, kd, n in zip(cl.centers, cl.kind, cl.sizes)),
                    f"k-means ({o.clusters} clusters) on per-period (\\|r\\|, θ, φ) of bound pairs "
@@ -151,7 +156,8 @@ def both_types(a90) -> Outcome:
 
 
 @claim("c1_basin", "C1's basin is larger than C2's", "Fig. 4C–D (text)",
-       "95 % intervals of the two basin fractions do not overlap, C1 above", ("random_90",), needs=_untyped)
+       "95 % intervals of the two basin fractions do not overlap, C1 above", ("random_90",), needs=_untyped,
+       evidence="random_90")
 def c1_basin(a90) -> Outcome:
     c1, c2, n = a90.types.c1, a90.types.c2, a90.valid
     lo1, hi1 = binding.binomial_interval(c1.basin_configs, n)
@@ -165,7 +171,8 @@ def c1_basin(a90) -> Outcome:
 
 @claim("c1_lifetime", "C1 lives longer than C2", "Fig. 6B",
        "mean C1 lifetime > mean C2 lifetime, and C1 longer by a one-sided Mann–Whitney test at p < 0.05 "
-       "(stricter than before)", ("random_90",), needs=_untyped)
+       "(stricter than before)", ("random_90",), needs=_untyped,
+       evidence="random_90")
 def c1_lifetime(a90) -> Outcome:
     c1, c2, typed = a90.types.c1, a90.types.c2, a90.types.typed
     l1, l2 = typed["length"][typed["kind"] == GL.C1], typed["length"][typed["kind"] == GL.C2]
@@ -189,7 +196,7 @@ def beta_holds(beta) -> bool | None:
 
 
 @claim("beta", "gliders at 90° move nearly ballistically (β ≈ 1.8)", "Fig. 3A, 3C",
-       f"|β − {BETA_PAPER:g}| < {BETA_TOLERANCE:g}", ("random_90",))
+       f"|β − {BETA_PAPER:g}| < {BETA_TOLERANCE:g}", ("random_90",), evidence="random_90")
 def beta(a90) -> Outcome:
     tr, o = a90.transport, a90.options
     measured = "no gliders"
@@ -211,7 +218,7 @@ def beta(a90) -> Outcome:
 # ----------------------------------------------------------------- polar scan
 
 @claim("polar_symmetry", "at |r| = 1.3 W the attracted region is nearly symmetric about θ ≈ 270°", "Fig. 7C",
-       "mean θ within 20° of 270° and mirror correlation > 0.7", ("polar",))
+       "mean θ within 20° of 270° and mirror correlation > 0.7", ("polar",), evidence="polar")
 def polar_symmetry(ev: dict) -> Outcome:
     """``ev``: circular mean θ of attracted starts (axis_deg), the mirror correlation of the attracted
     fraction per θ bin, counts, the bins' fraction range and the scan's layout."""
@@ -233,7 +240,7 @@ def polar_symmetry(ev: dict) -> Outcome:
 # ----------------------------------------------------------- diagonal gait
 
 @claim("diagonal_beta", "under the time-symmetric gait β ≈ 1", "Fig. 3C (black)",
-       "|β − 1| < 0.3 from ≥ 5 gliders", ("diagonal_90", "diagonal_random"))
+       "|β − 1| < 0.3 from ≥ 5 gliders", ("diagonal_90", "diagonal_random"), evidence="diagonal")
 def diagonal_beta(ev: dict) -> Outcome:
     """``ev``: ``beta`` (transport.msd_exponent of the pooled glider tracks, or None), ``lags`` and
     ``parts`` (one line per source of bound pairs)."""
@@ -254,7 +261,8 @@ def diagonal_beta(ev: dict) -> Outcome:
 
 @claim("mirror", "opposite chirality gives mirror-image glider trajectories", "Fig. 4E(i–ii)",
        "the 95 % bootstrap intervals of the two mean turns both exclude 0, with opposite signs (stricter than "
-       "before: a sign test that can fail), and C1 θ equal to the mirrored θ within 15°", ("cw_90", "random_90"))
+       "before: a sign test that can fail), and C1 θ equal to the mirrored θ within 15°", ("cw_90", "random_90"),
+       evidence="mirror")
 def mirror(ev: dict) -> Outcome:
     """``ev``: mean signed body-heading turn per glider with its bootstrap interval under each
     chirality ((mean, lo, hi, n) for "ccw" and "cw"), C1's mean θ (ccw) and the mirrored cw one."""
@@ -278,7 +286,7 @@ def mirror(ev: dict) -> Outcome:
 # ------------------------------------------------------- steady |r| vs amplitude
 
 @claim("descent", "steady-state |r| decreases with α_max above 45°, with a sharp drop near 85°", "Fig. 3E",
-       "ρ < 0 with p < 0.05, and the largest drop between 80° and 90°", ("descent",))
+       "ρ < 0 with p < 0.05, and the largest drop between 80° and 90°", ("descent",), evidence="descent")
 def descent(ev: dict) -> Outcome:
     """``ev``: ``sep``, one row per amplitude (amplitude_deg, r_W, lo, hi, pairs, started) in increasing
     amplitude; ``window`` (periods averaged), ``periods`` per stage, ``continuation``."""
@@ -320,7 +328,7 @@ def pb_groups(amps: np.ndarray) -> dict[str, np.ndarray]:
 
 @claim("pb_dip", "P_b(α_max) is lower at intermediate amplitudes (40–60°)", "Fig. 3B",
        "every P_b(end) at 40–60° below the means at 10–30° and at 70–90°, and the pooled 40–60° interval below "
-       "both pooled flank intervals (stricter than before)", ("amplitude",))
+       "both pooled flank intervals (stricter than before)", ("amplitude",), evidence="amplitude")
 def pb_dip(ev: dict) -> Outcome:
     """``ev``: ``amplitudes_deg``, ``pb_end`` ([A, 3] P_b at the end with its interval), ``valid`` per
     amplitude, ``pooled`` (group -> (P, lo, hi, n)), ``periods``."""
@@ -348,7 +356,7 @@ def pb_dip(ev: dict) -> Outcome:
 
 @claim("relax_emergence", "in about half of the relaxation trials a pair glides away together for ≥ 100 periods",
        "77 of 151 trials (Fig. 1)", "model and lab fractions do not differ (Fisher's exact test p ≥ 0.05); "
-       "measurable once the model's 95 % interval is at most 0.3 wide", ("relax",))
+       "measurable once the model's 95 % interval is at most 0.3 wide", ("relax",), evidence="relax")
 def relax_emergence(a: dict) -> Outcome:
     k, n, lab, s = a["emerged"], a["valid"], a["lab"], a["settings"]
     rt = a["relaxation_periods"]
@@ -380,7 +388,7 @@ def crowd_note(c: dict | None) -> str:
 
 
 @claim("relax_distance", "the glider travels 2.9 ± 0.2 W on average", "2.9 ± 0.2 W (text)",
-       "|model − 2.9| ≤ 2 √(SEM² + 0.2²)", ("relax",))
+       "|model − 2.9| ≤ 2 √(SEM² + 0.2²)", ("relax",), evidence="relax")
 def relax_distance(a: dict) -> Outcome:
     d = a["distance"]
     ok = abs(d["mean"] - LAB_DISTANCE_W) <= 2 * math.hypot(d["sem"], LAB_DISTANCE_ERR)
@@ -393,7 +401,7 @@ def relax_distance(a: dict) -> Outcome:
 
 
 @claim("contour", "bound pairs' contour length grows linearly with their lifetime", "SI, contour length vs time",
-       "Pearson r > 0.5 and p < 0.05", ("relax",))
+       "Pearson r > 0.5 and p < 0.05", ("relax",), evidence="relax")
 def contour(a: dict) -> Outcome:
     fit, ty = a["fit"], a["typed"]
     ok = bool(finite(fit["r"]) and fit["r"] > CONTOUR_R and fit["p"] < ALPHA) if fit["n"] >= 3 else None

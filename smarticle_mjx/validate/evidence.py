@@ -7,8 +7,10 @@ missing), the numbers written beside the page (``validation.json``), the figure 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import pathlib
+from typing import Any, Callable
 
 import numpy as np
 
@@ -18,7 +20,7 @@ from ..reduce import binding, gliders as GL, transport
 from ..reduce import analysis
 from ..report import amplitude_panels, analyse_store_run, round_for_report
 from ..store import Store
-from .claims import pb_groups
+from .claims import CLAIMS, pb_groups
 
 
 def circ_mean_deg(a) -> float:
@@ -131,125 +133,200 @@ def relax(paths: list, figures: pathlib.Path, made: list) -> dict:
     return a
 
 
+class Context:
+    """What the evidence builders share while one page is gathered: the stores, the lone robots' tracks,
+    the study specs, the figures folder, the numbers written beside the page (``extra``), the figure
+    files in page order (``made``) and each builder's result, computed once (:meth:`get`)."""
+
+    def __init__(self, stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None):
+        self.stores, self.singles, self.figures, self.specs = stores, singles, figures, specs or {}
+        self.extra: dict = {}
+        self.made: list[str] = []
+        self._done: dict = {}
+
+    def draw(self, paths) -> None:
+        self.made += [p.name for p in paths if p.suffix == ".png"]
+
+    def ready(self, name: str) -> bool:
+        """The builder's studies are there (all of them, or any with ``any_study``)."""
+        b = BUILDERS[name]
+        have = [s in self.stores and self.stores[s] for s in b.studies]
+        return (any(have) if b.any_study else all(have)) if b.studies else bool(self.singles)
+
+    def get(self, name: str):
+        """The evidence ``name`` builds (None when its studies are missing), built once."""
+        if name not in self._done:
+            self._done[name] = BUILDERS[name].build(self) if self.ready(name) else None
+        return self._done[name]
+
+
+@dataclasses.dataclass(frozen=True)
+class Builder:
+    """One kind of evidence: the studies it reads (all needed, or any with ``any_study``; none: the lone
+    robots) and the function that builds it from a :class:`Context`."""
+
+    studies: tuple[str, ...]
+    build: Callable[[Context], Any]
+    any_study: bool = False
+
+
+BUILDERS: dict[str, Builder] = {}
+
+
+def builds(name: str, studies: tuple[str, ...] = (), any_study: bool = False):
+    """Register the decorated function as the builder of evidence ``name`` (claims name it:
+    ``claims.claim(..., evidence=name)``)."""
+    def deco(fn):
+        BUILDERS[name] = Builder(tuple(studies), fn, any_study)
+        return fn
+    return deco
+
+
+@builds("lone_robots")
+def _lone(ctx: Context) -> dict:
+    sing = lone_robots(ctx.singles)
+    ctx.extra["single"] = sing
+    ctx.extra["single_periods"] = np.shape(next(iter(ctx.singles.values()))["xy"])[-2] - 1  # [(R,) T+1, 2]
+    amps = sorted(sing)
+    ctx.draw(plots.versus_amplitude(
+        amps, {"net drift (W/cycle)": ([sing[a]["net_W_per_cycle"] for a in amps], None),
+               r"$\beta_{single}$": ([sing[a]["beta"] for a in amps], [sing[a]["beta_err"] for a in amps]),
+               "heading drift (deg/cycle)": ([sing[a]["heading_deg_per_cycle"] for a in amps], None)},
+        ctx.figures, "single_robot"))
+    return {**sing[90.0], "cycles": ctx.extra["single_periods"]}
+
+
+@builds("random_90", ("random_90",))
+def _random_90(ctx: Context) -> analysis.RunAnalysis:
+    path = ctx.stores["random_90"]
+    st = Store(path)
+    a90 = analyse_store_run(st, st.runs[0])
+    ctx.extra["random_90"] = a90.summary()
+    if a90.types is not None:
+        ty = a90.types
+        ctx.draw(plots.relative_coordinates(ty.samples, ty.sample_kinds, ty.clusters, ctx.figures, "relcoords_90",
+                                            title=f"random scan, 90°, bound periods ≥ {a90.options.burn_in}"))
+        ctx.draw(plots.lifetimes(ty.typed, a90.periods, ctx.figures, "lifetimes_90", title="random scan, 90°"))
+    ctx.draw(plots.phase_diagram(path, ctx.figures, st.runs[0], formats=("png",), stem="phase_diagram_random_90"))
+    if a90.transport is not None:
+        tr = a90.transport.tracks[:12]
+        ctx.draw(plots.tracks([t[np.isfinite(t).all(-1)] for t in tr], [f"glider {i}" for i in range(len(tr))],
+                              ctx.figures, "gliders_90", title="glider tracks, 90° (first 12)"))
+    return a90
+
+
+@builds("polar", ("polar",))
+def _polar(ctx: Context) -> dict:
+    ev = polar(ctx.stores["polar"])
+    ctx.extra["polar"] = {k: ev[k] for k in ("axis_deg", "mirror_correlation", "attracted", "valid", "periods")}
+    ctx.draw(plots.phase_diagram(ctx.stores["polar"], ctx.figures, Store(ctx.stores["polar"]).runs[0],
+                                 formats=("png",), stem="phase_diagram_polar_1p3"))
+    return ev
+
+
+@builds("diagonal", ("diagonal_90", "diagonal_random"), any_study=True)
+def _diagonal(ctx: Context) -> dict:
+    parts, tracks, lags, runs = [], [], None, {}
+    for name, what in (("diagonal_90", "started-bound C1 gliders"), ("diagonal_random", "random starts")):
+        if not ctx.stores.get(name):
+            continue
+        path = ctx.stores[name][0] if isinstance(ctx.stores[name], list) else ctx.stores[name]
+        sd = Store(path)
+        a = analyse_store_run(sd, sd.runs[0])
+        runs[name] = a
+        ctx.extra[name] = a.summary()
+        lags = a.options.fit_lags
+        parts.append(f"{a.transport.gliders if a.transport else 0} of {a.valid} {what} bound ≥ "
+                     f"{a.options.glider_min_periods} periods")
+        if a.transport is not None:
+            tracks.append(a.transport.tracks)
+    bd = None
+    if tracks:
+        L = max(t.shape[1] for t in tracks)
+        allt = np.concatenate([np.pad(t, ((0, 0), (0, L - t.shape[1]), (0, 0)), constant_values=np.nan)
+                               for t in tracks])
+        bd = transport.msd_exponent(allt, lag_range=tuple(lags)) if len(allt) else None
+    return {"beta": bd, "lags": lags, "parts": parts, "runs": runs}
+
+
+@builds("mirror", ("cw_90", "random_90"))
+def _mirror(ctx: Context) -> dict:
+    sc = Store(ctx.stores["cw_90"])
+    ev = mirror(ctx.get("random_90"), analyse_store_run(sc, sc.runs[0]))
+    ctx.extra["mirror"] = ev
+    return ev
+
+
+@builds("descent", ("descent",))
+def _descent(ctx: Context) -> dict:
+    spec = ctx.specs.get("descent")
+    win = spec.steady_window if spec is not None else 10
+    sep = descent(ctx.stores["descent"], win)
+    ctx.extra["descent"] = sep
+    if sep:
+        ctx.draw(plots.versus_amplitude(
+            [x["amplitude_deg"] for x in sep],
+            {"steady |r| (W), started bound": ([x["r_W"] for x in sep],
+                                               [(x["r_W"] - x["lo"], x["hi"] - x["r_W"]) for x in sep])},
+            ctx.figures, "steady_separation"))
+    return {"sep": sep, "window": win, "periods": Store(ctx.stores["descent"][0]).config["scan"]["periods"],
+            "continuation": bool(spec is not None and spec.continuation)}
+
+
+@builds("amplitude", ("amplitude",))
+def _amplitude(ctx: Context) -> dict:
+    sa = Store(ctx.stores["amplitude"])
+    runs = [analyse_store_run(sa, r) for r in sa.runs]
+    ctx.extra["amplitude"] = [a.summary() for a in runs]
+    ev = pb(runs)
+    ctx.extra["pb_pooled"] = ev["pooled"]
+    sums = [a.summary(round_for_report) for a in runs]
+    amps = [a.amplitude_deg for a in runs]
+    ctx.draw(plots.pb_curve(amps, [s_["pb_end"] for s_ in sums], [s_["pb_throughout"] for s_ in sums], ctx.figures))
+    ctx.draw(plots.versus_amplitude(amps, amplitude_panels(sums), ctx.figures, "vs_amplitude"))
+    return {**ev, "runs": runs}
+
+
+@builds("relax", ("relax",))
+def _relax(ctx: Context) -> dict:
+    a = relax(ctx.stores["relax"], ctx.figures, ctx.made)
+    ctx.extra["relax"] = {k: v for k, v in a.items() if k not in ("episodes", "per_trial")}
+    return {**a, "stages": len(ctx.stores["relax"])}
+
+
+def _msd_figure(ctx: Context) -> None:
+    """Every MSD curve the page has, in one figure, after the builders that measure them."""
+    curves = {}
+    a90 = ctx.get("random_90") if "random_90" in ctx._done else None
+    adiag = (ctx._done.get("diagonal") or {}).get("runs", {}).get("diagonal_90")
+    for label, a in (("90° square", a90), ("90° diagonal, started bound", adiag)):
+        if a is not None and a.transport is not None:
+            curves[label] = (a.transport.msd_lags, a.transport.msd)
+    for a in (ctx._done.get("amplitude") or {}).get("runs", []):
+        if a.amplitude_deg in (10, 50, 90) and a.transport is not None:
+            curves[f"{a.amplitude_deg:g}° (sweep)"] = (a.transport.msd_lags, a.transport.msd)
+    if curves:
+        ctx.draw(plots.msd_curves(curves, ctx.figures))
+
+
 def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None = None):
     """Evidence for every claim from the stores there are; figures drawn into ``figures``.
+
+    Each claim names the evidence it needs (``claims.Claim.evidence``, a builder of :data:`BUILDERS`);
+    each builder runs once, in the order of the first claim that needs it, when its studies are there.
 
     Args:
       stores: study name -> store path (scans) or list of stage store paths (started-bound and
         relaxation studies); a study not yet run is absent.
       singles: lone robots' tracks (:func:`smarticle_mjx.validate.single_robots`).
       specs: study name -> its spec (the started-bound studies' windows).
+
+    Returns:
+      (claim key -> its evidence, None where a study is missing; the numbers written beside the page;
+      the figure files in page order).
     """
-    ev, extra, made = {}, {}, []
     figures.mkdir(parents=True, exist_ok=True)
-    fig = lambda paths: [p.name for p in paths if p.suffix == ".png"]  # noqa: E731
-
-    sing = lone_robots(singles)
-    extra["single"] = sing
-    extra["single_periods"] = np.shape(next(iter(singles.values()))["xy"])[-2] - 1  # [(R,) T+1, 2]
-    ev["lone_drift"] = {**sing[90.0], "cycles": extra["single_periods"]}
-    amps = sorted(sing)
-    made += fig(plots.versus_amplitude(
-        amps, {"net drift (W/cycle)": ([sing[a]["net_W_per_cycle"] for a in amps], None),
-               r"$\beta_{single}$": ([sing[a]["beta"] for a in amps], [sing[a]["beta_err"] for a in amps]),
-               "heading drift (deg/cycle)": ([sing[a]["heading_deg_per_cycle"] for a in amps], None)},
-        figures, "single_robot"))
-
-    a90 = None
-    if "random_90" in stores:
-        st = Store(stores["random_90"])
-        a90 = analyse_store_run(st, st.runs[0])
-        for key in ("both_types", "c1_basin", "c1_lifetime", "beta"):
-            ev[key] = a90
-        extra["random_90"] = a90.summary()
-        if a90.types is not None:
-            ty = a90.types
-            made += fig(plots.relative_coordinates(ty.samples, ty.sample_kinds, ty.clusters, figures,
-                                                   "relcoords_90", title="random scan, 90°, bound periods ≥ "
-                                                   f"{a90.options.burn_in}"))
-            made += fig(plots.lifetimes(ty.typed, a90.periods, figures, "lifetimes_90", title="random scan, 90°"))
-        made += fig(plots.phase_diagram(stores["random_90"], figures, st.runs[0], formats=("png",),
-                                        stem="phase_diagram_random_90"))
-        if a90.transport is not None:
-            tr = a90.transport.tracks[:12]
-            made += fig(plots.tracks([t[np.isfinite(t).all(-1)] for t in tr], [f"glider {i}" for i in range(len(tr))],
-                                     figures, "gliders_90", title="glider tracks, 90° (first 12)"))
-
-    if "polar" in stores:
-        ev["polar_symmetry"] = polar(stores["polar"])
-        extra["polar"] = {k: ev["polar_symmetry"][k] for k in ("axis_deg", "mirror_correlation", "attracted", "valid",
-                                                               "periods")}
-        made += fig(plots.phase_diagram(stores["polar"], figures, Store(stores["polar"]).runs[0], formats=("png",),
-                                        stem="phase_diagram_polar_1p3"))
-
-    adiag = None
-    if "diagonal_90" in stores or "diagonal_random" in stores:
-        parts, tracks, lags = [], [], None
-        for name, what in (("diagonal_90", "started-bound C1 gliders"), ("diagonal_random", "random starts")):
-            if name not in stores:
-                continue
-            path = stores[name][0] if isinstance(stores[name], list) else stores[name]
-            sd = Store(path)
-            a = analyse_store_run(sd, sd.runs[0])
-            extra[name] = a.summary()
-            lags = a.options.fit_lags
-            parts.append(f"{a.transport.gliders if a.transport else 0} of {a.valid} {what} bound ≥ "
-                         f"{a.options.glider_min_periods} periods")
-            if a.transport is not None:
-                tracks.append(a.transport.tracks)
-            if name == "diagonal_90":
-                adiag = a
-        bd = None
-        if tracks:
-            L = max(t.shape[1] for t in tracks)
-            allt = np.concatenate([np.pad(t, ((0, 0), (0, L - t.shape[1]), (0, 0)), constant_values=np.nan)
-                                   for t in tracks])
-            bd = transport.msd_exponent(allt, lag_range=tuple(lags)) if len(allt) else None
-        ev["diagonal_beta"] = {"beta": bd, "lags": lags, "parts": parts}
-
-    if "cw_90" in stores and a90 is not None:
-        sc = Store(stores["cw_90"])
-        ev["mirror"] = extra["mirror"] = mirror(a90, analyse_store_run(sc, sc.runs[0]))
-
-    if "descent" in stores:
-        spec = (specs or {}).get("descent")
-        win = spec.steady_window if spec is not None else 10
-        sep = descent(stores["descent"], win)
-        extra["descent"] = sep
-        ev["descent"] = {"sep": sep, "window": win, "periods": Store(stores["descent"][0]).config["scan"]["periods"],
-                         "continuation": bool(spec is not None and spec.continuation)}
-        if sep:
-            made += fig(plots.versus_amplitude(
-                [x["amplitude_deg"] for x in sep],
-                {"steady |r| (W), started bound": ([x["r_W"] for x in sep],
-                                                   [(x["r_W"] - x["lo"], x["hi"] - x["r_W"]) for x in sep])},
-                figures, "steady_separation"))
-
-    amp_runs = []
-    if "amplitude" in stores:
-        sa = Store(stores["amplitude"])
-        amp_runs = [analyse_store_run(sa, r) for r in sa.runs]
-        extra["amplitude"] = [a.summary() for a in amp_runs]
-        ev["pb_dip"] = pb(amp_runs)
-        extra["pb_pooled"] = ev["pb_dip"]["pooled"]
-        sums = [a.summary(round_for_report) for a in amp_runs]
-        amps = [a.amplitude_deg for a in amp_runs]
-        made += fig(plots.pb_curve(amps, [s_["pb_end"] for s_ in sums], [s_["pb_throughout"] for s_ in sums],
-                                   figures))
-        made += fig(plots.versus_amplitude(amps, amplitude_panels(sums), figures, "vs_amplitude"))
-
-    if stores.get("relax"):
-        a = relax(stores["relax"], figures, made)
-        extra["relax"] = {k: v for k, v in a.items() if k not in ("episodes", "per_trial")}
-        ev["relax_emergence"] = ev["relax_distance"] = ev["contour"] = {**a, "stages": len(stores["relax"])}
-
-    curves = {}
-    for label, a in (("90° square", a90), ("90° diagonal, started bound", adiag)):
-        if a is not None and a.transport is not None:
-            curves[label] = (a.transport.msd_lags, a.transport.msd)
-    for a in amp_runs:
-        if a.amplitude_deg in (10, 50, 90) and a.transport is not None:
-            curves[f"{a.amplitude_deg:g}° (sweep)"] = (a.transport.msd_lags, a.transport.msd)
-    if curves:
-        made += fig(plots.msd_curves(curves, figures))
-    return ev, extra, made
+    ctx = Context(stores, singles, figures, specs)
+    ev = {c.key: ctx.get(c.evidence) for c in CLAIMS}
+    _msd_figure(ctx)
+    return ev, ctx.extra, ctx.made
