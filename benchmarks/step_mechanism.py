@@ -15,6 +15,10 @@ body's mean displacement per quarter period, twin.py's measure) for each integra
 the servo's velocity gain kv halved and doubled and without armature at a fine and the default step
 (a probe of the mechanism, not a model change). Writes results/step_kicks.json.
 
+``--family contacts-2ms``: contacts of 2 ms time constant instead of 5 ms at 0.5 and 0.25 ms against
+their own 0.0625 ms reference (results/step_mechanism_contacts-2ms.json): the contacts' softness relative
+to the step.
+
 Per variant: gliders, beta, net speed and direction persistence with 95 % bootstrap intervals and the
 paired bootstrap interval of each difference from the reference (starts resampled together).
 Resumable: each variant's per-period tracks are kept in results/step_mechanism_runs/ and reused.
@@ -69,14 +73,6 @@ FAMILIES = {
         "0.0625 ms, contacts 2 ms (reference)": (6.25e-5, CONTACTS_2MS),
         "0.5 ms, contacts 2 ms": (5e-4, CONTACTS_2MS),
         "0.25 ms, contacts 2 ms": (2.5e-4, CONTACTS_2MS),
-    },
-    # How the converged gliders depend on the contacts' stiffness (added when the contacts-2ms family's
-    # first two rows gave beta ~1 against the default's ~1.5): at 0.25 ms, every row against the
-    # default's 5 ms contacts. The 5 ms row is the same run as "0.25 ms implicitfast" above.
-    "contact-stiffness": {
-        "0.25 ms implicitfast (reference)": (2.5e-4, {"integrator": "implicitfast"}),
-        "0.25 ms, contacts 2 ms": (2.5e-4, CONTACTS_2MS),
-        "0.25 ms, contacts 1 ms": (2.5e-4, {"integrator": "implicitfast", "contact_timeconst": 0.001}),
     },
 }
 for _family in FAMILIES.values():
