@@ -434,19 +434,9 @@ def _components(adj: np.ndarray, alive: np.ndarray) -> list[list[int]]:
     return out
 
 
-def crowd_trial(poses, touched, start, body_length: float, body_thickness: float, left_plate=None,
-                periods_run=None) -> CrowdTrial:
-    """Chains, neighbours, area fraction and plateau of one relaxation trial.
-
-    Args:
-      poses: [K, N, 5] poses at the end of each period (m, rad).
-      touched: [K, P] bool, pairs i < j in :func:`pairs_of` order.
-      start: [N, 5] start poses.
-      body_length, body_thickness: W and D (m).
-      left_plate: [N] first period off the plate (1-based; 0: never); a robot is out of the touch
-        graph from that period on.
-      periods_run: periods simulated (default K); later periods hold no touches and no chains.
-    """
+def _trial(poses, touched, left_plate, periods_run):
+    """One trial's arrays checked: poses [K, N, 5], touched [K, P], the periods run, the pairs and
+    on [K, N] (a robot on the plate and the trial still running in period k)."""
     poses = np.asarray(poses, float)
     touched = np.asarray(touched, bool)
     k, n = poses.shape[:2]
@@ -460,6 +450,24 @@ def crowd_trial(poses, touched, start, body_length: float, body_thickness: float
             if lp > 0:
                 on[lp - 1:, r] = False
     on[run:] = False
+    return poses, touched, run, pairs, on
+
+
+def crowd_trial(poses, touched, start, body_length: float, body_thickness: float, left_plate=None,
+                periods_run=None) -> CrowdTrial:
+    """Chains, neighbours, area fraction and plateau of one relaxation trial.
+
+    Args:
+      poses: [K, N, 5] poses at the end of each period (m, rad).
+      touched: [K, P] bool, pairs i < j in :func:`pairs_of` order.
+      start: [N, 5] start poses.
+      body_length, body_thickness: W and D (m).
+      left_plate: [N] first period off the plate (1-based; 0: never); a robot is out of the touch
+        graph from that period on.
+      periods_run: periods simulated (default K); later periods hold no touches and no chains.
+    """
+    poses, touched, run, pairs, on = _trial(poses, touched, left_plate, periods_run)
+    k, n = poses.shape[:2]
     degree = np.full((k, n), -1, int)
     in_chain = np.zeros(k, int)
     episodes: list[ChainEpisode] = []
@@ -628,19 +636,8 @@ def pair_runs(poses, touched, start, body_length: float, left_plate=None, period
 
     Args: as :func:`crowd_trial` (poses [K, N, 5] in m, touched [K, P], start [N, 5], left_plate [N]
     1-based first period off the plate, 0 never; periods_run the periods simulated)."""
-    poses = np.asarray(poses, float)
-    touched = np.asarray(touched, bool)
+    poses, touched, run, pairs, on = _trial(poses, touched, left_plate, periods_run)
     k, n = poses.shape[:2]
-    run = k if periods_run is None else int(periods_run)
-    pairs = pairs_of(n)
-    if touched.shape != (k, len(pairs)):
-        raise ValueError(f"touched has shape {touched.shape}, {n} robots over {k} periods need {(k, len(pairs))}")
-    on = np.ones((k, n), bool)
-    if left_plate is not None:
-        for r, lp in enumerate(np.asarray(left_plate)):
-            if lp > 0:
-                on[lp - 1:, r] = False
-    on[run:] = False
     xy = np.concatenate([np.asarray(start, float)[None, :, :2], poses[..., :2]]) / body_length  # [K + 1, N, 2]
     live_on = np.concatenate([np.ones((1, n), bool), on])
     third = _third_touch(touched, pairs)
