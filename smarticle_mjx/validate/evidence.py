@@ -153,6 +153,11 @@ class Context:
         have = [s in self.stores and self.stores[s] for s in b.studies]
         return (any(have) if b.any_study else all(have)) if b.studies else bool(self.singles)
 
+    def built(self, name: str):
+        """The evidence ``name`` if a claim has already asked for it and its studies were there, else None
+        (for what is drawn after the claims: it never builds)."""
+        return self._done.get(name)
+
     def get(self, name: str):
         """The evidence ``name`` builds (None when its studies are missing), built once."""
         if name not in self._done:
@@ -297,12 +302,12 @@ def _relax(ctx: Context) -> dict:
 def _msd_figure(ctx: Context) -> None:
     """Every MSD curve the page has, in one figure, after the builders that measure them."""
     curves = {}
-    a90 = ctx.get("random_90") if "random_90" in ctx._done else None
-    adiag = (ctx._done.get("diagonal") or {}).get("runs", {}).get("diagonal_90")
+    a90 = ctx.built("random_90")
+    adiag = (ctx.built("diagonal") or {}).get("runs", {}).get("diagonal_90")
     for label, a in (("90° square", a90), ("90° diagonal, started bound", adiag)):
         if a is not None and a.transport is not None:
             curves[label] = (a.transport.msd_lags, a.transport.msd)
-    for a in (ctx._done.get("amplitude") or {}).get("runs", []):
+    for a in (ctx.built("amplitude") or {}).get("runs", []):
         if a.amplitude_deg in (10, 50, 90) and a.transport is not None:
             curves[f"{a.amplitude_deg:g}° (sweep)"] = (a.transport.msd_lags, a.transport.msd)
     if curves:
