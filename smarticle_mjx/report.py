@@ -60,11 +60,13 @@ def round_for_report(x, nd=4):
 
 
 def analyse_store_run(store: Store, run: str, opts: ReportOptions = ReportOptions()) -> analysis.RunAnalysis:
-    """The typed, unrounded measures of one run (``reduce.analysis.RunAnalysis``)."""
+    """The typed, unrounded measures of one run (``reduce.analysis.RunAnalysis``), with the store's step
+    check (``RunAnalysis.step``) beside its transport numbers."""
     a = store.analysis_arrays(run)
-    return analysis.analyse(a["touched"], a["valid"], a["rel"], a["com_xy"], a["heading"], a["status"],
-                            opts.options(a["periods"]), run=run, amplitude_deg=a["amplitude_deg"],
-                            chirality=a["chirality"], gait=a["gait"], period_s=a["period_s"])
+    res = analysis.analyse(a["touched"], a["valid"], a["rel"], a["com_xy"], a["heading"], a["status"],
+                           opts.options(a["periods"]), run=run, amplitude_deg=a["amplitude_deg"],
+                           chirality=a["chirality"], gait=a["gait"], period_s=a["period_s"])
+    return dataclasses.replace(res, step=store_step_check(store))
 
 
 def analyse_run(store: Store, run: str, opts: ReportOptions = ReportOptions()) -> dict:

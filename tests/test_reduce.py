@@ -452,6 +452,18 @@ def test_smx_report_puts_the_steps_check_on_the_line_of_every_transport_number(t
     assert json.loads((out / "report.json").read_text())["step_check"]["status"] == "failed"
 
 
+def test_a_runs_typed_result_carries_its_stores_step_check(tmp_path):
+    """The step check is a field of the typed run result (``RunAnalysis.step``), the one the report's
+    transport numbers are printed beside: a failed step with its measured biases, a changed model not checked."""
+    from smarticle_mjx.report import analyse_store_run
+    st = Store(_store_with(tmp_path, "a", "lab-lag", 5e-4))
+    a = analyse_store_run(st, st.runs[0])
+    assert a.step is not None and a.step.status == "failed" and a.step.beta.value > 0.068
+    st = Store(_store_with(tmp_path, "b", "lab-lag", 5e-4, {"robot.mass": 0.03}))
+    b = analyse_store_run(st, st.runs[0])
+    assert b.step.status == "not checked" and "robot.mass" in b.step.why
+
+
 def test_a_step_passes_only_when_every_interval_holds_zero_and_the_biases_are_small():
     from smarticle_mjx.reduce.stepcheck import BETA_MAX, Difference, verdict
     ok = Difference(0.0, (-0.1, 0.1), 1.0)

@@ -26,6 +26,7 @@ import numpy as np
 
 from ..labels import BAD_STATUS
 from . import binding as B, gliders as GL, transport as T
+from .stepcheck import StepCheck
 
 
 @dataclasses.dataclass(frozen=True)
@@ -270,6 +271,9 @@ class RunAnalysis:
     heading_turn: float
     separation: Separation
     touched: np.ndarray
+    # what is known of the step that made the run's transport numbers (passed, failed with its biases, or
+    # not checked and why): the store's, set by ``report.analyse_store_run``; None for arrays of no store
+    step: StepCheck | None = None
 
     def summary(self, rnd=None) -> dict:
         """The JSON form (``smx report``'s ``report.json``); ``rnd(x, digits)`` rounds for a page (identity if None)."""
