@@ -59,7 +59,7 @@ def simulate_track(out, scene: str = "pair", config: str | None = None, gait=Non
     before anything is simulated. ``overrides``: single fields of the preset changed (``--set``), recorded
     in the sidecar. Returns robots, periods, the period, touched periods, files written."""
     from . import configs, presets, scene as scene_mod, tracks
-    from .engine.dart import check_study, study_timestep
+    from .engine import StudyEngine, check_backend
     from .engine.simulate import simulate
     from .gait import GaitSpec
     preset = presets.get(model)
@@ -68,10 +68,10 @@ def simulate_track(out, scene: str = "pair", config: str | None = None, gait=Non
     g.validate(params.robot.servo_speed, params.robot.arm_limit_deg)
     if periods < 1 or track_stride < 1:
         raise ValueError("--periods and --track-stride must be positive")
-    if backend not in ("native", "dart"):
-        raise ValueError(f"--backend must be native or dart (the backends that record tracks), got {backend!r}")
-    check_study(backend, None, None, overrides)  # dart: installed, reads what --set changes
-    dt = study_timestep(backend, None, params.timestep)
+    check_backend(backend, tracks=True)
+    engine = StudyEngine(backend)
+    engine.check(overrides=overrides)  # dart: installed, reads what --set changes
+    dt = engine.timestep(params.timestep)
     if pathlib.Path(out).exists() and not overwrite:
         raise ValueError(f"{out} exists; pass --overwrite to replace it")
     tracks.check_output(out)

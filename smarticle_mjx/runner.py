@@ -41,7 +41,6 @@ class Prepared:
 def prepare(config, kind: str, params: SceneParams | None, executor: Executor | None) -> Prepared:
     """Resolve and check the scene of ``config`` (a ``ScanConfig`` or ``RelaxConfig``; ``kind``:
     the header key its JSON is stored under, "scan" or "relax"). Raises ValueError on a bad spec."""
-    from .engine.dart import study_timestep
     model = config.model if params is None else "custom"
     params = config.scene_params() if params is None else params
     config.validate(params)
@@ -52,7 +51,7 @@ def prepare(config, kind: str, params: SceneParams | None, executor: Executor | 
     where = executor.describe() if executor is not None else None
     if where is not None:
         header["executor"] = where
-    dt = study_timestep(config.backend, config.dart_numerics, params.timestep)  # the engine's own step
+    dt = config.engine().timestep(params.timestep)  # the engine's own step
     return Prepared(model, params, dt, header)
 
 

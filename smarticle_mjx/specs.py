@@ -103,25 +103,20 @@ class ScanConfig:
             raise ValueError("amplitudes must be distinct")
         for a in self.amplitudes_deg:
             self.gait_spec(a).validate(params.robot.servo_speed, params.robot.arm_limit_deg)
-        from .engine import BACKENDS, check_backend
-        if self.backend not in BACKENDS:
-            raise ValueError(f"--backend must be {', '.join(BACKENDS[:-1])} or {BACKENDS[-1]}, got {self.backend!r}")
-        from .engine.dart import check_study
-        check_study(self.backend, self.dart_numerics, self.robots().scene(params), self.overrides)
-        if self.backend == "warp":
-            from .engine import mjwarp
-            if not mjwarp.available():
-                raise ValueError(mjwarp.MISSING)
+        self.engine().check(self.robots().scene(params), self.overrides, self.collisions)
         if self.batch_size <= 0 or self.chunk_periods <= 0 or self.quiet_periods < 0:
             raise ValueError("batch size and chunk periods must be positive, quiet periods >= 0")
-        check_backend(self.backend, self.collisions)
         if self.collision_bins < 1:
             raise ValueError(f"--collision-bins must be positive, got {self.collision_bins}")
 
+    def engine(self):
+        """The study's engine (``engine.StudyEngine``): its backend with the settings only that backend reads."""
+        from .engine import StudyEngine
+        return StudyEngine(self.backend, self.dart_numerics)
+
     def backend_options(self) -> dict:
-        """Keyword arguments of ``make_backend`` beyond the scene (the dart backend's numerics)."""
-        from .engine.dart import study_options
-        return study_options(self.backend, self.dart_numerics)
+        """Keyword arguments of ``make_backend`` beyond the scene."""
+        return self.engine().options()
 
     def gait_spec(self, amplitude_deg: float) -> GaitSpec:
         return GaitSpec(amplitude_deg=float(amplitude_deg), chirality=self.chirality, kind=self.gait,
@@ -146,8 +141,7 @@ class ScanConfig:
         if self.imperfections == "none":
             del d["imperfections"]  # nor do stores of ideal robots
         _overrides_json(d, self.overrides)
-        from .engine.dart import study_json
-        return study_json(d, self.backend)
+        return self.engine().record(d)
 
 
 def run_name(amplitude_deg: float) -> str:
@@ -316,19 +310,19 @@ class RelaxConfig:
             raise ValueError(f"--start-phi must lie between 0 and 1, got {self.start_phi}")
         if self.batch_size < 1 or self.chunk_periods < 1 or self.quiet_periods < 0:
             raise ValueError("batch size and chunk periods must be >= 1, quiet periods >= 0")
-        from .engine import check_backend
-        check_backend(self.backend)
-        from .engine.dart import check_study
-        check_study(self.backend, self.dart_numerics, self.robots().scene(params), self.overrides)
+        self.engine().check(self.robots().scene(params), self.overrides)
         self.gait_spec().validate(params.robot.servo_speed, params.robot.arm_limit_deg)
 
+    def engine(self):
+        """The study's engine (``engine.StudyEngine``): its backend with the settings only that backend reads."""
+        from .engine import StudyEngine
+        return StudyEngine(self.backend, self.dart_numerics)
+
     def backend_options(self) -> dict:
-        """Keyword arguments of ``make_backend`` beyond the scene (the dart backend's numerics)."""
-        from .engine.dart import study_options
-        return study_options(self.backend, self.dart_numerics)
+        """Keyword arguments of ``make_backend`` beyond the scene."""
+        return self.engine().options()
 
     def to_json(self) -> dict:
-        from .engine.dart import study_json
         d = dataclasses.asdict(self)
         if self.imperfections == "none":
             del d["imperfections"]  # stores of ideal robots keep their earlier configuration
@@ -336,7 +330,7 @@ class RelaxConfig:
             if d[k] == default:
                 del d[k]  # as do stores of the start the study always had
         _overrides_json(d, self.overrides)
-        return study_json(d, self.backend)
+        return self.engine().record(d)
 
 
 def _overrides_json(d: dict, overrides) -> None:
