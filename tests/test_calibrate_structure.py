@@ -253,3 +253,20 @@ def test_smx_synth_set_makes_data_with_the_changed_model_and_the_sidecar_says_so
     assert load(out)[0].params.robot.arm_length == 0.055
     r = run.invoke(app, ["synth", str(tmp_path / "e"), "--set", "robot.wheels=3"])
     assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and not (tmp_path / "e").exists()
+
+
+def test_a_servos_timing_is_no_hypothesis_without_arm_tracks_and_none_where_the_delay_test_rules_it_out():
+    """Body motion alone cannot tell a servo's timing from another servo law: without any tracked arm angle
+    a lag or dead time is not tried; with arms, only the delay test's 'no constant excess' rules it out."""
+    import types
+    from smarticle_mjx.calibrate.observables import DelayTest
+    from smarticle_mjx.calibrate.stages import NO_ARMS, servo_skip_reason
+    nan = float("nan")
+    undecided = DelayTest((), (), (), nan, nan, nan, nan, False, False)
+    none_found = DelayTest((20.0, 60.0), (0.1, 0.2), (1.0, 1.0), 0.1, 0.5, 0.1, 0.5, True, False, True)
+    body_only = [types.SimpleNamespace(arms=None), types.SimpleNamespace(arms=np.full((5, 1, 2), np.nan))]
+    tracked = [types.SimpleNamespace(arms=None), types.SimpleNamespace(arms=np.zeros((5, 1, 2)))]
+    assert servo_skip_reason(body_only, undecided) == NO_ARMS
+    assert servo_skip_reason(body_only, none_found) == NO_ARMS
+    assert servo_skip_reason(tracked, undecided) is None
+    assert "no constant excess" in servo_skip_reason(tracked, none_found)
