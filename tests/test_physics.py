@@ -306,3 +306,23 @@ def test_an_explicit_integrator_is_refused_for_a_servo_it_would_misintegrate():
         stiff.replace(integrator="RK4", timestep=1e-3).validate()
     stiff.replace(integrator="RK4", timestep=1e-4).validate()
     presets.params("lab-lag").replace(integrator="RK4", timestep=1e-3).validate()
+
+
+@pytest.mark.parametrize("timeconst, speed", [(0.005, 0.05), (0.005, 1.2), (0.002, 1.2)])
+def test_a_contacts_deepest_penetration_is_its_approach_speed_times_tau_over_e(timeconst, speed):
+    """A critically damped linear contact (MuJoCo's solref with damping ratio 1, impedance held at its
+    maximum) stopping a body that meets it at speed v penetrates v tau / e at its deepest, whatever the
+    mass: the closed form the flag diagnosis (benchmarks/flag_diagnosis.py) reads impacts by."""
+    h = timeconst / 80
+    xml = f"""<mujoco><option timestep="{h}" gravity="0 0 0" integrator="implicitfast"/>
+    <worldbody><geom type="plane" size="1 1 .1" solref="{timeconst} 1" solimp="0.99 0.99 0.001"/>
+    <body pos="0 0 0.01"><freejoint/><geom type="sphere" size="0.01" mass="0.05" solref="{timeconst} 1"
+    solimp="0.99 0.99 0.001"/></body></worldbody></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    d.qvel[2] = -speed
+    deepest = 0.0
+    for _ in range(int(3 * timeconst / h)):
+        mujoco.mj_step(m, d)
+        deepest = min(deepest, d.qpos[2] - 0.01)
+    assert -deepest == pytest.approx(speed * timeconst / math.e, rel=0.02)

@@ -1,0 +1,289 @@
+"""Why a relaxation trial is flagged: each flagged trial replayed step by step to its first flag, and the
+event that crossed it named at the contact level.
+
+A trial is flagged (``labels.BAD_STATUS``) when two robots interpenetrate beyond 2 mm or the state goes
+non-finite. This replays a flagged trial of a relaxation store with MuJoCo's ``mj_step`` one step at a
+time (the native backend's own scene, start, phases, drawn robots and per-period controls; the replay is
+checked against the store's status) and stops at the first step past 2 mm or the first non-finite
+acceleration. For that event it records:
+
+* the two geoms and the depth;
+* the pair's approach speed at the step its contact began (the rate its distance fell, mm/ms = m/s) and
+  the depth a linear critically damped contact of the scene's time constant tau would reach from that
+  speed, v tau / e (the closed form; MuJoCo's own contact reaches it within 2 % on a free sphere);
+* the robots off the plate at the step before (a body with no plate contact), the largest body tilt
+  (degrees from upright) so far and, if a body tipped past 2 degrees, when and what touched it then.
+
+Each flag is classed (:func:`kind`): a robot had tipped, the contact appeared deep, a shallow-begun impact
+within the linear contact's reach, or a push driven deeper. Writes results/flag_diagnosis.json and prints one row per flagged trial.
+
+    python benchmarks/flag_diagnosis.py out/discovery_screen/lab_s00.h5 [more stores ...]   # ~1 min a trial
+    python benchmarks/flag_diagnosis.py --probes    # the tilt probe, ~10 min on 2 cores
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import pathlib
+import sys
+
+import numpy as np
+
+from smarticle_mjx.bench import save_json
+
+ROOT = pathlib.Path(__file__).resolve().parent
+FLAG_DEPTH = 0.002  # m, the engine's penetration flag
+TILT_ONSET_DEG = 2.0  # a body this far from upright has tipped (a robot at rest stays within 0.1 deg)
+
+
+def _normal_speed(m, d, i: int) -> float:
+    """Approach speed (m/s, > 0 closing) of contact ``i``'s two geoms at the contact point, along its normal."""
+    import mujoco
+    c = d.contact[i]
+    v = np.zeros(6)
+    rel = 0.0
+    for g, sign in ((c.geom1, -1.0), (c.geom2, 1.0)):
+        # the velocity of the geom's body at the contact point, in the contact frame (normal first)
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_GEOM, int(g), v, 0)
+        lin = v[3:] + np.cross(v[:3], c.pos - d.geom_xpos[g])
+        rel += sign * float(lin @ c.frame[:3])
+    return -rel  # the normal points from geom1 to geom2: closing when geom2 moves toward geom1
+
+
+def replay_to_flag(path, trial: int) -> dict:
+    import mujoco
+    from smarticle_mjx.engine import Lanes, Scene
+    from smarticle_mjx.engine.core import lane_controls, on_step_grid
+    from smarticle_mjx.engine.native import NativeBackend
+    from smarticle_mjx.relax import RUN, start_poses
+    from smarticle_mjx.specs import params_from_json, relax_config_from_json
+    from smarticle_mjx.store import Store
+    st = Store(path)
+    config, params = relax_config_from_json(st.config["relax"]), params_from_json(st.config["scene"])
+    lo = config.first_trial
+    rows = st.run(RUN, fields=("periods_run", "status"))
+    start, phase = start_poses(dataclasses.replace(config, first_trial=trial, trials=1), params)
+    scene = Scene.build(params, len(start[0]))
+    lanes = Lanes.from_gait(start[0], config.gait_spec(), phase[0])
+    if config.robots() is not None:
+        lanes = config.robots().lanes(lanes, [trial])
+    if config.retrigger_sd > 0:
+        from smarticle_mjx.relax import retrigger_of
+        lanes = dataclasses.replace(lanes, retrigger=retrigger_of(config, trial))
+    lanes = on_step_grid(lanes, params.timestep)
+    be = NativeBackend(scene, nthread=1)
+    state = be.initial_state(lanes)
+    be.close()
+    m = scene.model
+    d = mujoco.MjData(m)
+    mujoco.mj_setState(m, d, np.asarray(state[0]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    dt = m.opt.timestep
+    nstep = int(round(lanes.period / dt))
+    gname = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, i) for i in range(m.ngeom)]
+    robot_of = [int(n[1:].split("_")[0]) if n and n.startswith("r") and "_" in n else -1 for n in gname]
+    bodies = [m.geom(f"r{i}_body").bodyid[0] for i in range(len(start[0]))]
+    n_rob = len(start[0])
+    onset: dict = {}  # robot-robot geom pair -> (approach speed, depth, step) when its contact began
+    last: dict = {}
+    tilt_max, tilt_onset = 0.0, None
+    out = {"store": str(path), "trial": trial, "stored_status": int(rows["status"][trial - lo]),
+           "stored_periods_run": int(rows["periods_run"][trial - lo]), "timeconst_s": params.contact_timeconst}
+    for p in range(int(rows["periods_run"][trial - lo]) + 1):
+        ctrl = lane_controls(scene, lanes.at_time(p * lanes.period), dt * np.arange(nstep))[0]
+        d.qacc_warmstart[:] = 0.0  # as the backend's rollout starts each period (checked: reproduces the stored flags)
+        for k in range(nstep):
+            d.ctrl[:] = ctrl[k]
+            on_plate = np.zeros(n_rob, bool)
+            for i in range(d.ncon):
+                r1, r2 = robot_of[d.contact.geom1[i]], robot_of[d.contact.geom2[i]]
+                if r1 < 0 or r2 < 0:
+                    on_plate[max(r1, r2)] = True
+            mujoco.mj_step(m, d)
+            z = d.xmat[bodies][:, 8]  # body z axis . world z
+            tilt_max = max(tilt_max, float(np.degrees(np.arccos(np.clip(z.min(), -1, 1)))))
+            if tilt_onset is None and tilt_max > TILT_ONSET_DEG:  # the first robot to tip: what touched it
+                r = int(np.argmin(z))
+                touching = sorted({gname[g] for i in range(d.ncon) for g in (d.contact.geom1[i], d.contact.geom2[i])
+                                   if robot_of[d.contact.geom1[i]] >= 0 and robot_of[d.contact.geom2[i]] >= 0
+                                   and r in (robot_of[d.contact.geom1[i]], robot_of[d.contact.geom2[i]])
+                                   and robot_of[d.contact.geom1[i]] != robot_of[d.contact.geom2[i]]})
+                tilt_onset = {"period": p, "step": k, "robot": r, "touching_geoms": touching,
+                              "on_plate": bool(on_plate[r])}
+            now = {}
+            for i in range(d.ncon):
+                g1, g2 = int(d.contact.geom1[i]), int(d.contact.geom2[i])
+                if robot_of[g1] < 0 or robot_of[g2] < 0 or robot_of[g1] == robot_of[g2]:
+                    continue
+                key = (min(g1, g2), max(g1, g2))
+                if key not in now or d.contact.dist[i] < now[key][0]:
+                    now[key] = (float(d.contact.dist[i]), i)
+            for key, (dist, i) in now.items():
+                if key not in last:  # the pair's contact began this step: its approach speed along the normal
+                    onset[key] = (_normal_speed(m, d, i), -dist, p * nstep + k)
+            last = now
+            bad = not np.isfinite(d.qacc).all() or d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
+            deep = min(now.items(), key=lambda kv: kv[1][0]) if now else None
+            if bad or (deep is not None and deep[1][0] < -FLAG_DEPTH):
+                ev = {"period": p, "step": k, "t_s": float(d.time), "nonfinite": bool(bad),
+                      "airborne_robots": [int(i) for i in np.flatnonzero(~on_plate)], "tilt_max_deg": tilt_max,
+                      "tilt_onset": tilt_onset}
+                if deep is not None:
+                    (g1, g2), (dist, _) = deep
+                    v, first_depth, first_step = onset[(g1, g2)]
+                    ev.update(geoms=[gname[g1], gname[g2]], depth_mm=-dist * 1e3, onset_speed_m_s=v,
+                              onset_depth_mm=first_depth * 1e3, steps_in_contact=p * nstep + k - first_step,
+                              closed_form_depth_mm=v * params.contact_timeconst / math.e * 1e3)
+                out["event"] = ev
+                return out
+    out["event"] = None
+    return out
+
+
+# The tilt probe (--probes): which choice lets a crowd tip its robots? Each variant runs the relaxation's
+# compressed start (4 trials x 3 periods, seed 0) and records each trial's largest body tilt. Written after
+# the flag table showed tipped robots only with the lab set; the last four rows switch one numerical or
+# contact choice with the combination that tipped (added after it did).
+PROBES = {  # name -> (imperfection set, phase_jitter in periods, scene overrides, gear-teeth stop time constant s)
+    "ideal": ("none", 0.0, {}, None),
+    "backlash": ("backlash", 0.0, {}, None),
+    "drivetrain": ("drivetrain", 0.0, {}, None),
+    "com-offset": ("com-offset", 0.0, {}, None),
+    "phase-jitter (lab set: 0.02 period)": ("phase-jitter", 0.0, {}, None),
+    "lab": ("lab", 0.0, {}, None),
+    "backlash + phase 0.02": ("backlash", 0.02, {}, None),
+    "com-offset + phase 0.02": ("com-offset", 0.02, {}, None),
+    "backlash + phase 0.02, teeth stops 5 ms": ("backlash", 0.02, {}, 0.005),
+    "backlash + phase 0.02, 0.25 ms": ("backlash", 0.02, {"timestep": 2.5e-4}, None),
+    "backlash + phase 0.02, robot mu 0": ("backlash", 0.02, {"robot_friction": 0.0}, None),
+    "backlash + phase 0.02, robot mu 0.1": ("backlash", 0.02, {"robot_friction": 0.1}, None),
+}
+
+
+def max_tilts(imperfections: str, phase_jitter: float, overrides: dict, teeth: float | None,
+              trials: int = 4, periods: int = 3, model: str = "lab-lag") -> list[float]:
+    """Each trial's largest body tilt (degrees from upright) over ``periods`` periods from the relaxation's
+    compressed start (seed 0), ``teeth`` replacing the gear-teeth stops' time constant (2 dt) when given."""
+    import mujoco
+    from smarticle_mjx import presets
+    from smarticle_mjx.engine import Lanes, Scene
+    from smarticle_mjx.engine.core import SceneLayout, lane_controls, on_step_grid
+    from smarticle_mjx.engine.native import NativeBackend
+    from smarticle_mjx.relax import start_poses
+    from smarticle_mjx.scene import compile_model
+    from smarticle_mjx.specs import RelaxConfig
+    config = RelaxConfig(trials=trials, periods=periods, imperfections=imperfections, phase_jitter=phase_jitter)
+    params = config.robots().scene(dataclasses.replace(presets.params(model), **overrides))
+    starts, phase = start_poses(config, params)
+    xml = Scene.mjcf(params, config.n_robots, False)
+    if teeth is not None:
+        old = f'solreflimit="{2 * params.timestep:.9g} 1"'
+        if old not in xml:
+            raise ValueError("no gear-teeth stops in this scene")
+        xml = xml.replace(old, f'solreflimit="{teeth:.9g} 1"')
+    m = compile_model(xml)
+    scene = Scene(params, m, SceneLayout.of(m), xml, False)
+    bodies = [m.geom(f"r{i}_body").bodyid[0] for i in range(config.n_robots)]
+    dt, out = m.opt.timestep, []
+    for t in range(trials):
+        lanes = config.robots().lanes(Lanes.from_gait(starts[t], config.gait_spec(), phase[t]), [t])
+        lanes = on_step_grid(lanes, dt)
+        be = NativeBackend(scene, nthread=1)
+        state = be.initial_state(lanes)
+        be.close()
+        d = mujoco.MjData(m)
+        mujoco.mj_setState(m, d, np.asarray(state[0]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        nstep, tilt = int(round(lanes.period / dt)), 0.0
+        for p in range(periods):
+            ctrl = lane_controls(scene, lanes.at_time(p * lanes.period), dt * np.arange(nstep))[0]
+            d.qacc_warmstart[:] = 0.0
+            for k in range(nstep):
+                d.ctrl[:] = ctrl[k]
+                mujoco.mj_step(m, d)
+                tilt = max(tilt, float(np.degrees(np.arccos(np.clip(d.xmat[bodies][:, 8].min(), -1, 1)))))
+        out.append(tilt)
+    return out
+
+
+def _probe(name: str) -> tuple[str, list[float]]:
+    return name, max_tilts(*PROBES[name])
+
+
+def kind(ev: dict | None) -> str:
+    """The flag's class: ``tipped`` when a body was >= 2 deg from upright by then; ``appeared deep`` when
+    the contact was >= 1 mm deep at the first step it was seen (the bodies met faster than 2 m/s, beyond any
+    servo-driven speed: a jump of the box-box contact's geometry, or a lifted robot coming down); ``impact``
+    when it began shallow and went no deeper than 1.25 x the linear contact's reach from its approach
+    speed, v tau / e; else ``push`` (driven deeper than its approach explains); ``not reproduced`` when the
+    replay passed no flag. Written after the first lab rows had been read; ``appeared deep`` split off
+    ``push`` after the whole table had (docs/relax.md says so)."""
+    if ev is None:
+        return "not reproduced"
+    if ev["tilt_max_deg"] >= TILT_ONSET_DEG or "depth_mm" not in ev:
+        return "tipped"
+    if ev["onset_depth_mm"] >= 1.0:
+        return "appeared deep"
+    if ev["depth_mm"] <= 1.25 * ev["closed_form_depth_mm"]:
+        return "impact"
+    return "push"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("stores", nargs="*", type=pathlib.Path)
+    ap.add_argument("--probes", action="store_true", help="the tilt probe instead (results/flag_tilt_probe.json)")
+    ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "flag_diagnosis.json")
+    ap.add_argument("--workers", type=int, default=2, help="trials replayed at once (one core each)")
+    args = ap.parse_args(argv)
+    from concurrent.futures import ProcessPoolExecutor
+    if args.probes:
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            res = dict(pool.map(_probe, PROBES))
+        for name, tilts in res.items():
+            print(f"{name}: largest tilt per trial " + ", ".join(f"{x:.2f}" for x in tilts) + " deg")
+        save_json(ROOT / "results" / "flag_tilt_probe.json",
+                  {"trials": 4, "periods": 3, "seed": 0, "model": "lab-lag",
+                   "variants": {n: {"imperfections": v[0], "phase_jitter": v[1], "overrides": v[2],
+                                    "teeth_timeconst_s": v[3], "max_tilt_deg": res[n]} for n, v in PROBES.items()}})
+        return
+    if not args.stores:
+        sys.exit("error: name the relaxation stores whose flagged trials to replay (or --probes)")
+    from smarticle_mjx.labels import BAD_STATUS
+    from smarticle_mjx.store import read_relax
+    jobs = []
+    for path in args.stores:
+        try:
+            data = read_relax(path)
+        except Exception as e:  # noqa: BLE001 - one line for a bad store
+            sys.exit(f"error: {path}: {e}")
+        jobs += [(path, int(t)) for t, st in zip(data["trial"], data["status"]) if int(st) & int(BAD_STATUS)]
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:  # one trial per core, in store order
+        rows = list(pool.map(replay_to_flag, *zip(*jobs))) if jobs else []
+    for r in rows:
+        r["kind"] = kind(r["event"])
+        ev = r["event"] or {}
+        print(f"{pathlib.Path(r['store']).stem} trial {r['trial']} [{r['kind']}]: " + (
+            "not reproduced" if not ev else
+            f"period {ev['period']}, {'non-finite' if ev['nonfinite'] else 'depth'} "
+            f"{ev.get('depth_mm', float('nan')):.2f} mm between {'/'.join(ev.get('geoms', ['?']))}, "
+            f"after {ev.get('steps_in_contact', -1)} steps in contact from {ev.get('onset_depth_mm', float('nan')):.2f} mm, "
+            f"approach {ev.get('onset_speed_m_s', float('nan')):.2f} m/s (v tau/e "
+            f"{ev.get('closed_form_depth_mm', float('nan')):.2f} mm), off the plate "
+            f"{ev['airborne_robots']}, tilt max {ev['tilt_max_deg']:.1f} deg"
+            + (f", robot {ev['tilt_onset']['robot']} tipped first in period {ev['tilt_onset']['period']} touching "
+               f"{', '.join(ev['tilt_onset']['touching_geoms']) or 'no robot'}" if ev.get("tilt_onset") else "")),
+            flush=True)
+    counts: dict = {}
+    for r in rows:
+        c = counts.setdefault(pathlib.Path(r["store"]).stem, {})
+        c[r["kind"]] = c.get(r["kind"], 0) + 1
+    for store, c in counts.items():
+        print(f"{store}: " + ", ".join(f"{k} {n}" for k, n in sorted(c.items())))
+    save_json(args.out, {"flag_depth_m": FLAG_DEPTH, "tilt_onset_deg": TILT_ONSET_DEG, "counts": counts,
+                         "trials": rows})
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
