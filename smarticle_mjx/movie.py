@@ -157,7 +157,7 @@ def render(t, poses, robot: RobotParams, period_s: float, out, opts: MovieOption
         arrows.append(None)
     label = ax.text(0.03, 0.97, "", transform=ax.transAxes, va="top", fontsize=9, family="monospace")
     if title:
-        ax.text(0.97, 0.97, title, transform=ax.transAxes, va="top", ha="right", fontsize=8)
+        ax.text(0.97, 0.02, title, transform=ax.transAxes, va="bottom", ha="right", fontsize=8)  # clear of the clock
     radius = C.arm_piece_radius(robot)
     trail_s = opts.trail_periods * period_s
 
