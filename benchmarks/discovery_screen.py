@@ -28,7 +28,7 @@ from smarticle_mjx import presets
 from smarticle_mjx.bench import save_json
 from smarticle_mjx.labels import BAD_STATUS
 from smarticle_mjx.reduce import binding, relaxation as RX
-from smarticle_mjx.specs import read_relax_screen
+from smarticle_mjx.studyfile import read_relax_screen
 from smarticle_mjx import formatting
 from smarticle_mjx.store import read_relax
 from smarticle_mjx.studies import ensure_relax

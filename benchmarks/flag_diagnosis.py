@@ -58,7 +58,8 @@ def replay_to_flag(path, trial: int) -> dict:
     from smarticle_mjx.engine.core import lane_controls, on_step_grid
     from smarticle_mjx.engine.native import NativeBackend
     from smarticle_mjx.relax import RUN, start_poses
-    from smarticle_mjx.specs import params_from_json, relax_config_from_json
+    from smarticle_mjx.scene import params_from_json
+    from smarticle_mjx.specs import relax_config_from_json
     from smarticle_mjx.store import Store
     st = Store(path)
     config, params = relax_config_from_json(st.config["relax"]), params_from_json(st.config["scene"])

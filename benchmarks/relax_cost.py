@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from smarticle_mjx import presets, specs, studies
+from smarticle_mjx import presets, studies, studyfile, suite
 from smarticle_mjx.relax import RelaxConfig, run_relax
 from smarticle_mjx.store import Store
 
@@ -47,8 +47,8 @@ def study(folder: pathlib.Path) -> dict:
     rows = []
     # the stages' stores as smx validate names them (it keeps stores of an older
     # version beside them, validation_relax_s00.replaced-<stamp>.h5: not this study)
-    name = specs.STUDIES["relax"]
-    rs = specs.read_study(specs.SWEEPS / name)
+    name = suite.STUDIES["relax"]
+    rs = studyfile.read_study(suite.SWEEPS / name)
     for p in (studies.relax_stage_path(folder, pathlib.Path(name).stem, s) for s in range(rs.stages)):
         if not p.exists():
             continue

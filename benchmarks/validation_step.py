@@ -24,7 +24,7 @@ ROOT = pathlib.Path(__file__).resolve().parent
 from smarticle_mjx import presets
 from smarticle_mjx.report import analyse_store_run
 from smarticle_mjx.scan import run_scan
-from smarticle_mjx.specs import load_study
+from smarticle_mjx.studyfile import load_study
 from smarticle_mjx.store import Store
 
 STUDY = ROOT.parent / "sweeps" / "validation_random.toml"

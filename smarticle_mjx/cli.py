@@ -305,7 +305,7 @@ def sweep_amplitude(
     executor=None, store=None,
 ):
     """The same scan over several amplitudes, one store, one group per amplitude."""
-    from .specs import sweep_config
+    from .studyfile import sweep_config
     cfg = sweep_config(study, amplitudes, configs=configs, n=n, periods=periods, backend=backend, seed=seed,
                        model=model, imperfections=imperfections, sets=set_)
     _run_study(cfg, out, store, executor, flush_rows=flush_rows)
@@ -438,7 +438,7 @@ def synth(
 ):
     """Measured-like data from the model with hidden effects, in the interchange format."""
     from .calibrate.synth import parse_effect, synth as make
-    from .specs import parse_amplitudes
+    from .studyfile import parse_amplitudes
     written = make(out, robots=robots, trials=trials, periods=periods, amplitudes=parse_amplitudes(amplitudes),
                    effects=dict(parse_effect(e) for e in effect), noise_xy_mm=noise_xy_mm,
                    noise_theta_deg=noise_theta_deg, arm_noise_deg=arm_noise_deg, arms_tracked=not no_arms,

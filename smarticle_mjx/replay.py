@@ -10,7 +10,8 @@ import pathlib
 import numpy as np
 
 from .scan import RunInputs
-from .specs import config_from_json, params_from_json, relax_config_from_json
+from .scene import params_from_json
+from .specs import config_from_json, relax_config_from_json
 
 
 def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 40,

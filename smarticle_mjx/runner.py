@@ -24,7 +24,7 @@ from .executors import Executor, LocalExecutor, RowJob
 from .gait import GaitSpec
 from .presets import overrides_json
 from .scene import SceneParams
-from .specs import params_json
+from .scene import params_json
 from .store import ROW_FIELDS, Writer
 
 

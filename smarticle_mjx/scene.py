@@ -41,6 +41,7 @@ Choices where the paper is silent (all parameters):
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from typing import Sequence
 
@@ -645,3 +646,18 @@ def write_reference_models(out, params: SceneParams = SceneParams(), check: bool
         if name in stale:
             (out / name).write_text(xml)
     return stale
+
+
+def params_from_json(d: dict) -> SceneParams:
+    """The SceneParams a store recorded (its ``config["scene"]``), lists back to tuples."""
+    robot = RobotParams(**d["robot"])
+    rest = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k not in ("robot", "quirks")}
+    quirks = tuple(RobotQuirk(backlash_deg=None if q.get("backlash_deg") is None else tuple(q["backlash_deg"]),
+                              com_offset=tuple(q.get("com_offset", (0.0, 0.0)))) for q in d.get("quirks", ()))
+    return SceneParams(robot=robot, quirks=quirks, **rest)
+
+
+def params_json(params: SceneParams) -> dict:
+    """The SceneParams as a store records them (``config["scene"]``; :func:`params_from_json` reads them back)."""
+    # through JSON: tuples become lists, as a resumed store's saved copy has them
+    return json.loads(json.dumps(dataclasses.asdict(params)))

@@ -1,4 +1,4 @@
-"""Study specs: what a study is, validated, and how it is read and recorded.
+"""Study specs: what a study is, validated, and the JSON its store records.
 
 * :class:`ScanConfig`: a basin scan or amplitude sweep (random, polar or explicit pair starts);
 * :class:`RelaxConfig`: the relaxation experiment (N robots started compressed);
@@ -6,25 +6,24 @@
   (``configs = "bound"`` in a study file);
 * :class:`RelaxStudy`: a relaxation study in stages (``configs = "relax"``).
 
-:func:`read_study` reads any study file of sweeps/ (TOML) into one of them; :func:`load_study` only
-scans (``smx scan --study``). Every spec validates itself against the scene it will run
-(``validate``) and writes the JSON its store records (``to_json``; ``config_from_json`` and
-``params_from_json`` read them back). Nothing here simulates or writes a store.
+Every spec validates itself against the scene it will run (``validate``) and writes the JSON its store
+records (``to_json``; ``config_from_json`` and ``relax_config_from_json`` read them back). Study files
+(TOML) are read by :mod:`smarticle_mjx.studyfile`, the validation suite's list is
+:mod:`smarticle_mjx.suite`, a scene's JSON is :mod:`smarticle_mjx.scene`'s. Nothing here simulates or
+writes a store.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
-import pathlib
-import tomllib
 
 import numpy as np
 
 from . import configs as C
 from . import imperfections, presets
 from .gait import GaitSpec
+from .suite import STUDIES
 from .scene import SceneParams
 
 @dataclasses.dataclass(frozen=True)
@@ -148,21 +147,6 @@ def run_name(amplitude_deg: float) -> str:
     return f"a{amplitude_deg:06.2f}"
 
 
-def parse_amplitudes(text: str) -> tuple[float, ...]:
-    """'10:90:10' (inclusive range) or '10,40,90' -> amplitudes in degrees."""
-    text = text.strip()
-    try:
-        if ":" in text:
-            lo, hi, step = (float(x) for x in text.split(":"))
-            if step <= 0 or hi < lo:
-                raise ValueError
-            n = int(math.floor((hi - lo) / step + 1e-9)) + 1
-            return tuple(round(lo + k * step, 6) for k in range(n))
-        return tuple(float(x) for x in text.split(",") if x.strip())
-    except ValueError:
-        raise ValueError(f"amplitudes must look like '10:90:10' or '10,40,90', got {text!r}") from None
-
-
 def with_overrides(cfg, overrides=()):
     """``cfg`` (a ScanConfig or RelaxConfig) with the scene ``overrides`` (checked pairs,
     ``presets.overrides``) added to its own; a field set in both takes the value given here (``--set`` on
@@ -170,67 +154,6 @@ def with_overrides(cfg, overrides=()):
     if not overrides:
         return cfg
     return dataclasses.replace(cfg, overrides=tuple(sorted({**dict(cfg.overrides), **dict(overrides)}.items())))
-
-
-def sweep_config(study=None, amplitudes: str | None = None, sets=(), **changes) -> ScanConfig:
-    """A sweep's spec: the study file ``study`` (or the default scan) with ``amplitudes``
-    ('10:90:10' or '10,40,90'), the non-None ``changes`` (ScanConfig fields) and the scene overrides
-    ``sets`` (FIELD=VALUE, on top of the study file's [scene]) applied."""
-    cfg = load_study(study) if study is not None else ScanConfig()
-    cfg = with_overrides(cfg, presets.overrides(sets))
-    changes = {k: v for k, v in changes.items() if v is not None}
-    if amplitudes is not None:
-        changes["amplitudes_deg"] = parse_amplitudes(amplitudes)
-    elif study is None:
-        raise ValueError("give --amplitudes or --study")
-    cfg = dataclasses.replace(cfg, **changes)
-    presets.get(cfg.model)
-    return cfg
-
-
-def _study_table(path: pathlib.Path) -> dict:
-    """The ``[study]`` table of a study file (or its top level), its ``[scene]`` table as ``overrides``;
-    ValueError for a missing or unreadable file or a bad override."""
-    try:
-        raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"study file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise ValueError(f"cannot read study file {path}: {e}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ValueError(f"study file {path} is not valid TOML: {e}") from None
-    study = dict(raw.get("study", raw))
-    scene = raw.get("scene") if "study" in raw else study.pop("scene", None)
-    if scene is not None:  # [scene]: single fields of the preset changed, as --set does
-        try:
-            study["overrides"] = presets.table_overrides(scene)
-        except ValueError as e:
-            raise ValueError(f"study file {path}: [scene] {e}") from None
-    return study
-
-
-def _scan_study(study: dict, path: pathlib.Path) -> ScanConfig:
-    """A scan study's table (keys are ScanConfig fields) as its spec."""
-    fields = {f.name for f in dataclasses.fields(ScanConfig)}
-    unknown = set(study) - fields - {"description", "figure"}
-    if unknown:
-        raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
-    kw = _config_keywords(study)
-    try:
-        return ScanConfig(**kw)
-    except TypeError as e:
-        raise ValueError(f"study file {path}: {e}") from None
-
-
-def load_study(path) -> ScanConfig:
-    """A study file (TOML) from sweeps/: keys are ScanConfig fields."""
-    path = pathlib.Path(path)
-    study = _study_table(path)
-    if study.get("configs") == "bound":
-        raise ValueError(f"study file {path} starts pairs from another study's gliders; smx validate runs it")
-    if study.get("configs") == "relax":
-        raise ValueError(f"study file {path} is a relaxation study (smx relax); smx validate runs it")
-    return _scan_study(study, path)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -342,21 +265,6 @@ def _overrides_json(d: dict, overrides) -> None:
         del d["overrides"]
 
 
-SWEEPS = pathlib.Path(__file__).resolve().parents[1] / "sweeps"
-
-# The validation suite's studies (docs/validation.md): name -> file in sweeps/, in the order they run
-# (each started-bound study after its source, which it names among these).
-STUDIES = {
-    "random_90": "validation_random.toml",
-    "polar": "validation_polar.toml",
-    "amplitude": "validation_amplitude.toml",
-    "cw_90": "validation_cw.toml",
-    "descent": "validation_descent.toml",
-    "diagonal_90": "validation_diagonal.toml",
-    "diagonal_random": "validation_diagonal_random.toml",
-    "relax": "validation_relax.toml",
-}
-
 @dataclasses.dataclass(frozen=True)
 class BoundStudy:
     """Pairs started as steady gliders of another study (``configs = "bound"``).
@@ -430,89 +338,17 @@ class RelaxStudy:
         cfg.validate(cfg.scene_params())  # with the study's overrides (a slower servo, say) applied
 
 
-def read_relax_screen(path) -> tuple[dict, dict[str, RelaxStudy]]:
-    """A relaxation screen (``sweeps/screens/``): a ``[screen]`` table (trials, periods, seed,
-    amplitude_deg) and ``[[variant]]`` tables, each a name, RelaxConfig keys and an optional ``set``
-    list of scene overrides (``--set FIELD=VALUE``). Returns the screen table and each variant as a
-    one-stage :class:`RelaxStudy`; ValueError (one line) for a bad file or variant."""
-    path = pathlib.Path(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise ValueError(f"screen file {path}: {e}") from None
-    screen, variants = raw.get("screen"), raw.get("variant")
-    if not isinstance(screen, dict) or not isinstance(variants, list) or not variants:
-        raise ValueError(f"screen file {path}: needs a [screen] table and [[variant]] tables")
-    known = {f.name for f in dataclasses.fields(RelaxConfig)} - {"trials", "first_trial", "model", "overrides",
-                                                                   "periods", "seed", "amplitude_deg"}
-    out = {}
-    for v in variants:
-        name = v.get("name")
-        if not name or name in out:
-            raise ValueError(f"screen file {path}: every variant needs a name of its own, got {name!r}")
-        unknown = set(v) - known - {"name", "set"}
-        if unknown:
-            raise ValueError(f"screen file {path}: variant {name}: unknown keys {sorted(unknown)}")
-        keys = {k: val for k, val in v.items() if k in known}
-        try:
-            keys.update(periods=int(screen["periods"]), seed=int(screen["seed"]),
-                        amplitude_deg=float(screen["amplitude_deg"]))
-            if v.get("set"):
-                keys["overrides"] = presets.overrides(v["set"])
-            rs = RelaxStudy(stages=1, trials=int(screen["trials"]), settings=tuple(sorted(keys.items())))
-            rs.validate()
-        except (KeyError, TypeError, ValueError) as e:
-            raise ValueError(f"screen file {path}: variant {name}: {e}") from None
-        out[name] = rs
-    return screen, out
-
-
-def read_study(path) -> ScanConfig | BoundStudy | RelaxStudy:
-    """A study file from sweeps/: a scan (``ScanConfig`` keys), a started-bound or a relaxation study."""
-    path = pathlib.Path(path)
-    study = _study_table(path)
-    if study.get("configs") == "relax":
-        known = {f.name for f in dataclasses.fields(RelaxConfig)} - {"trials", "first_trial", "model"}
-        own = {"stages", "trials", "description", "figure", "configs"}
-        unknown = set(study) - known - own
-        if unknown:
-            raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
-        try:
-            rs = RelaxStudy(stages=int(study.get("stages", 1)), trials=int(study.get("trials", 20)),
-                            settings=tuple(sorted((k, v) for k, v in study.items() if k in known)),
-                            description=study.get("description", ""), figure=study.get("figure", ""))
-            rs.validate()
-        except (TypeError, ValueError) as e:
-            raise ValueError(f"study file {path}: {e}") from None
-        return rs
-    if study.get("configs") != "bound":
-        return _scan_study(study, path)
-    fields = {f.name for f in dataclasses.fields(BoundStudy)}
-    unknown = set(study) - fields - {"configs"}
-    if unknown:
-        raise ValueError(f"study file {path}: unknown keys {sorted(unknown)}")
-    kw = {k: v for k, v in study.items() if k in fields}
-    if "amplitudes_deg" in kw:
-        kw["amplitudes_deg"] = tuple(float(x) for x in kw["amplitudes_deg"])
-    try:
-        bs = BoundStudy(**kw)
-    except TypeError as e:
-        raise ValueError(f"study file {path}: {e}") from None
-    bs.validate()
-    return bs
-
-
 def config_from_json(d: dict) -> ScanConfig:
     """The ScanConfig a store recorded (its ``config["scan"]``)."""
-    return ScanConfig(**_config_keywords(d))
+    return ScanConfig(**config_keywords(d))
 
 
 def relax_config_from_json(d: dict) -> RelaxConfig:
     """The RelaxConfig a relaxation store recorded (its ``config["relax"]``), lists back to tuples."""
-    return RelaxConfig(**_config_keywords(d, RelaxConfig))
+    return RelaxConfig(**config_keywords(d, RelaxConfig))
 
 
-def _config_keywords(d: dict, spec=ScanConfig) -> dict:
+def config_keywords(d: dict, spec=ScanConfig) -> dict:
     """Keywords of ``spec`` (ScanConfig or RelaxConfig) from a study file's or a store's dict: its
     fields, lists back to tuples, stored overrides ({field: value}) back to checked pairs."""
     fields = {f.name for f in dataclasses.fields(spec)}
@@ -534,16 +370,3 @@ def _as_overrides(value) -> tuple[tuple[str, object], ...]:
     return presets.table_overrides(value) if isinstance(value, dict) else presets.overrides(value)
 
 
-def params_from_json(d: dict) -> SceneParams:
-    """The SceneParams a store recorded (its ``config["scene"]``), lists back to tuples."""
-    from .scene import RobotParams, RobotQuirk
-    robot = RobotParams(**d["robot"])
-    rest = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k not in ("robot", "quirks")}
-    quirks = tuple(RobotQuirk(backlash_deg=None if q.get("backlash_deg") is None else tuple(q["backlash_deg"]),
-                              com_offset=tuple(q.get("com_offset", (0.0, 0.0)))) for q in d.get("quirks", ()))
-    return SceneParams(robot=robot, quirks=quirks, **rest)
-
-
-def params_json(params: SceneParams) -> dict:
-    # through JSON: tuples become lists, as a resumed store's saved copy has them
-    return json.loads(json.dumps(dataclasses.asdict(params)))

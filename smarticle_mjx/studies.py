@@ -1,6 +1,8 @@
-"""Study specs and their store cache: what a study file in sweeps/ says, and the complete store that stands for it.
+"""The store cache of studies: the complete store that stands for a study's spec, and the one entry point
+that runs a study of one store (:func:`run_study`).
 
-Three kinds of study (one reader, :func:`read_study`):
+Three kinds of study (specs in :mod:`smarticle_mjx.specs`, read from study files by
+:func:`smarticle_mjx.studyfile.read_study`):
 
 * a **scan** (random, polar or explicit starts; any ``ScanConfig`` keys) -> :class:`ScanConfig`;
 * a **started-bound** study (``configs = "bound"``): pairs started as steady gliders taken from
@@ -26,7 +28,8 @@ import numpy as np
 from .reduce import analysis, gliders as GL
 from .runner import store_header
 from .scan import run_scan
-from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, params_json, with_overrides
+from .scene import params_json
+from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, with_overrides
 from .scene import SceneParams
 from .store import PACKAGE, Store, journal_path
 

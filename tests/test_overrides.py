@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from smarticle_mjx import presets, scene, specs, studies, tracks
+from smarticle_mjx import presets, scene, specs, studies, studyfile, tracks
 from smarticle_mjx.cli import app
 from smarticle_mjx.engine import dart
 
@@ -99,18 +99,18 @@ def test_study_file_scene_table(tmp_path):
     f = tmp_path / "s.toml"
     f.write_text('[study]\nconfigs = "random"\nn = 4\nperiods = 2\n\n[scene]\nrobot_friction = 0.15\n'
                  '[scene.robot]\nservo_speed = 7.0\n')
-    cfg = specs.load_study(f)
+    cfg = studyfile.load_study(f)
     assert dict(cfg.overrides) == {"robot_friction": 0.15, "robot.servo_speed": 7.0}
     assert cfg.scene_params().robot.servo_speed == 7.0
     # --set goes on top of the file's table
-    sw = specs.sweep_config(f, "90", sets=["robot_friction=0.2"])
+    sw = studyfile.sweep_config(f, "90", sets=["robot_friction=0.2"])
     assert dict(sw.overrides) == {"robot_friction": 0.2, "robot.servo_speed": 7.0}
     f.write_text('[study]\nconfigs = "relax"\nstages = 1\ntrials = 2\nperiods = 3\n\n[scene]\nplate_friction = 0.3\n')
-    rs = specs.read_study(f)
+    rs = studyfile.read_study(f)
     assert rs.stage_config(0, presets.DEFAULT).scene_params().plate_friction == 0.3
     f.write_text('[study]\nconfigs = "random"\n\n[scene]\nrobot_fiction = 0.15\n')
     with pytest.raises(ValueError, match=r"\[scene\] --set: unknown scene field 'robot_fiction'"):
-        specs.load_study(f)
+        studyfile.load_study(f)
 
 
 def test_relax_and_simulate_record_overrides(tmp_path):

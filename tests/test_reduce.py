@@ -9,7 +9,8 @@ from typer.testing import CliRunner
 from smarticle_mjx.cli import app
 from smarticle_mjx.reduce import binding, gliders as GL, transport
 from smarticle_mjx.report import ReportOptions, analyse_run
-from smarticle_mjx.specs import ScanConfig, params_json, run_name
+from smarticle_mjx.scene import params_json
+from smarticle_mjx.specs import ScanConfig, run_name
 from smarticle_mjx.scene import SceneParams
 from smarticle_mjx.store import Store, Writer
 

@@ -75,7 +75,7 @@ def test_sweep_has_one_group_per_amplitude(tmp_path):
 
 def test_screen_files_in_sweeps_load():
     """Every relaxation screen of sweeps/screens/ reads, each variant a valid study; a bad variant is one line."""
-    from smarticle_mjx.specs import read_relax_screen
+    from smarticle_mjx.studyfile import read_relax_screen
     screens = sorted((pathlib.Path(__file__).resolve().parents[1] / "sweeps" / "screens").glob("*.toml"))
     assert screens
     for path in screens:
@@ -84,7 +84,7 @@ def test_screen_files_in_sweeps_load():
 
 
 def test_a_bad_screen_variant_is_one_line(tmp_path):
-    from smarticle_mjx.specs import read_relax_screen
+    from smarticle_mjx.studyfile import read_relax_screen
     f = tmp_path / "s.toml"
     head = '[screen]\ntrials = 2\nperiods = 3\nseed = 0\namplitude_deg = 90.0\n'
     for body, says in (('[[variant]]\nname = "a"\nstart = "ring"\n', "variant a: --start must be"),
@@ -100,9 +100,11 @@ def test_a_bad_screen_variant_is_one_line(tmp_path):
 
 
 def test_study_files_in_sweeps_load():
-    from smarticle_mjx.specs import ScanConfig, load_study
+    from smarticle_mjx.specs import ScanConfig
+    from smarticle_mjx.studyfile import load_study
     from smarticle_mjx.scene import SceneParams
-    from smarticle_mjx.specs import BoundStudy, RelaxStudy, read_study
+    from smarticle_mjx.specs import BoundStudy, RelaxStudy
+    from smarticle_mjx.studyfile import read_study
     studies = sorted((pathlib.Path(__file__).resolve().parents[1] / "sweeps").glob("*.toml"))
     assert studies
     kinds = set()

@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 from smarticle_mjx.cli import app
 from smarticle_mjx.presets import DEFAULT
 from smarticle_mjx.store import Store
-from smarticle_mjx.specs import STUDIES
+from smarticle_mjx.suite import STUDIES
 
 TINY = {
     "random_90": 'configs = "random"\nn = 24\nr_range_W = [0.9, 1.4]\namplitudes_deg = [90]\nperiods = 8\n',

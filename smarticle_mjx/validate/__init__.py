@@ -16,7 +16,9 @@ import numpy as np
 from .. import presets
 from ..plots import check_out_dir
 from ..scene import SceneParams
-from ..specs import STUDIES, SWEEPS, ScanConfig, read_study
+from ..specs import ScanConfig
+from ..studyfile import read_study
+from ..suite import STUDIES, SWEEPS
 from ..studies import ensure
 from . import evidence, page
 from .claims import CLAIMS

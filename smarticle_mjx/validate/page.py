@@ -11,7 +11,7 @@ import pathlib
 
 from ..report import describe_configs, json_default
 from ..store import Store
-from ..specs import STUDIES, SWEEPS
+from ..suite import STUDIES, SWEEPS
 from .claims import BETA_PAPER, BETA_TOLERANCE, VERDICTS, beta_holds, f, finite
 
 REPO = SWEEPS.parent
