@@ -8,6 +8,7 @@ import pytest
 from smarticle_mjx.reduce import analysis as A, gliders as GL
 from smarticle_mjx.reduce.transport import Exponent
 from smarticle_mjx.validate import claims as K
+from smarticle_mjx.validate import inputs as I
 
 
 def verdict(key, ev):
@@ -90,8 +91,8 @@ def test_gliders_are_nearly_ballistic_when_beta_is_within_point_three_of_one_poi
 
 
 def polar(axis, corr):
-    return {"axis_deg": axis, "mirror_correlation": corr, "attracted": 100, "valid": 300, "periods": 40,
-            "positions": 72, "orientations": 5, "radius_W": 1.3, "fraction_range": (0.0, 1.0)}
+    return I.Polar(axis, corr, attracted=100, valid=300, periods=40, positions=72, orientations=5, radius_W=1.3,
+                   fraction_range=(0.0, 1.0))
 
 
 def test_the_polar_basin_is_symmetric_about_270_when_centred_and_mirror_correlated():
@@ -102,17 +103,17 @@ def test_the_polar_basin_is_symmetric_about_270_when_centred_and_mirror_correlat
 
 
 def test_the_diagonal_gait_is_diffusive_when_beta_is_near_one_from_enough_gliders():
-    ev = lambda b, n: {"beta": Exponent(b, 0.05, n, (5, 15), "bootstrap", b - 0.1, b + 0.1),  # noqa: E731
-                       "lags": (5, 15), "parts": ["x of y"]}
+    ev = lambda b, n: I.Diagonal(Exponent(b, 0.05, n, (5, 15), "bootstrap", b - 0.1, b + 0.1),  # noqa: E731
+                                 (5, 15), ("x of y",))
     assert verdict("diagonal_beta", ev(1.1, 12)) == "holds"
     assert verdict("diagonal_beta", ev(1.6, 12)) == "does not hold"
     assert verdict("diagonal_beta", ev(1.0, 3)) == "not measurable"  # fewer than 5 gliders
-    assert verdict("diagonal_beta", {"beta": None, "lags": (5, 15), "parts": []}) == "not measurable"
+    assert verdict("diagonal_beta", I.Diagonal(None, (5, 15), ())) == "not measurable"
 
 
 def mirror_ev(ccw, cw, th_ccw=220.0, th_cw_mirrored=225.0):
-    return {"ccw": ccw, "cw": cw, "c1_theta_ccw": th_ccw, "c1_theta_cw_mirrored": th_cw_mirrored,
-            "cw_summary": {"valid": 200, "periods": 40, "options": {"glider_min_periods": 20}}}
+    return I.Mirror(I.Turn(*ccw), I.Turn(*cw), th_ccw, th_cw_mirrored, cw_valid=200, cw_periods=40,
+                    cw_glider_min_periods=20)
 
 
 def test_chirality_mirrors_gliders_when_turns_have_opposite_significant_signs_and_theta_maps():
@@ -125,9 +126,8 @@ def test_chirality_mirrors_gliders_when_turns_have_opposite_significant_signs_an
 
 
 def descent_ev(r_by_amp):
-    sep = [{"amplitude_deg": a, "r_W": r, "lo": r - 0.02, "hi": r + 0.02, "pairs": 20, "started": 32}
-           for a, r in sorted(r_by_amp.items())]
-    return {"sep": sep, "window": 10, "periods": 15, "continuation": False}
+    sep = tuple(I.SteadyR(a, r, r - 0.02, r + 0.02, pairs=20, started=32) for a, r in sorted(r_by_amp.items()))
+    return I.Descent(sep, window=10, periods=15, continuation=False)
 
 
 def test_steady_separation_falls_with_amplitude_with_its_largest_drop_near_85_degrees():
@@ -154,8 +154,8 @@ def pb_ev(p):
         k = int(sum(round(p[a] * 200) for a in amps[sel]))
         lo, hi = binding.binomial_interval(k, 200 * int(sel.sum()))
         nn = 200 * int(sel.sum())
-        pooled[g] = (k / nn if nn else np.nan, lo, hi, nn)
-    return {"amplitudes_deg": amps, "pb_end": pe, "valid": n, "pooled": pooled, "periods": 30}
+        pooled[g] = I.Pooled(k / nn if nn else np.nan, lo, hi, nn)
+    return I.BindingVsAmplitude(amps, np.asarray(pe, float), n, pooled, periods=30)
 
 
 def test_the_binding_probability_dips_at_intermediate_amplitudes():

@@ -18,6 +18,7 @@ import numpy as np
 
 from .. import formatting
 from ..reduce import binding, gliders as GL
+from .inputs import BindingVsAmplitude, Descent, Diagonal, Mirror, Polar
 
 VERDICTS = {True: "holds", False: "does not hold", None: "not measurable"}
 
@@ -219,19 +220,18 @@ def beta(a90) -> Outcome:
 
 @claim("polar_symmetry", "at |r| = 1.3 W the attracted region is nearly symmetric about θ ≈ 270°", "Fig. 7C",
        "mean θ within 20° of 270° and mirror correlation > 0.7", ("polar",), evidence="polar")
-def polar_symmetry(ev: dict) -> Outcome:
-    """``ev``: circular mean θ of attracted starts (axis_deg), the mirror correlation of the attracted
-    fraction per θ bin, counts, the bins' fraction range and the scan's layout."""
-    axis, corr = ev["axis_deg"], ev["mirror_correlation"]
+def polar_symmetry(ev: Polar) -> Outcome:
+    """``ev``: the polar scan's attracted starts (:class:`.inputs.Polar`)."""
+    axis, corr = ev.axis_deg, ev.mirror_correlation
     ok = bool(abs(axis - POLAR_AXIS_DEG) < POLAR_AXIS_TOL and corr > POLAR_MIRROR_CORR) \
         if np.isfinite(axis + corr) else None
-    lo, hi = ev["fraction_range"]
+    lo, hi = ev.fraction_range
     return Outcome(ok,
                    f"circular mean θ of attracted starts {f(axis, '.0f')}°; correlation of the attracted fraction "
-                   f"with its mirror image about 270°: {f(corr)} ({ev['attracted']} of {ev['valid']} valid starts "
+                   f"with its mirror image about 270°: {f(corr)} ({ev.attracted} of {ev.valid} valid starts "
                    "attracted)",
-                   f"{ev['positions']} positions × {ev['orientations']} orientations at \\|r\\| = {ev['radius_W']} W, "
-                   f"{ev['periods']} periods (the paper: 1000 positions, 75 periods); attracted = bound in the last "
+                   f"{ev.positions} positions × {ev.orientations} orientations at \\|r\\| = {ev.radius_W} W, "
+                   f"{ev.periods} periods (the paper: 1000 positions, 75 periods); attracted = bound in the last "
                    f"period; the attracted fraction per 10° bin of θ ranges {f(lo)}–{f(hi)}"
                    + (" (a nearly flat profile leaves the mirror correlation little shape to find)."
                       if hi - lo < 0.3 else "."))
@@ -241,15 +241,15 @@ def polar_symmetry(ev: dict) -> Outcome:
 
 @claim("diagonal_beta", "under the time-symmetric gait β ≈ 1", "Fig. 3C (black)",
        "|β − 1| < 0.3 from ≥ 5 gliders", ("diagonal_90", "diagonal_random"), evidence="diagonal")
-def diagonal_beta(ev: dict) -> Outcome:
-    """``ev``: ``beta`` (transport.msd_exponent of the pooled glider tracks, or None), ``lags`` and
-    ``parts`` (one line per source of bound pairs)."""
-    bd = ev["beta"]
+def diagonal_beta(ev: Diagonal) -> Outcome:
+    """``ev``: β of the pooled glider tracks (or None), its delays and one line per source of bound pairs
+    (:class:`.inputs.Diagonal`)."""
+    bd = ev.beta
     enough = bd is not None and bd.tracks >= DIAGONAL_MIN_GLIDERS
     ok = bool(abs(bd.beta - DIAGONAL_BETA) < BETA_TOLERANCE) if enough and np.isfinite(bd.beta) else None
     return Outcome(ok,
-                   (f"β = {ci(bd.beta, bd.lo, bd.hi)} ({bd.tracks} gliders, delays {list(ev['lags'])}); "
-                    if enough else "too few bound pairs for β: ") + "; ".join(ev["parts"]),
+                   (f"β = {ci(bd.beta, bd.lo, bd.hi)} ({bd.tracks} gliders, delays {list(ev.lags)}); "
+                    if enough else "too few bound pairs for β: ") + "; ".join(ev.parts),
                    "Two sources of bound pairs under the diagonal gait S1 → S3 → S1 at 90°: the C1 gliders of the "
                    "90° random study started as they were and switched to this gait (the paper's Fig. 3C black "
                    "curve is for bound pairs), and random starts. β as for the square gait: centred MSD at long "
@@ -263,23 +263,22 @@ def diagonal_beta(ev: dict) -> Outcome:
        "the 95 % bootstrap intervals of the two mean turns both exclude 0, with opposite signs (stricter than "
        "before: a sign test that can fail), and C1 θ equal to the mirrored θ within 15°", ("cw_90", "random_90"),
        evidence="mirror")
-def mirror(ev: dict) -> Outcome:
-    """``ev``: mean signed body-heading turn per glider with its bootstrap interval under each
-    chirality ((mean, lo, hi, n) for "ccw" and "cw"), C1's mean θ (ccw) and the mirrored cw one."""
-    (m1, lo1, hi1, n1), (m2, lo2, hi2, n2) = ev["ccw"], ev["cw"]
-    th_ccw, mirrored = ev["c1_theta_ccw"], ev["c1_theta_cw_mirrored"]
+def mirror(ev: Mirror) -> Outcome:
+    """``ev``: each chirality's mean signed body-heading turn per glider with its bootstrap interval, C1's
+    mean θ (ccw) and the mirrored cw one (:class:`.inputs.Mirror`)."""
+    (m1, lo1, hi1, n1), (m2, lo2, hi2, n2) = dataclasses.astuple(ev.ccw), dataclasses.astuple(ev.cw)
+    th_ccw, mirrored = ev.c1_theta_ccw, ev.c1_theta_cw_mirrored
     dth = abs((th_ccw - mirrored + 180) % 360 - 180)
     ok = None
     if np.isfinite([lo1, hi1, lo2, hi2, dth]).all():
         sig = (lo1 > 0 and hi2 < 0) or (hi1 < 0 and lo2 > 0)
         ok = bool(sig and dth < MIRROR_THETA_TOL)
-    s = ev["cw_summary"]
     return Outcome(ok,
                    f"signed body-heading turn per glider: ccw {ci(m1, lo1, hi1)}°/period ({n1} gliders), "
                    f"cw {ci(m2, lo2, hi2)}°/period ({n2} gliders); C1 mean θ: ccw {f(th_ccw, '.0f')}°, "
                    f"cw mirrored (180° − θ) {f(mirrored, '.0f')}°",
-                   f"Clockwise random study ({s['valid']} valid starts, {s['periods']} periods) against the "
-                   f"counter-clockwise one; gliders = bound runs ≥ {s['options']['glider_min_periods']} periods, one "
+                   f"Clockwise random study ({ev.cw_valid} valid starts, {ev.cw_periods} periods) against the "
+                   f"counter-clockwise one; gliders = bound runs ≥ {ev.cw_glider_min_periods} periods, one "
                    "mean turn per glider; a mirror maps θ to 180° − θ and φ to −φ.")
 
 
@@ -287,11 +286,11 @@ def mirror(ev: dict) -> Outcome:
 
 @claim("descent", "steady-state |r| decreases with α_max above 45°, with a sharp drop near 85°", "Fig. 3E",
        "ρ < 0 with p < 0.05, and the largest drop between 80° and 90°", ("descent",), evidence="descent")
-def descent(ev: dict) -> Outcome:
-    """``ev``: ``sep``, one row per amplitude (amplitude_deg, r_W, lo, hi, pairs, started) in increasing
-    amplitude; ``window`` (periods averaged), ``periods`` per stage, ``continuation``."""
-    sep = [(s["amplitude_deg"], s["r_W"], s["lo"], s["hi"], s["pairs"], s["started"]) for s in ev["sep"]]
-    win = ev["window"]
+def descent(ev: Descent) -> Outcome:
+    """``ev``: steady |r| per amplitude in increasing amplitude, the window averaged, the periods per stage
+    and whether stages continued (:class:`.inputs.Descent`)."""
+    sep = [dataclasses.astuple(s) for s in ev.sep]
+    win = ev.window
     x = np.array([s_[0] for s_ in sep])
     y = np.array([s_[1] for s_ in sep], float)
     ok = np.isfinite(y)
@@ -305,9 +304,9 @@ def descent(ev: dict) -> Outcome:
                    + f" W (pairs bound through the last {win} periods); Spearman ρ = {f(rho)} (p = {f(p, '.2g')}); "
                      f"largest drop {where}",
                    f"Pairs started bound, as the paper did: {sep[-1][5] if sep else 0} steady C1 gliders of the 90° "
-                   f"random study, run {ev['periods']} periods at each amplitude "
+                   f"random study, run {ev.periods} periods at each amplitude "
                    + ("(each stage starting where the pairs still bound at the end of the previous one ended)"
-                      if ev["continuation"] else
+                      if ev.continuation else
                       "(each amplitude started from those gliders at rest, arms at the gait's first corner; stepping "
                       "down with each stage starting where the previous one ended was tried first: all 32 pairs "
                       "stayed bound at 85° and all parted within a period at 80°)")
@@ -329,24 +328,24 @@ def pb_groups(amps: np.ndarray) -> dict[str, np.ndarray]:
 @claim("pb_dip", "P_b(α_max) is lower at intermediate amplitudes (40–60°)", "Fig. 3B",
        "every P_b(end) at 40–60° below the means at 10–30° and at 70–90°, and the pooled 40–60° interval below "
        "both pooled flank intervals (stricter than before)", ("amplitude",), evidence="amplitude")
-def pb_dip(ev: dict) -> Outcome:
-    """``ev``: ``amplitudes_deg``, ``pb_end`` ([A, 3] P_b at the end with its interval), ``valid`` per
-    amplitude, ``pooled`` (group -> (P, lo, hi, n)), ``periods``."""
-    amps, pe, n, pooled = np.asarray(ev["amplitudes_deg"]), np.asarray(ev["pb_end"], float), \
-        np.asarray(ev["valid"]), ev["pooled"]
+def pb_dip(ev: BindingVsAmplitude) -> Outcome:
+    """``ev``: P_b at the end per amplitude with its interval, valid starts per amplitude and the groups
+    pooled (:class:`.inputs.BindingVsAmplitude`)."""
+    amps, pe, n, pooled = np.asarray(ev.amplitudes_deg), np.asarray(ev.pb_end, float), np.asarray(ev.valid), \
+        ev.pooled
     groups = pb_groups(amps)
     ok = None
     if all(sel.any() for sel in groups.values()):
         mid, low, high = groups["40–60°"], groups["10–30°"], groups["70–90°"]
         below_means = bool(pe[mid, 0].max() < pe[low, 0].mean() and pe[mid, 0].max() < pe[high, 0].mean())
-        separated = pooled["40–60°"][2] < min(pooled["10–30°"][1], pooled["70–90°"][1])
+        separated = pooled["40–60°"].hi < min(pooled["10–30°"].lo, pooled["70–90°"].lo)
         ok = bool(below_means and separated)
     half = np.nanmax((pe[:, 2] - pe[:, 1]) / 2) if len(pe) else np.nan
     return Outcome(ok,
                    ", ".join(f"{a:g}°: {f(p0)} [{f(lo)}, {f(hi)}]" for a, (p0, lo, hi) in zip(amps, pe))
-                   + "; pooled " + ", ".join(f"{g} {ci(*v[:3])}" for g, v in pooled.items()),
+                   + "; pooled " + ", ".join(f"{g} {ci(v.value, v.lo, v.hi)}" for g, v in pooled.items()),
                    f"{int(n.min())}–{int(n.max())} valid random starts per amplitude (widest 95 % half-width "
-                   f"{f(half)}), {ev['periods']} periods (the paper: 5000 × 75); bound at the end; exact binomial "
+                   f"{f(half)}), {ev.periods} periods (the paper: 5000 × 75); bound at the end; exact binomial "
                    "intervals.")
 
 

@@ -21,6 +21,7 @@ from ..reduce import analysis
 from ..report import amplitude_panels, analyse_store_run, round_for_report
 from ..store import Store
 from .claims import CLAIMS, pb_groups
+from .inputs import BindingVsAmplitude, Descent, Diagonal, Mirror, Polar, Pooled, SteadyR, Turn
 
 
 def circ_mean_deg(a) -> float:
@@ -42,7 +43,7 @@ def lone_robots(singles: dict) -> dict:
     return out
 
 
-def polar(path) -> dict:
+def polar(path) -> Polar:
     """Attracted starts of the polar scan: their circular mean θ and the mirror symmetry about 270 deg
     (correlation of the attracted fraction per 10 deg bin of θ with that of the mirrored bin)."""
     sp_ = Store(path)
@@ -62,13 +63,12 @@ def polar(path) -> dict:
     corr = float(np.corrcoef(frac[good], fm[good])[0, 1]) if good.sum() > 3 and np.std(frac[good]) > 0 \
         else float("nan")
     sc = sp_.config["scan"]
-    return {"axis_deg": axis, "mirror_correlation": corr, "attracted": int(att.sum()), "valid": int(ok.sum()),
-            "periods": int(sp_.run_attrs[sp_.runs[0]]["periods"]), "positions": sc["positions"],
-            "orientations": sc["orientations"], "radius_W": sc["radius_W"],
-            "fraction_range": (float(np.nanmin(frac)), float(np.nanmax(frac)))}
+    return Polar(axis, corr, int(att.sum()), int(ok.sum()), int(sp_.run_attrs[sp_.runs[0]]["periods"]),
+                 sc["positions"], sc["orientations"], sc["radius_W"],
+                 (float(np.nanmin(frac)), float(np.nanmax(frac))))
 
 
-def mirror(a90: analysis.RunAnalysis, acw: analysis.RunAnalysis) -> dict:
+def mirror(a90: analysis.RunAnalysis, acw: analysis.RunAnalysis) -> Mirror:
     """Mean signed body-heading turn per glider under each chirality (degrees per period, bootstrap
     intervals) and C1's mean θ counter-clockwise beside the mirrored (180 deg − θ) clockwise one."""
     def c1_theta(a):
@@ -77,17 +77,15 @@ def mirror(a90: analysis.RunAnalysis, acw: analysis.RunAnalysis) -> dict:
         s = a.types.samples[a.types.sample_kinds == GL.C1]
         return circ_mean_deg(s[:, 1]) if len(s) else float("nan")
 
-    def turns(a):
+    def turns(a) -> Turn:
         per_glider = a.transport.heading_turn_per_glider if a.transport is not None else np.zeros(0)
-        return transport.bootstrap_interval(np.degrees(per_glider))
+        return Turn(*transport.bootstrap_interval(np.degrees(per_glider)))
 
-    return {"ccw": turns(a90), "cw": turns(acw), "c1_theta_ccw": c1_theta(a90),
-            "c1_theta_cw_mirrored": (180 - c1_theta(acw)) % 360,
-            "cw_summary": {"valid": acw.valid, "periods": acw.periods,
-                           "options": {"glider_min_periods": acw.options.glider_min_periods}}}
+    return Mirror(turns(a90), turns(acw), c1_theta(a90), (180 - c1_theta(acw)) % 360, acw.valid, acw.periods,
+                  acw.options.glider_min_periods)
 
 
-def descent(paths: list, window: int) -> list[dict]:
+def descent(paths: list, window: int) -> list[SteadyR]:
     """Steady |r| per amplitude of the started-bound stages (mean over the last ``window`` periods of
     pairs bound in all of them, bootstrap interval over pairs), in increasing amplitude."""
     sep = []
@@ -99,10 +97,10 @@ def descent(paths: list, window: int) -> list[dict]:
         m, lo, hi, n = transport.bootstrap_interval(ss["per_pair"])
         sep.append((float(st.run_attrs[st.runs[0]]["amplitude_deg"]), m, lo, hi, n, int(d["valid"].sum())))
     sep.sort()
-    return [dict(zip(("amplitude_deg", "r_W", "lo", "hi", "pairs", "started"), x)) for x in sep]
+    return [SteadyR(*x) for x in sep]
 
 
-def pb(runs: list[analysis.RunAnalysis]) -> dict:
+def pb(runs: list[analysis.RunAnalysis]) -> BindingVsAmplitude:
     """P_b at the end per amplitude and pooled over the claim's amplitude groups (exact intervals)."""
     amps = np.array([a.amplitude_deg for a in runs])
     n = np.array([a.binding.end.n for a in runs])
@@ -111,10 +109,9 @@ def pb(runs: list[analysis.RunAnalysis]) -> dict:
     for g, sel in pb_groups(amps).items():
         kk, nn = int(k[sel].sum()), int(n[sel].sum())
         lo, hi = binding.binomial_interval(kk, nn)
-        pooled[g] = (kk / nn if nn else np.nan, float(lo), float(hi), nn)
-    return {"amplitudes_deg": amps,
-            "pb_end": [[a.binding.end.value, a.binding.end.lo, a.binding.end.hi] for a in runs], "valid": n,
-            "pooled": pooled, "periods": runs[0].periods}
+        pooled[g] = Pooled(kk / nn if nn else np.nan, float(lo), float(hi), nn)
+    return BindingVsAmplitude(amps, np.array([[a.binding.end.value, a.binding.end.lo, a.binding.end.hi]
+                                              for a in runs], float), n, pooled, runs[0].periods, tuple(runs))
 
 
 def relax(paths: list, figures: pathlib.Path, made: list) -> dict:
@@ -221,16 +218,16 @@ def _random_90(ctx: Context) -> analysis.RunAnalysis:
 
 
 @builds("polar", ("polar",))
-def _polar(ctx: Context) -> dict:
+def _polar(ctx: Context) -> Polar:
     ev = polar(ctx.stores["polar"])
-    ctx.extra["polar"] = {k: ev[k] for k in ("axis_deg", "mirror_correlation", "attracted", "valid", "periods")}
+    ctx.extra["polar"] = ev.as_json()
     ctx.draw(plots.phase_diagram(ctx.stores["polar"], ctx.figures, Store(ctx.stores["polar"]).runs[0],
                                  formats=("png",), stem="phase_diagram_polar_1p3"))
     return ev
 
 
 @builds("diagonal", ("diagonal_90", "diagonal_random"), any_study=True)
-def _diagonal(ctx: Context) -> dict:
+def _diagonal(ctx: Context) -> Diagonal:
     parts, tracks, lags, runs = [], [], None, {}
     for name, what in (("diagonal_90", "started-bound C1 gliders"), ("diagonal_random", "random starts")):
         if not ctx.stores.get(name):
@@ -251,45 +248,44 @@ def _diagonal(ctx: Context) -> dict:
         allt = np.concatenate([np.pad(t, ((0, 0), (0, L - t.shape[1]), (0, 0)), constant_values=np.nan)
                                for t in tracks])
         bd = transport.msd_exponent(allt, lag_range=tuple(lags)) if len(allt) else None
-    return {"beta": bd, "lags": lags, "parts": parts, "runs": runs}
+    return Diagonal(bd, lags, tuple(parts), runs)
 
 
 @builds("mirror", ("cw_90", "random_90"))
-def _mirror(ctx: Context) -> dict:
+def _mirror(ctx: Context) -> Mirror:
     sc = Store(ctx.stores["cw_90"])
     ev = mirror(ctx.get("random_90"), analyse_store_run(sc, sc.runs[0]))
-    ctx.extra["mirror"] = ev
+    ctx.extra["mirror"] = ev.as_json()
     return ev
 
 
 @builds("descent", ("descent",))
-def _descent(ctx: Context) -> dict:
+def _descent(ctx: Context) -> Descent:
     spec = ctx.specs.get("descent")
     win = spec.steady_window if spec is not None else 10
     sep = descent(ctx.stores["descent"], win)
-    ctx.extra["descent"] = sep
+    ctx.extra["descent"] = [dataclasses.asdict(x) for x in sep]
     if sep:
         ctx.draw(plots.versus_amplitude(
-            [x["amplitude_deg"] for x in sep],
-            {"steady |r| (W), started bound": ([x["r_W"] for x in sep],
-                                               [(x["r_W"] - x["lo"], x["hi"] - x["r_W"]) for x in sep])},
+            [x.amplitude_deg for x in sep],
+            {"steady |r| (W), started bound": ([x.r_W for x in sep], [(x.r_W - x.lo, x.hi - x.r_W) for x in sep])},
             ctx.figures, "steady_separation"))
-    return {"sep": sep, "window": win, "periods": Store(ctx.stores["descent"][0]).config["scan"]["periods"],
-            "continuation": bool(spec is not None and spec.continuation)}
+    return Descent(tuple(sep), win, Store(ctx.stores["descent"][0]).config["scan"]["periods"],
+                   bool(spec is not None and spec.continuation))
 
 
 @builds("amplitude", ("amplitude",))
-def _amplitude(ctx: Context) -> dict:
+def _amplitude(ctx: Context) -> BindingVsAmplitude:
     sa = Store(ctx.stores["amplitude"])
     runs = [analyse_store_run(sa, r) for r in sa.runs]
     ctx.extra["amplitude"] = [a.summary() for a in runs]
     ev = pb(runs)
-    ctx.extra["pb_pooled"] = ev["pooled"]
+    ctx.extra["pb_pooled"] = ev.pooled_json()
     sums = [a.summary(round_for_report) for a in runs]
     amps = [a.amplitude_deg for a in runs]
     ctx.draw(plots.pb_curve(amps, [s_["pb_end"] for s_ in sums], [s_["pb_throughout"] for s_ in sums], ctx.figures))
     ctx.draw(plots.versus_amplitude(amps, amplitude_panels(sums), ctx.figures, "vs_amplitude"))
-    return {**ev, "runs": runs}
+    return ev
 
 
 @builds("relax", ("relax",))
@@ -303,11 +299,13 @@ def _msd_figure(ctx: Context) -> None:
     """Every MSD curve the page has, in one figure, after the builders that measure them."""
     curves = {}
     a90 = ctx.built("random_90")
-    adiag = (ctx.built("diagonal") or {}).get("runs", {}).get("diagonal_90")
+    diag = ctx.built("diagonal")
+    adiag = diag.runs.get("diagonal_90") if diag is not None else None
     for label, a in (("90° square", a90), ("90° diagonal, started bound", adiag)):
         if a is not None and a.transport is not None:
             curves[label] = (a.transport.msd_lags, a.transport.msd)
-    for a in (ctx.built("amplitude") or {}).get("runs", []):
+    amp = ctx.built("amplitude")
+    for a in (amp.runs if amp is not None else ()):
         if a.amplitude_deg in (10, 50, 90) and a.transport is not None:
             curves[f"{a.amplitude_deg:g}° (sweep)"] = (a.transport.msd_lags, a.transport.msd)
     if curves:

@@ -1,0 +1,127 @@
+"""What the claims measure: the typed, unrounded evidence each builder of :mod:`.evidence` makes from the
+stores and each claim of :mod:`.claims` takes (built by hand in the claims' tests). Rounding happens only
+where the page prints them; ``as_json`` is what ``validation.json`` records beside the page.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..reduce.transport import Exponent
+
+
+@dataclasses.dataclass(frozen=True)
+class Polar:
+    """The polar scan at one |r|: the circular mean θ of its attracted starts (deg), the correlation of
+    the attracted fraction per 10° bin of θ with that of the bin mirrored about 270°, the counts, the
+    bins' fraction range (lo, hi) and the scan's layout."""
+
+    axis_deg: float
+    mirror_correlation: float
+    attracted: int
+    valid: int
+    periods: int
+    positions: int
+    orientations: int
+    radius_W: float
+    fraction_range: tuple[float, float]
+
+    def as_json(self) -> dict:
+        """What validation.json records of it."""
+        return {k: getattr(self, k) for k in ("axis_deg", "mirror_correlation", "attracted", "valid", "periods")}
+
+
+@dataclasses.dataclass(frozen=True)
+class Turn:
+    """A mean signed body-heading turn per glider (deg per period) with its 95 % bootstrap interval and the
+    gliders it is over."""
+
+    mean: float
+    lo: float
+    hi: float
+    n: int
+
+
+@dataclasses.dataclass(frozen=True)
+class Mirror:
+    """Both chiralities at 90°: each one's mean turn per glider, C1's mean θ counter-clockwise and the
+    clockwise one mirrored (180° − θ), and the clockwise study's size (valid starts, periods, the glider
+    rule's minimum run)."""
+
+    ccw: Turn
+    cw: Turn
+    c1_theta_ccw: float
+    c1_theta_cw_mirrored: float
+    cw_valid: int
+    cw_periods: int
+    cw_glider_min_periods: int
+
+    def as_json(self) -> dict:
+        return {"ccw": tuple(dataclasses.astuple(self.ccw)), "cw": tuple(dataclasses.astuple(self.cw)),
+                "c1_theta_ccw": self.c1_theta_ccw, "c1_theta_cw_mirrored": self.c1_theta_cw_mirrored,
+                "cw_summary": {"valid": self.cw_valid, "periods": self.cw_periods,
+                               "options": {"glider_min_periods": self.cw_glider_min_periods}}}
+
+
+@dataclasses.dataclass(frozen=True)
+class SteadyR:
+    """Steady |r| (W) of the started-bound pairs at one amplitude: the mean over the last ``window``
+    periods of pairs bound in all of them, its 95 % bootstrap interval over pairs, those pairs and the
+    pairs started."""
+
+    amplitude_deg: float
+    r_W: float
+    lo: float
+    hi: float
+    pairs: int
+    started: int
+
+
+@dataclasses.dataclass(frozen=True)
+class Descent:
+    """Steady |r| per amplitude (increasing amplitude), the window averaged, the periods of each stage and
+    whether each stage started where the previous one ended."""
+
+    sep: tuple[SteadyR, ...]
+    window: int
+    periods: int
+    continuation: bool
+
+
+@dataclasses.dataclass(frozen=True)
+class Pooled:
+    """P_b at the end pooled over one group of amplitudes: the fraction, its exact 95 % interval, the starts."""
+
+    value: float
+    lo: float
+    hi: float
+    n: int
+
+
+@dataclasses.dataclass(frozen=True)
+class BindingVsAmplitude:
+    """P_b at the end per amplitude ([A, 3]: value, exact 95 % interval), valid starts per amplitude, the
+    claim's groups pooled, the periods run; ``runs``: each amplitude's ``RunAnalysis`` (for figures)."""
+
+    amplitudes_deg: np.ndarray
+    pb_end: np.ndarray
+    valid: np.ndarray
+    pooled: dict[str, Pooled]
+    periods: int
+    runs: tuple = ()
+
+    def pooled_json(self) -> dict:
+        return {g: tuple(dataclasses.astuple(p)) for g, p in self.pooled.items()}
+
+
+@dataclasses.dataclass(frozen=True)
+class Diagonal:
+    """Gliders under the time-symmetric gait: β of the pooled glider tracks (None without any), the delays
+    fitted, one line per source of bound pairs, and each source's ``RunAnalysis`` (for figures)."""
+
+    beta: Exponent | None
+    lags: tuple | None
+    parts: tuple[str, ...]
+    runs: dict = dataclasses.field(default_factory=dict)
