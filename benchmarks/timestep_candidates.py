@@ -86,7 +86,7 @@ def lone_drift(params, amplitude: float, cycles: int = 20) -> float:
     gait = GaitSpec(amplitude)
     a = gait.setpoints(0.0, params.robot.servo_speed)
     r = simulate(params, [(0, 0, 0, a[0], a[1])], gait, periods=cycles + 2)
-    return transport.lone_robot(r.poses[:, 0, :2], skip_cycles=2, unit=params.robot.body_length)["net_W_per_cycle"]
+    return transport.lone_robot(r.poses[:, 0, :2], skip_cycles=2, unit=params.robot.body_length).net_W_per_cycle
 
 
 def ensure_runs(names, args):

@@ -41,8 +41,8 @@ OUT = pathlib.Path(__file__).parent / "results" / "twin.json"
 def _measures(quarters: np.ndarray, body_length: float) -> dict:
     """From body centres at every quarter period [4K + 1, 2]: drift and slip per edge (W), skipping period 1."""
     m = transport.lone_robot(quarters, samples_per_cycle=4, skip_cycles=1, unit=body_length)
-    return {"drift_W_per_cycle": m["net_W_per_cycle"], "slip_per_edge_W": m["slip_per_edge_W"],
-            "slip_per_edge_max_W": m["slip_per_edge_max_W"]}
+    return {"drift_W_per_cycle": m.net_W_per_cycle, "slip_per_edge_W": m.slip_per_edge_W,
+            "slip_per_edge_max_W": m.slip_per_edge_max_W}
 
 
 def mujoco_row(params, gait: GaitSpec, periods: int) -> dict:

@@ -153,9 +153,9 @@ def lone_drift(params, amplitude: float, periods: int, imperfections: str | None
             xy = np.concatenate([poses[:, None, 0, :2], tr[:, :, 0, :2]], 1)[0]
             heading = np.concatenate([[0.0], tr[0, :, 0, 2]])
             m = transport.lone_robot(xy, heading, unit=W)
-            net.append(m["net_W_per_cycle"])
-            step.append(m["step_W_per_cycle"])
-            turn.append(m["abs_heading_deg_per_cycle"])
+            net.append(m.net_W_per_cycle)
+            step.append(m.step_W_per_cycle)
+            turn.append(m.abs_heading_deg_per_cycle)
             wall += w
         out[label] = {"net_per_cycle_W": float(np.mean(net)), "step_per_cycle_W": float(np.mean(step)),
                       "turn_per_cycle_deg": float(np.mean(turn)), "wall_s": wall}

@@ -31,7 +31,8 @@ def test_a_missing_study_names_itself_and_is_not_measurable():
                                         (4e-4, False), (5e-3, False), (5.8e-7, False)])
 def test_lone_drift_holds_within_a_factor_three_of_the_lab(net, holds):
     """The lab's lone robot drifts 1.5e-3 W per cycle: within 3x either way holds."""
-    ev = {"net_W_per_cycle": net, "step_W_per_cycle": net * 2, "cycles": 75}
+    from smarticle_mjx.reduce.transport import LoneRobot
+    ev = I.LoneDrift(LoneRobot(net, net * 2, beta=1.0, beta_err=0.1), robots=1, cycles=75)
     assert verdict("lone_drift", ev) == ("holds" if holds else "does not hold")
 
 

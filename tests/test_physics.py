@@ -276,7 +276,7 @@ def _slip_per_arm_move(params, periods=4):
     T = res.track_t[-1] / periods
     idx = [int(np.argmin(np.abs(t - q * T / 4))) for q in range(4 * periods + 1)]
     return transport.lone_robot(xy[idx], samples_per_cycle=4, skip_cycles=1,
-                                unit=params.robot.body_length)["slip_per_edge_W"]
+                                unit=params.robot.body_length).slip_per_edge_W
 
 
 def test_an_implicit_step_slips_a_lone_robot_in_proportion_to_dt_times_the_servo_gain():

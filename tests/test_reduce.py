@@ -155,21 +155,22 @@ def test_lone_robot_measures_drift_slip_and_turn_of_built_tracks():
     xy = np.stack([0.75e-3 * q, np.zeros_like(q, float)], -1)
     heading = np.radians(2.0) * q / quarters
     m = transport.lone_robot(xy, heading, 1.6, samples_per_cycle=quarters, unit=W)
-    assert m["net_W_per_cycle"] == pytest.approx(3e-3 / W)
-    assert m["step_W_per_cycle"] == pytest.approx(3e-3 / W)
-    assert m["speed_W_per_s"] == pytest.approx(3e-3 / W / 1.6)
-    assert m["slip_per_edge_W"] == pytest.approx(0.75e-3 / W) == m["slip_per_edge_max_W"]
-    assert m["beta"] == pytest.approx(2.0, abs=1e-9)
-    assert m["heading_deg_per_cycle"] == pytest.approx(2.0) == m["abs_heading_deg_per_cycle"]
+    assert m.net_W_per_cycle == pytest.approx(3e-3 / W)
+    assert m.step_W_per_cycle == pytest.approx(3e-3 / W)
+    assert m.speed_W_per_s == pytest.approx(3e-3 / W / 1.6)
+    assert m.slip_per_edge_W == pytest.approx(0.75e-3 / W) == m.slip_per_edge_max_W
+    assert m.beta == pytest.approx(2.0, abs=1e-9)
+    assert m.heading_deg_per_cycle == pytest.approx(2.0) == m.abs_heading_deg_per_cycle
 
     kicked = xy.copy()
     kicked[1:] += [0.0, 10e-3]  # a 10 mm jump in the first quarter, then the same straight line
     first = transport.lone_robot(kicked, samples_per_cycle=quarters, unit=W)
-    assert first["slip_per_edge_max_W"] > 10e-3 / W > first["net_W_per_cycle"] > 3e-3 / W
+    assert first.slip_per_edge_max_W > 10e-3 / W > first.net_W_per_cycle > 3e-3 / W
     later = transport.lone_robot(kicked, samples_per_cycle=quarters, skip_cycles=1, unit=W)
-    assert later["net_W_per_cycle"] == pytest.approx(3e-3 / W)
-    assert later["slip_per_edge_max_W"] == pytest.approx(0.75e-3 / W)
-    assert "speed_W_per_s" not in later and "heading_deg_per_cycle" not in later
+    assert later.net_W_per_cycle == pytest.approx(3e-3 / W)
+    assert later.slip_per_edge_max_W == pytest.approx(0.75e-3 / W)
+    assert later.speed_W_per_s is None and later.heading_deg_per_cycle is None  # not measured: no period, no heading
+    assert "speed_W_per_s" not in later.as_json() and list(later.as_json())[:2] == ["net_W_per_cycle", "step_W_per_cycle"]
 
 
 def test_a_lone_robot_that_jiggles_has_steps_and_slip_but_no_drift():
@@ -179,12 +180,12 @@ def test_a_lone_robot_that_jiggles_has_steps_and_slip_but_no_drift():
     xy = np.stack([1e-3 * (q % 2), np.zeros(len(q))], -1)
     heading = np.radians(5.0) * ((q // 4) % 2)
     m = transport.lone_robot(xy, heading, samples_per_cycle=4)
-    assert m["slip_per_edge_W"] == pytest.approx(1e-3)
-    assert m["net_W_per_cycle"] == 0 == m["step_W_per_cycle"]
-    assert m["abs_heading_deg_per_cycle"] == pytest.approx(5.0)
-    assert abs(m["heading_deg_per_cycle"]) < 1e-12
+    assert m.slip_per_edge_W == pytest.approx(1e-3)
+    assert m.net_W_per_cycle == 0 == m.step_W_per_cycle
+    assert m.abs_heading_deg_per_cycle == pytest.approx(5.0)
+    assert abs(m.heading_deg_per_cycle) < 1e-12
     once = transport.lone_robot(xy[::2], samples_per_cycle=2)  # the same robot seen at half periods
-    assert once["slip_per_edge_W"] == 0 and once["net_W_per_cycle"] == 0
+    assert once.slip_per_edge_W == 0 and once.net_W_per_cycle == 0
     with pytest.raises(ValueError, match="two cycle ends"):
         transport.lone_robot(xy[:5], samples_per_cycle=4, skip_cycles=1)
     with pytest.raises(ValueError, match="samples_per_cycle"):

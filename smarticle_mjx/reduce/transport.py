@@ -258,8 +258,31 @@ def signed_turn_per_track(angles) -> np.ndarray:
         return np.array([np.nanmean(r) if np.isfinite(r).any() else np.nan for r in t])
 
 
+@dataclasses.dataclass(frozen=True)
+class LoneRobot:
+    """A lone robot's transport (:func:`lone_robot`), per cycle in the unit asked for; None: not measured
+    (no period, no heading, one sample per cycle)."""
+
+    net_W_per_cycle: float
+    step_W_per_cycle: float
+    beta: float
+    beta_err: float
+    speed_W_per_s: float | None = None
+    heading_deg_per_cycle: float | None = None
+    abs_heading_deg_per_cycle: float | None = None
+    slip_per_edge_W: float | None = None
+    slip_per_edge_max_W: float | None = None
+
+    _ORDER = ("net_W_per_cycle", "step_W_per_cycle", "speed_W_per_s", "beta", "beta_err", "heading_deg_per_cycle",
+              "abs_heading_deg_per_cycle", "slip_per_edge_W", "slip_per_edge_max_W")
+
+    def as_json(self) -> dict:
+        """As a page's JSON records it: the measured quantities only, in the order they are measured."""
+        return {k: getattr(self, k) for k in self._ORDER if getattr(self, k) is not None}
+
+
 def lone_robot(xy, heading=None, period_s: float | None = None, *, samples_per_cycle: int = 1,
-               skip_cycles: int = 0, unit: float = 1.0) -> dict:
+               skip_cycles: int = 0, unit: float = 1.0) -> "LoneRobot":
     """A lone robot's transport: the package's one measure of lone drift (validation, reports, benchmarks).
 
     Args:
@@ -270,14 +293,15 @@ def lone_robot(xy, heading=None, period_s: float | None = None, *, samples_per_c
       skip_cycles: cycles left out at the start (the start-up transient).
       unit: the length unit of the results in ``xy``'s units (the body length W: results in W).
 
-    Returns, over the cycles after ``skip_cycles``, per cycle and in ``unit``:
+    Returns a :class:`LoneRobot`, over the cycles after ``skip_cycles``, per cycle and in ``unit``:
       ``net_W_per_cycle``: |end − start| / cycles (a robot that jiggles in place has a mean step but
       no drift); ``step_W_per_cycle``: the mean step between once-per-cycle samples; ``speed_W_per_s``:
       the net drift over the period; ``beta``, ``beta_err``: the plain MSD exponent of the once-per-cycle
       track over delays 5..min(25, T/3 + 3) (NaN for fewer than 3 delays); ``heading_deg_per_cycle``
       and ``abs_heading_deg_per_cycle``: the mean signed and absolute heading turn per cycle; with
       ``s > 1``, ``slip_per_edge_W`` and ``slip_per_edge_max_W``: the mean and largest displacement
-      between consecutive samples (s = 4: what one arm move and its start and stop kicks slip the body).
+      between consecutive samples (s = 4: what one arm move and its start and stop kicks slip the body);
+      the quantities not measured are None.
     """
     s = int(samples_per_cycle)
     if s < 1 or skip_cycles < 0:
@@ -300,4 +324,4 @@ def lone_robot(xy, heading=None, period_s: float | None = None, *, samples_per_c
         edges = step_lengths(xy) / unit
         out["slip_per_edge_W"] = float(edges.mean())
         out["slip_per_edge_max_W"] = float(edges.max())
-    return out
+    return LoneRobot(**out)

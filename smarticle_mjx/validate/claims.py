@@ -18,7 +18,7 @@ import numpy as np
 
 from .. import formatting
 from ..reduce import binding, gliders as GL
-from .inputs import BindingVsAmplitude, Descent, Diagonal, Mirror, Polar
+from .inputs import BindingVsAmplitude, Descent, Diagonal, LoneDrift, Mirror, Polar
 
 VERDICTS = {True: "holds", False: "does not hold", None: "not measurable"}
 
@@ -112,12 +112,13 @@ def get(key: str) -> Claim:
 
 @claim("lone_drift", "a lone robot drifts about 0.0015 W per cycle at 90°", "0.0015 W/cycle (text)",
        "net drift within a factor 3 of 0.0015 W/cycle", (), evidence="lone_robots")
-def lone_drift(ev: dict) -> Outcome:
-    """``ev``: net and mean step per cycle (W) of the lone robot at 90 deg, cycles."""
-    n90 = ev["net_W_per_cycle"]
+def lone_drift(ev: LoneDrift) -> Outcome:
+    """``ev``: the lone robot at 90 deg (:class:`.inputs.LoneDrift`: net drift and mean step per cycle in W,
+    the robots it is the mean of, the cycles run)."""
+    n90 = ev.robot.net_W_per_cycle
     lo, hi = LONE_DRIFT_W / LONE_DRIFT_FACTOR, LONE_DRIFT_W * LONE_DRIFT_FACTOR
-    robots = ev.get("robots", 1)
-    what = (f"net {f(n90, '.2g')} W/cycle (mean step {f(ev['step_W_per_cycle'], '.2g')}; {ev['cycles']} cycles"
+    robots = ev.robots
+    what = (f"net {f(n90, '.2g')} W/cycle (mean step {f(ev.robot.step_W_per_cycle, '.2g')}; {ev.cycles} cycles"
             + (f"; mean of {robots} robots)" if robots > 1 else ")"))
     why = ("The lab robot's motor noise, backlash and marker jitter are not modelled; on a μ = 0.37 plate friction "
            "holds the model's body through most of the gait. Not tuned." if robots == 1 else

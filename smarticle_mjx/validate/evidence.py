@@ -21,25 +21,26 @@ from ..reduce import analysis
 from ..report import amplitude_panels, analyse_store_run, round_for_report
 from ..store import Store
 from .claims import CLAIMS, pb_groups
-from .inputs import BindingVsAmplitude, Descent, Diagonal, Mirror, Polar, Pooled, SteadyR, Turn
+from .inputs import BindingVsAmplitude, Descent, Diagonal, LoneDrift, Mirror, Polar, Pooled, SteadyR, Turn
 
 
 def circ_mean_deg(a) -> float:
     return float(np.degrees(GL.circular_mean(a)) % 360)
 
 
-def lone_robots(singles: dict) -> dict:
+def lone_robots(singles: dict) -> dict[float, LoneDrift]:
     """Per amplitude: :func:`smarticle_mjx.reduce.transport.lone_robot` of its track; of several
     robots' tracks ([R, T+1, 2]: robots drawn with imperfections), each quantity's mean over robots."""
     out = {}
     for a, d in singles.items():
         xy, heading = np.asarray(d["xy"]), np.asarray(d["heading"])
+        cycles = xy.shape[-2] - 1
         if xy.ndim == 2:
-            out[a] = transport.lone_robot(xy, heading, d["period_s"])
+            out[a] = LoneDrift(transport.lone_robot(xy, heading, d["period_s"]), 1, cycles)
             continue
         each = [transport.lone_robot(x, h, d["period_s"]) for x, h in zip(xy, heading)]
-        out[a] = {k: float(np.mean([e[k] for e in each])) for k in each[0]}
-        out[a]["robots"] = len(each)
+        mean = {k: float(np.mean([getattr(e, k) for e in each])) for k in each[0].as_json()}
+        out[a] = LoneDrift(transport.LoneRobot(**mean), len(each), cycles)
     return out
 
 
@@ -185,17 +186,17 @@ def builds(name: str, studies: tuple[str, ...] = (), any_study: bool = False):
 
 
 @builds("lone_robots")
-def _lone(ctx: Context) -> dict:
+def _lone(ctx: Context) -> LoneDrift:
     sing = lone_robots(ctx.singles)
-    ctx.extra["single"] = sing
-    ctx.extra["single_periods"] = np.shape(next(iter(ctx.singles.values()))["xy"])[-2] - 1  # [(R,) T+1, 2]
+    ctx.extra["single"] = {a: v.as_json() for a, v in sing.items()}
+    ctx.extra["single_periods"] = sing[next(iter(sing))].cycles
     amps = sorted(sing)
     ctx.draw(plots.versus_amplitude(
-        amps, {"net drift (W/cycle)": ([sing[a]["net_W_per_cycle"] for a in amps], None),
-               r"$\beta_{single}$": ([sing[a]["beta"] for a in amps], [sing[a]["beta_err"] for a in amps]),
-               "heading drift (deg/cycle)": ([sing[a]["heading_deg_per_cycle"] for a in amps], None)},
+        amps, {"net drift (W/cycle)": ([sing[a].robot.net_W_per_cycle for a in amps], None),
+               r"$\beta_{single}$": ([sing[a].robot.beta for a in amps], [sing[a].robot.beta_err for a in amps]),
+               "heading drift (deg/cycle)": ([sing[a].robot.heading_deg_per_cycle for a in amps], None)},
         ctx.figures, "single_robot"))
-    return {**sing[90.0], "cycles": ctx.extra["single_periods"]}
+    return sing[90.0]
 
 
 @builds("random_90", ("random_90",))

@@ -9,7 +9,21 @@ import dataclasses
 
 import numpy as np
 
-from ..reduce.transport import Exponent
+from ..reduce.transport import Exponent, LoneRobot
+
+
+@dataclasses.dataclass(frozen=True)
+class LoneDrift:
+    """A lone robot at one amplitude (``reduce.transport.lone_robot``; with drawn imperfections each
+    quantity's mean over ``robots`` robots, each alone) and the cycles it ran."""
+
+    robot: LoneRobot
+    robots: int = 1
+    cycles: int = 0
+
+    def as_json(self) -> dict:
+        """What validation.json records per amplitude (the robots counted when several)."""
+        return {**self.robot.as_json(), **({"robots": self.robots} if self.robots > 1 else {})}
 
 
 @dataclasses.dataclass(frozen=True)
