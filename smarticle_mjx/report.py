@@ -311,15 +311,23 @@ LAB_RELAX = {"emerged": 77, "trials": 151, "distance_W": (2.9, 0.2), "relaxation
              "chain_lifetime": (8, 10)}
 
 
-def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0, crowd=None) -> dict:
-    """The relaxation study's numbers (reduce.relaxation.analyse) and its crowd's (``crowd``: a
-    ``CrowdSummary``, computed when None) beside the lab's."""
-    from .reduce import relaxation as RX
-    a = RX.analyse(data, min_periods=min_periods, apart_W=apart_W)
-    a["crowd"] = dataclasses.asdict(crowd if crowd is not None else RX.crowd(data)[0])
+def lab_relax_fraction() -> tuple[float, tuple[float, float]]:
+    """The lab's emergence fraction (77 of 151 trials) and its exact 95 % interval."""
     lo, hi = binding.binomial_interval(LAB_RELAX["emerged"], LAB_RELAX["trials"])
-    a["lab"] = {**LAB_RELAX, "fraction": LAB_RELAX["emerged"] / LAB_RELAX["trials"],
-                "interval": (float(lo), float(hi))}
+    return LAB_RELAX["emerged"] / LAB_RELAX["trials"], (float(lo), float(hi))
+
+
+def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0, crowd=None, analysis=None) -> dict:
+    """The relaxation study's numbers (``analysis``: reduce.relaxation.analyse's, computed when None) and
+    its crowd's (``crowd``: a ``CrowdSummary``, computed when None) beside the lab's, as the report's
+    JSON records them."""
+    from .reduce import relaxation as RX
+    if analysis is None:
+        analysis = RX.analyse(data, min_periods=min_periods, apart_W=apart_W)
+    a = analysis.as_json()
+    a["crowd"] = dataclasses.asdict(crowd if crowd is not None else RX.crowd(data)[0])
+    fraction, interval = lab_relax_fraction()
+    a["lab"] = {**LAB_RELAX, "fraction": fraction, "interval": interval}
     a["settings"] = data["settings"]
     a["model"] = data["model"]
     if data.get("overrides"):

@@ -170,24 +170,25 @@ def test_the_binding_probability_dips_at_intermediate_amplitudes():
     assert verdict("pb_dip", pb_ev({a: 0.1 for a in (70, 80, 90)})) == "not measurable"
 
 
-def relax_ev(emerged, valid, distances=(2.8, 3.0, 2.9, 3.1), r=0.8, p=1e-5, n_episodes=60):
+def relax_ev(emerged, valid, distances=(2.8, 3.0, 2.9, 3.1), r=0.8, p=1e-5, n_episodes=60, trials=None):
+    """A built .inputs.Relaxation: the study's analysis, no crowd, its settings, the lab's fraction."""
     from scipy.stats import fisher_exact
-    from smarticle_mjx.reduce import binding
+    from smarticle_mjx.reduce import binding, relaxation as RX
+    from smarticle_mjx.specs import RelaxConfig
     lo, hi = binding.binomial_interval(emerged, valid)
     d = np.asarray(distances, float)
-    return {"emerged": emerged, "valid": valid, "fraction": emerged / valid, "interval": (lo, hi),
-            "lab": {"fraction": 77 / 151, "interval": (0.43, 0.59)},
-            "p_fisher": float(fisher_exact([[emerged, valid - emerged], [77, 74]])[1]),
-            "glider_kinds": {"C1": emerged, "C2": 0}, "apart_W": 2.0, "stopped_early": 0, "stages": 5,
-            "relaxation_periods": {"median": 30.0, "q25": 20.0, "q75": 40.0},
-            "settings": {"n_robots": 7, "periods": 300, "amplitude_deg": 90.0, "gap_mm": 2.0, "jitter_mm": 1.0,
-                         "jitter_deg": 2.0, "quiet_periods": 10},
-            "distance": {"n": len(d), "mean": float(d.mean()) if len(d) else np.nan,
-                         "sem": float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else np.nan,
-                         "median": float(np.median(d)) if len(d) else np.nan},
-            "glider_lifetime": {"mean": 150.0}, "glider_censored": 1,
-            "fit": {"slope": 0.01, "r": r, "p": p, "n": n_episodes},
-            "typed": {"C1": {"mean": 30.0}, "C2": {"mean": 20.0}, "p_c1_longer": 0.1}}
+    nan = float("nan")
+    life = RX.KindLifetimes(10, 30.0, 1.0, 30.0, 0), RX.KindLifetimes(10, 20.0, 1.0, 20.0, 0)
+    a = RX.RelaxAnalysis(
+        trials=valid if trials is None else trials, valid=valid, emerged=emerged, fraction=emerged / valid, interval=(lo, hi), min_periods=100,
+        apart_W=2.0, periods=300, per_trial=[], episodes=[], distance=RX.mean_sem(d),
+        glider_contour=RX.mean_sem(d), glider_lifetime=RX.MeanSem(len(d), 150.0, 5.0, 150.0), glider_censored=1,
+        glider_kinds=RX.KindCounts(emerged, 0), fit=RX.ContourFit(n_episodes, 0.01, 0.0, r, p, nan),
+        typed=RX.TypedLifetimes(*life, 0.1), relaxation_periods=RX.RelaxationTimes(30.0, 20.0, 40.0, 0),
+        left_plate=RX.LeftPlate(0, 0), stopped_early=0)
+    return I.Relaxation(a, None, RelaxConfig(gap_mm=2.0, jitter_mm=1.0, jitter_deg=2.0, quiet_periods=10),
+                        77 / 151, (0.43, 0.59), float(fisher_exact([[emerged, valid - emerged], [77, 74]])[1]),
+                        stages=5)
 
 
 def test_relaxation_emergence_agrees_with_the_lab_by_fisher_once_the_interval_is_narrow():
@@ -195,9 +196,9 @@ def test_relaxation_emergence_agrees_with_the_lab_by_fisher_once_the_interval_is
     assert verdict("relax_emergence", relax_ev(7, 100)) == "does not hold"  # the model's 0.07
     assert verdict("relax_emergence", relax_ev(1, 4)) == "not measurable"  # interval wider than 0.3
     # trials the engine flagged are left out, and the row says how many
-    note = K.get("relax_emergence").row({**relax_ev(11, 57), "trials": 100})["note"]
+    note = K.get("relax_emergence").row(relax_ev(11, 57, trials=100))["note"]
     assert "43 of 100 trials were flagged" in note
-    assert "flagged" not in K.get("relax_emergence").row({**relax_ev(7, 100), "trials": 100})["note"]
+    assert "flagged" not in K.get("relax_emergence").row(relax_ev(7, 100, trials=100))["note"]
 
 
 def test_the_glider_travels_about_2_9_widths():

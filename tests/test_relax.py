@@ -97,8 +97,8 @@ def test_relaxation_time_and_fit_by_brute_force():
     assert RX.relaxation_time(touched) == (50, True)
     eps = [{"lifetime": L, "contour_W": 0.01 * L + 0.2, "kind": "C1", "censored": False} for L in (5, 10, 40, 90)]
     fit = RX.lifetime_contour_fit(eps)
-    assert fit["slope"] == pytest.approx(0.01) and fit["intercept"] == pytest.approx(0.2)
-    assert fit["r"] == pytest.approx(1.0)
+    assert fit.slope == pytest.approx(0.01) and fit.intercept == pytest.approx(0.2)
+    assert fit.r == pytest.approx(1.0) and fit.n == 4
 
 
 def test_analyse_counts_gliders_with_exact_interval():
@@ -110,12 +110,12 @@ def test_analyse_counts_gliders_with_exact_interval():
             "trial": np.arange(t), "body_length": W, "periods": 150}
     data["touched"][7:, :, 0] = False  # three trials without the glider
     a = RX.analyse(data)
-    assert (a["emerged"], a["valid"]) == (7, 10)
+    assert (a.emerged, a.valid) == (7, 10)
     from scipy.stats import binomtest
     ci = binomtest(7, 10).proportion_ci(0.95, method="exact")
-    assert a["interval"] == pytest.approx((ci.low, ci.high))
-    assert a["distance"]["mean"] == pytest.approx(3.0) and a["distance"]["n"] == 7
-    assert a["glider_kinds"] == {"C1": 7, "C2": 0}
+    assert a.interval == pytest.approx((ci.low, ci.high))
+    assert a.distance.mean == pytest.approx(3.0) and a.distance.n == 7
+    assert (a.glider_kinds.c1, a.glider_kinds.c2) == (7, 0) and a.as_json()["glider_kinds"] == {"C1": 7, "C2": 0}
 
 
 # ------------------------------------------------------------ the start

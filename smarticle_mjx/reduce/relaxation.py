@@ -143,8 +143,8 @@ def relaxation_time(touched, periods_run=None) -> tuple[int, bool]:
 
 
 def analyse(data: dict, min_periods: int = 100, apart_W: float = 2.0, min_episode: int = 2,
-            level: float = 0.95) -> dict:
-    """The relaxation study's numbers from :func:`smarticle_mjx.store.read_relax` output.
+            level: float = 0.95) -> "RelaxAnalysis":
+    """The relaxation study's numbers (:class:`RelaxAnalysis`) from :func:`smarticle_mjx.store.read_relax` output.
 
     Args:
       min_periods: shortest episode counted as a glider (the lab: 100 periods).
@@ -152,7 +152,7 @@ def analyse(data: dict, min_periods: int = 100, apart_W: float = 2.0, min_episod
       min_episode: shortest episode kept for the lifetime-contour scatter.
 
     Returns:
-      dict: trials, valid, gliders (trials that formed one) with the exact
+      :class:`RelaxAnalysis`: trials, valid, gliders (trials that formed one) with the exact
       interval, per-trial glider rows, distance statistics, the lifetime vs
       contour-length fit over every episode, typed lifetimes, relaxation
       times, robots that left the plate.
@@ -181,70 +181,200 @@ def analyse(data: dict, min_periods: int = 100, apart_W: float = 2.0, min_episod
     k = sum(1 for r in per_trial if r["glider"] is not None)
     lo, hi = binding.binomial_interval(k, n, level) if n else (np.nan, np.nan)
     gl = [r["glider"] for r in per_trial if r["glider"] is not None]
-    dist = np.array([g["distance_W"] for g in gl])
-    out = {"trials": int(len(data["valid"])), "valid": n, "emerged": k,
-           "fraction": k / n if n else float("nan"), "interval": (float(lo), float(hi)),
-           "min_periods": min_periods, "apart_W": apart_W, "periods": periods,
-           "per_trial": per_trial, "episodes": episodes}
-    out["distance"] = _mean_sem(dist)
-    out["glider_contour"] = _mean_sem(np.array([g["contour_W"] for g in gl]))
-    out["glider_lifetime"] = _mean_sem(np.array([g["lifetime"] for g in gl], float))
-    out["glider_censored"] = int(sum(g["censored"] for g in gl))
-    out["glider_kinds"] = {C1: sum(g["kind"] == C1 for g in gl), C2: sum(g["kind"] == C2 for g in gl)}
-    out["fit"] = lifetime_contour_fit(episodes)
-    out["typed"] = typed_lifetimes(episodes)
     rt = np.array(relax_t, float)
-    out["relaxation_periods"] = {"median": float(np.median(rt)) if len(rt) else float("nan"),
-                                 "q25": float(np.percentile(rt, 25)) if len(rt) else float("nan"),
-                                 "q75": float(np.percentile(rt, 75)) if len(rt) else float("nan"),
-                                 "crowded_at_end": int(sum(r["crowded_at_end"] for r in per_trial))}
+    nan = float("nan")
     lp = np.asarray(data["left_plate"])[valid]
-    out["left_plate"] = {"robots": int((lp > 0).sum()), "trials": int((lp > 0).any(1).sum())}
-    out["stopped_early"] = int((np.asarray(data["periods_run"])[valid] < periods).sum())
-    return out
+    return RelaxAnalysis(
+        trials=int(len(data["valid"])), valid=n, emerged=k, fraction=k / n if n else nan,
+        interval=(float(lo), float(hi)), min_periods=min_periods, apart_W=apart_W, periods=periods,
+        per_trial=per_trial, episodes=episodes,
+        distance=mean_sem(np.array([g["distance_W"] for g in gl])),
+        glider_contour=mean_sem(np.array([g["contour_W"] for g in gl])),
+        glider_lifetime=mean_sem(np.array([g["lifetime"] for g in gl], float)),
+        glider_censored=int(sum(g["censored"] for g in gl)),
+        glider_kinds=KindCounts(sum(g["kind"] == C1 for g in gl), sum(g["kind"] == C2 for g in gl)),
+        fit=lifetime_contour_fit(episodes), typed=typed_lifetimes(episodes),
+        relaxation_periods=RelaxationTimes(float(np.median(rt)) if len(rt) else nan,
+                                           float(np.percentile(rt, 25)) if len(rt) else nan,
+                                           float(np.percentile(rt, 75)) if len(rt) else nan,
+                                           int(sum(r["crowded_at_end"] for r in per_trial))),
+        left_plate=LeftPlate(int((lp > 0).sum()), int((lp > 0).any(1).sum())),
+        stopped_early=int((np.asarray(data["periods_run"])[valid] < periods).sum()))
 
 
-def _mean_sem(v: np.ndarray) -> dict:
+def _json(obj):
+    """A typed result's JSON form (nested dataclasses to dicts, in field order), as stores' reports record it."""
+    return obj.as_json() if hasattr(obj, "as_json") else obj
+
+
+@dataclasses.dataclass(frozen=True)
+class MeanSem:
+    """A sample's size, mean, standard error (NaN below two values) and median (NaN when empty)."""
+
+    n: int
+    mean: float
+    sem: float
+    median: float
+
+    def as_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def mean_sem(v) -> MeanSem:
     v = np.asarray(v, float)
     if len(v) == 0:
-        return {"n": 0, "mean": float("nan"), "sem": float("nan"), "median": float("nan")}
+        return MeanSem(0, float("nan"), float("nan"), float("nan"))
     sem = float(v.std(ddof=1) / np.sqrt(len(v))) if len(v) > 1 else float("nan")
-    return {"n": int(len(v)), "mean": float(v.mean()), "sem": sem, "median": float(np.median(v))}
+    return MeanSem(int(len(v)), float(v.mean()), sem, float(np.median(v)))
 
 
-def lifetime_contour_fit(episodes: list[dict]) -> dict:
+@dataclasses.dataclass(frozen=True)
+class ContourFit:
+    """The least-squares line contour = slope x lifetime + intercept (W, periods) over ``n`` episodes, with
+    Pearson's r, its p-value and the slope's standard error (NaN below three episodes or one lifetime)."""
+
+    n: int
+    slope: float
+    intercept: float
+    r: float
+    p: float
+    slope_stderr: float
+
+    def as_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def lifetime_contour_fit(episodes: list[dict]) -> ContourFit:
     """Least-squares line contour = slope * lifetime + intercept over every
     episode, with Pearson's r and its p-value (the paper's SI reports a
     linear correlation)."""
+    nan = float("nan")
     if len(episodes) < 3:
-        return {"n": len(episodes), "slope": float("nan"), "intercept": float("nan"), "r": float("nan"),
-                "p": float("nan"), "slope_stderr": float("nan")}
+        return ContourFit(len(episodes), nan, nan, nan, nan, nan)
     from scipy.stats import linregress
     x = np.array([e["lifetime"] for e in episodes], float)
     y = np.array([e["contour_W"] for e in episodes], float)
     if np.ptp(x) == 0:
-        return {"n": len(x), "slope": float("nan"), "intercept": float("nan"), "r": float("nan"),
-                "p": float("nan"), "slope_stderr": float("nan")}
+        return ContourFit(len(x), nan, nan, nan, nan, nan)
     f = linregress(x, y)
-    return {"n": int(len(x)), "slope": float(f.slope), "intercept": float(f.intercept), "r": float(f.rvalue),
-            "p": float(f.pvalue), "slope_stderr": float(f.stderr)}
+    return ContourFit(int(len(x)), float(f.slope), float(f.intercept), float(f.rvalue), float(f.pvalue),
+                      float(f.stderr))
 
 
-def typed_lifetimes(episodes: list[dict]) -> dict:
+@dataclasses.dataclass(frozen=True)
+class KindLifetimes:
+    """Lifetimes (periods) of one glider type's episodes and how many were still running at the end."""
+
+    n: int
+    mean: float
+    sem: float
+    median: float
+    censored: int
+
+    def as_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class TypedLifetimes:
+    """C1's and C2's episode lifetimes and the one-sided Mann-Whitney p-value that C1 lives longer (NaN
+    without both)."""
+
+    c1: KindLifetimes
+    c2: KindLifetimes
+    p_c1_longer: float
+
+    def as_json(self) -> dict:
+        return {C1: self.c1.as_json(), C2: self.c2.as_json(), "p_c1_longer": self.p_c1_longer}
+
+
+def typed_lifetimes(episodes: list[dict]) -> TypedLifetimes:
     """Lifetimes of C1 and C2 episodes (mean, median, censored count) and a
     one-sided Mann-Whitney test that C1 lives longer."""
-    out = {}
+    kinds = []
     for kind in (C1, C2):
         v = np.array([e["lifetime"] for e in episodes if e["kind"] == kind], float)
-        out[kind] = {**_mean_sem(v), "censored": int(sum(e["censored"] for e in episodes if e["kind"] == kind))}
+        ms = mean_sem(v)
+        kinds.append(KindLifetimes(ms.n, ms.mean, ms.sem, ms.median,
+                                   int(sum(e["censored"] for e in episodes if e["kind"] == kind))))
     a = [e["lifetime"] for e in episodes if e["kind"] == C1]
     b = [e["lifetime"] for e in episodes if e["kind"] == C2]
+    p = float("nan")
     if a and b:
         from scipy.stats import mannwhitneyu
-        out["p_c1_longer"] = float(mannwhitneyu(a, b, alternative="greater").pvalue)
-    else:
-        out["p_c1_longer"] = float("nan")
-    return out
+        p = float(mannwhitneyu(a, b, alternative="greater").pvalue)
+    return TypedLifetimes(kinds[0], kinds[1], p)
+
+
+@dataclasses.dataclass(frozen=True)
+class KindCounts:
+    """Gliders (each trial's longest) of each type."""
+
+    c1: int
+    c2: int
+
+    def as_json(self) -> dict:
+        return {C1: self.c1, C2: self.c2}
+
+
+@dataclasses.dataclass(frozen=True)
+class RelaxationTimes:
+    """The contact rule's relaxation time over trials (periods: median and quartiles; the last period a
+    robot touched two others) and the trials still crowded at their end."""
+
+    median: float
+    q25: float
+    q75: float
+    crowded_at_end: int
+
+    def as_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class LeftPlate:
+    """Robots that left the plate, and the trials they left in."""
+
+    robots: int
+    trials: int
+
+    def as_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class RelaxAnalysis:
+    """The relaxation study's numbers (:func:`analyse`): trials (all, valid: unflagged), the trials in
+    which a glider emerged with its exact interval, the rule's ``min_periods`` and ``apart_W``, the
+    periods run; per-trial rows and every episode (dicts: a trial's record, an episode's record with its
+    track); the gliders' distance, contour length and lifetime (W, W, periods), how many were still
+    bound at the end and of which type; the lifetime-contour fit over episodes; typed lifetimes; the
+    contact rule's relaxation times; robots that left the plate; trials stopped early."""
+
+    trials: int
+    valid: int
+    emerged: int
+    fraction: float
+    interval: tuple[float, float]
+    min_periods: int
+    apart_W: float
+    periods: int
+    per_trial: list
+    episodes: list
+    distance: MeanSem
+    glider_contour: MeanSem
+    glider_lifetime: MeanSem
+    glider_censored: int
+    glider_kinds: KindCounts
+    fit: ContourFit
+    typed: TypedLifetimes
+    relaxation_periods: RelaxationTimes
+    left_plate: LeftPlate
+    stopped_early: int
+
+    def as_json(self) -> dict:
+        """The report's form: every field under its name, typed parts as dicts, in field order."""
+        return {f.name: _json(getattr(self, f.name)) for f in dataclasses.fields(self)}
 
 
 # ------------------------------------------------------------------ the crowd

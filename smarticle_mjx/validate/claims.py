@@ -18,7 +18,8 @@ import numpy as np
 
 from .. import formatting
 from ..reduce import binding, gliders as GL
-from .inputs import BindingVsAmplitude, Descent, Diagonal, LoneDrift, Mirror, Polar
+from ..reduce.relaxation import CrowdSummary
+from .inputs import BindingVsAmplitude, Descent, Diagonal, LoneDrift, Mirror, Polar, Relaxation
 
 VERDICTS = {True: "holds", False: "does not hold", None: "not measurable"}
 
@@ -351,50 +352,52 @@ def pb_dip(ev: BindingVsAmplitude) -> Outcome:
 
 
 # ----------------------------------------------------------------- relaxation
-# evidence: report.relax_summary of the pooled stages, with "settings" (the stores' relaxation keys),
-# "stages" and "p_fisher" (Fisher's exact test of the model's emergence against the lab's)
+# evidence: .inputs.Relaxation (reduce.relaxation.analyse of the pooled stages, its crowd, the stores'
+# settings, the lab's fraction and Fisher's exact test of the model's emergence against it)
 
 @claim("relax_emergence", "in about half of the relaxation trials a pair glides away together for ≥ 100 periods",
        "77 of 151 trials (Fig. 1)", "model and lab fractions do not differ (Fisher's exact test p ≥ 0.05); "
        "measurable once the model's 95 % interval is at most 0.3 wide", ("relax",), evidence="relax")
-def relax_emergence(a: dict) -> Outcome:
-    k, n, lab, s = a["emerged"], a["valid"], a["lab"], a["settings"]
-    rt = a["relaxation_periods"]
-    measurable = n and a["interval"][1] - a["interval"][0] <= RELAX_MAX_WIDTH
-    return Outcome(bool(a["p_fisher"] >= ALPHA) if measurable else None,
-                   f"{k}/{n} = {ci(a['fraction'], *a['interval'])} (lab {ci(lab['fraction'], *lab['interval'])}); "
-                   f"C1 {a['glider_kinds']['C1']}, C2 {a['glider_kinds']['C2']}",
-                   f"{n} trials ({a['stages']} stages) of {s['n_robots']} robots × {s['periods']} periods at "
-                   f"{s['amplitude_deg']:g}°, compressed in-phase start (gap {s['gap_mm']:g} mm, jitter "
-                   f"{s['jitter_mm']:g} mm / {s['jitter_deg']:g}°). Glider: a pair bound every period for ≥ 100 "
-                   f"consecutive periods, no touch with a third robot and every third robot ≥ {a['apart_W']:g} W "
+def relax_emergence(ev: Relaxation) -> Outcome:
+    a, s = ev.analysis, ev.settings
+    k, n = a.emerged, a.valid
+    rt = a.relaxation_periods
+    measurable = n and a.interval[1] - a.interval[0] <= RELAX_MAX_WIDTH
+    return Outcome(bool(ev.p_fisher >= ALPHA) if measurable else None,
+                   f"{k}/{n} = {ci(a.fraction, *a.interval)} (lab {ci(ev.lab_fraction, *ev.lab_interval)}); "
+                   f"C1 {a.glider_kinds.c1}, C2 {a.glider_kinds.c2}",
+                   f"{n} trials ({ev.stages} stages) of {s.n_robots} robots × {s.periods} periods at "
+                   f"{s.amplitude_deg:g}°, compressed in-phase start (gap {s.gap_mm:g} mm, jitter "
+                   f"{s.jitter_mm:g} mm / {s.jitter_deg:g}°). Glider: a pair bound every period for ≥ 100 "
+                   f"consecutive periods, no touch with a third robot and every third robot ≥ {a.apart_W:g} W "
                    f"away. Relaxation (last period with a robot touching two others): median "
-                   f"{f(rt['median'], '.0f')} periods [IQR {f(rt['q25'], '.0f')}–{f(rt['q75'], '.0f')}] (paper: "
-                   f"about 30); {a['stopped_early']} trials stopped early, all robots apart and quiet for "
-                   f"{s['quiet_periods']} periods." + crowd_note(a.get("crowd"))
-                   + (f" {a['trials'] - n} of {a['trials']} trials were flagged by the engine (penetration or a "
-                      "non-finite state) and are left out." if a.get("trials", n) > n else ""))
+                   f"{f(rt.median, '.0f')} periods [IQR {f(rt.q25, '.0f')}–{f(rt.q75, '.0f')}] (paper: "
+                   f"about 30); {a.stopped_early} trials stopped early, all robots apart and quiet for "
+                   f"{s.quiet_periods} periods." + crowd_note(ev.crowd)
+                   + (f" {a.trials - n} of {a.trials} trials were flagged by the engine (penetration or a "
+                      "non-finite state) and are left out." if a.trials > n else ""))
 
 
-def crowd_note(c: dict | None) -> str:
-    """The crowd's measures (reduce.relaxation.CrowdSummary as stored) in one sentence for a claim's notes."""
+def crowd_note(c: CrowdSummary | None) -> str:
+    """The crowd's measures (reduce.relaxation.CrowdSummary) in one sentence for a claim's notes."""
     if not c:
         return ""
-    pl, cl = c["plateau"], c["chain_lifetime"]
-    return (f" Relaxation read off the area fraction's plateau (docs/relax.md): median {f(pl['median'], '.0f')} "
-            f"periods [IQR {f(pl['q25'], '.0f')}–{f(pl['q75'], '.0f')}], {pl['censored']} trials without one "
-            f"(paper: about 30); chains of ≥ 3 robots live {f(cl['mean'], '.1f')} periods on average with "
-            f"{f(c['neighbours_in_chain'])} neighbours per robot (lab: 8–10 periods, about 4).")
+    pl, cl = c.plateau, c.chain_lifetime
+    return (f" Relaxation read off the area fraction's plateau (docs/relax.md): median {f(pl.median, '.0f')} "
+            f"periods [IQR {f(pl.q25, '.0f')}–{f(pl.q75, '.0f')}], {pl.censored} trials without one "
+            f"(paper: about 30); chains of ≥ 3 robots live {f(cl.mean, '.1f')} periods on average with "
+            f"{f(c.neighbours_in_chain)} neighbours per robot (lab: 8–10 periods, about 4).")
 
 
 @claim("relax_distance", "the glider travels 2.9 ± 0.2 W on average", "2.9 ± 0.2 W (text)",
        "|model − 2.9| ≤ 2 √(SEM² + 0.2²)", ("relax",), evidence="relax")
-def relax_distance(a: dict) -> Outcome:
-    d = a["distance"]
-    ok = abs(d["mean"] - LAB_DISTANCE_W) <= 2 * math.hypot(d["sem"], LAB_DISTANCE_ERR)
-    return Outcome(bool(ok) if d["n"] >= 2 else None,
-                   f"{f(d['mean'])} ± {f(d['sem'])} W (n = {d['n']} gliders; median {f(d['median'])}); "
-                   f"lifetime {f(a['glider_lifetime']['mean'], '.0f')} periods, {a['glider_censored']} still bound "
+def relax_distance(ev: Relaxation) -> Outcome:
+    a = ev.analysis
+    d = a.distance
+    ok = abs(d.mean - LAB_DISTANCE_W) <= 2 * math.hypot(d.sem, LAB_DISTANCE_ERR)
+    return Outcome(bool(ok) if d.n >= 2 else None,
+                   f"{f(d.mean)} ± {f(d.sem)} W (n = {d.n} gliders; median {f(d.median)}); "
+                   f"lifetime {f(a.glider_lifetime.mean, '.0f')} periods, {a.glider_censored} still bound "
                    "at the end",
                    "Distance = \\|end − start\\| of the pair centre over the glider's bound-and-apart run (the "
                    "longest one of the trial); the lab's ± read as a standard error.")
@@ -402,12 +405,12 @@ def relax_distance(a: dict) -> Outcome:
 
 @claim("contour", "bound pairs' contour length grows linearly with their lifetime", "SI, contour length vs time",
        "Pearson r > 0.5 and p < 0.05", ("relax",), evidence="relax")
-def contour(a: dict) -> Outcome:
-    fit, ty = a["fit"], a["typed"]
-    ok = bool(finite(fit["r"]) and fit["r"] > CONTOUR_R and fit["p"] < ALPHA) if fit["n"] >= 3 else None
+def contour(ev: Relaxation) -> Outcome:
+    fit, ty = ev.analysis.fit, ev.analysis.typed
+    ok = bool(finite(fit.r) and fit.r > CONTOUR_R and fit.p < ALPHA) if fit.n >= 3 else None
     return Outcome(ok,
-                   f"slope {f(fit['slope'], '.4f')} W/period, r = {f(fit['r'])} (p = {fit['p']:.2g}, {fit['n']} "
-                   f"episodes ≥ 2 periods); C1 episodes {f(ty['C1']['mean'], '.1f')} vs C2 "
-                   f"{f(ty['C2']['mean'], '.1f')} periods (one-sided Mann–Whitney p = {ty['p_c1_longer']:.2g})",
+                   f"slope {f(fit.slope, '.4f')} W/period, r = {f(fit.r)} (p = {fit.p:.2g}, {fit.n} "
+                   f"episodes ≥ 2 periods); C1 episodes {f(ty.c1.mean, '.1f')} vs C2 "
+                   f"{f(ty.c2.mean, '.1f')} periods (one-sided Mann–Whitney p = {ty.p_c1_longer:.2g})",
                    "Every episode of a pair bound and apart from the rest, its contour length (sum of the pair "
                    "centre's per-period steps) against its lifetime; figure lifetime_contour.png.")

@@ -21,7 +21,8 @@ from ..reduce import analysis
 from ..report import amplitude_panels, analyse_store_run, round_for_report
 from ..store import Store
 from .claims import CLAIMS, pb_groups
-from .inputs import BindingVsAmplitude, Descent, Diagonal, LoneDrift, Mirror, Polar, Pooled, SteadyR, Turn
+from .inputs import (BindingVsAmplitude, Descent, Diagonal, LoneDrift, Mirror, Polar, Pooled, Relaxation, SteadyR,
+                     Turn)
 
 
 def circ_mean_deg(a) -> float:
@@ -115,20 +116,27 @@ def pb(runs: list[analysis.RunAnalysis]) -> BindingVsAmplitude:
                                               for a in runs], float), n, pooled, runs[0].periods, tuple(runs))
 
 
-def relax(paths: list, figures: pathlib.Path, made: list) -> dict:
-    """The relaxation study's summary over its complete stages, pooled (report.relax_summary), with
-    Fisher's exact test of its emergence against the lab's; draws its two figures."""
+def relax(paths: list, figures: pathlib.Path, made: list) -> tuple[Relaxation, dict]:
+    """The relaxation study over its complete stages, pooled: the claims' typed evidence, and the summary
+    ``validation.json`` records (report.relax_summary with Fisher's exact p of its emergence against the
+    lab's); draws its two figures."""
     from scipy.stats import fisher_exact
-    from ..report import relax_summary, trial_figure
+    from ..reduce import relaxation as RX
+    from ..report import LAB_RELAX, lab_relax_fraction, relax_summary, trial_figure
+    from ..specs import relax_config_from_json
     from ..store import read_relax
     data = read_relax(paths)
-    a = relax_summary(data)
+    ra, crowd = RX.analyse(data), RX.crowd(data)[0]
+    a = relax_summary(data, crowd=crowd, analysis=ra)
     made += trial_figure(data, a, figures)
     made += [p.name for p in plots.lifetime_contour(a["episodes"], a["fit"], a["min_periods"], figures)]
-    k, n, lab = a["emerged"], a["valid"], a["lab"]
-    a["p_fisher"] = float(fisher_exact([[k, n - k], [lab["emerged"], lab["trials"] - lab["emerged"]]])[1]) \
-        if n else float("nan")
-    return a
+    k, n = ra.emerged, ra.valid
+    lab_k, lab_n = LAB_RELAX["emerged"], LAB_RELAX["trials"]
+    p_fisher = float(fisher_exact([[k, n - k], [lab_k, lab_n - lab_k]])[1]) if n else float("nan")
+    a["p_fisher"] = p_fisher
+    fraction, interval = lab_relax_fraction()
+    return Relaxation(ra, crowd, relax_config_from_json(data["settings"]), fraction, interval, p_fisher,
+                      len(paths)), a
 
 
 class Context:
@@ -290,10 +298,10 @@ def _amplitude(ctx: Context) -> BindingVsAmplitude:
 
 
 @builds("relax", ("relax",))
-def _relax(ctx: Context) -> dict:
-    a = relax(ctx.stores["relax"], ctx.figures, ctx.made)
+def _relax(ctx: Context) -> Relaxation:
+    ev, a = relax(ctx.stores["relax"], ctx.figures, ctx.made)
     ctx.extra["relax"] = {k: v for k, v in a.items() if k not in ("episodes", "per_trial")}
-    return {**a, "stages": len(ctx.stores["relax"])}
+    return ev
 
 
 def _msd_figure(ctx: Context) -> None:

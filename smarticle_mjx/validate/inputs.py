@@ -9,7 +9,9 @@ import dataclasses
 
 import numpy as np
 
+from ..reduce.relaxation import CrowdSummary, RelaxAnalysis
 from ..reduce.transport import Exponent, LoneRobot
+from ..specs import RelaxConfig
 
 
 @dataclasses.dataclass(frozen=True)
@@ -139,3 +141,18 @@ class Diagonal:
     lags: tuple | None
     parts: tuple[str, ...]
     runs: dict = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass(frozen=True)
+class Relaxation:
+    """The relaxation study pooled over its complete stages: its numbers (``reduce.relaxation.analyse``),
+    its crowd's (None when not measured), the settings the stores ran, the lab's emergence fraction with
+    its exact interval, Fisher's exact p of the model's emergence against the lab's, and the stages."""
+
+    analysis: RelaxAnalysis
+    crowd: CrowdSummary | None
+    settings: RelaxConfig
+    lab_fraction: float
+    lab_interval: tuple[float, float]
+    p_fisher: float
+    stages: int
