@@ -29,27 +29,27 @@ def longest_run(flags: np.ndarray) -> np.ndarray:
 INVALID, REPELLED, ATTRACTED = -1, 0, 1
 
 
-def bound_end(touched):
+def bound_end(touched) -> np.ndarray:
     return np.asarray(touched, bool)[..., -1]
 
 
-def bound_throughout(touched):
+def bound_throughout(touched) -> np.ndarray:
     return np.asarray(touched, bool).all(-1)
 
 
-def lifetimes(touched):
+def lifetimes(touched) -> np.ndarray:
     """Longest run of consecutive bound periods (the store's ``lifetime``)."""
     return longest_run(touched)
 
 
-def labels(touched, valid):
+def labels(touched, valid) -> np.ndarray:
     """ATTRACTED / REPELLED / INVALID per initial condition ([M, K], [M])."""
     valid = np.asarray(valid, bool)
     out = np.where(bound_end(touched), ATTRACTED, REPELLED)
     return np.where(valid, out, INVALID)
 
 
-def bound_runs(touched):
+def bound_runs(touched) -> dict[str, np.ndarray]:
     """Every maximal run of consecutive bound periods.
 
     Args:
@@ -72,7 +72,7 @@ def bound_runs(touched):
     return {"lane": lane_s, "start": start, "length": length, "censored": stop == k}
 
 
-def binomial_interval(k, n, level: float = 0.95):
+def binomial_interval(k, n, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
     """Clopper-Pearson (exact) interval of a binomial proportion k/n."""
     from scipy.stats import beta
     k, n = np.asarray(k, float), np.asarray(n, float)

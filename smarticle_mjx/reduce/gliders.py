@@ -27,7 +27,7 @@ def _features(rel, r_scale: float):
     return np.column_stack([np.cos(ph), np.sin(ph), np.cos(th), np.sin(th), r / r_scale])
 
 
-def circular_mean(a, axis=None):
+def circular_mean(a, axis=None) -> np.ndarray | float:
     return np.angle(np.exp(1j * np.asarray(a, float)).mean(axis=axis))
 
 

@@ -18,7 +18,7 @@ def _as_tracks(xy) -> np.ndarray:
     return xy[None] if xy.ndim == 2 else xy
 
 
-def msd(xy, max_lag: int | None = None, centered: bool = False):
+def msd(xy, max_lag: int | None = None, centered: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mean-square displacement vs delay, pooled over tracks and time origins.
 
     Args:
@@ -47,7 +47,7 @@ def msd(xy, max_lag: int | None = None, centered: bool = False):
     return lags, out, counts
 
 
-def fit_exponent(lags, values, lag_range):
+def fit_exponent(lags, values, lag_range) -> tuple[float, float, float]:
     """Least-squares slope of log(values) vs log(lags) over ``lag_range``.
 
     Returns:
@@ -120,7 +120,7 @@ def msd_exponent(xy, lag_range=(5, 15), centered: bool = True, n_boot: int = 200
     return Exponent(beta, err, len(xy), tuple(lag_range), "bootstrap over tracks", float(lo), float(up), centered)
 
 
-def bootstrap_interval(values, stat=np.mean, level: float = 0.95, n_boot: int = 2000, seed: int = 0):
+def bootstrap_interval(values, stat=np.mean, level: float = 0.95, n_boot: int = 2000, seed: int = 0) -> tuple[float, float, float, int]:
     """Percentile bootstrap interval of ``stat`` over independent units.
 
     Args:
@@ -144,7 +144,7 @@ def bootstrap_interval(values, stat=np.mean, level: float = 0.95, n_boot: int = 
     return est, float(lo), float(hi), len(v)
 
 
-def step_lengths(xy):
+def step_lengths(xy) -> np.ndarray:
     """[M, K-1] distance moved in each period (NaN where a sample is missing)."""
     xy = np.asarray(xy, float)
     return np.linalg.norm(np.diff(xy, axis=-2), axis=-1)
