@@ -203,8 +203,10 @@ def analyse(data: dict, min_periods: int = 100, apart_W: float = 2.0, min_episod
 
 
 def _json(obj):
-    """A typed result's JSON form (nested dataclasses to dicts, in field order), as stores' reports record it."""
-    return obj.as_json() if hasattr(obj, "as_json") else obj
+    """A typed result's JSON form (its own ``as_json``, else its fields in order), as stores' reports record it."""
+    if hasattr(obj, "as_json"):
+        return obj.as_json()
+    return dataclasses.asdict(obj) if dataclasses.is_dataclass(obj) else obj
 
 
 @dataclasses.dataclass(frozen=True)
@@ -215,9 +217,6 @@ class MeanSem:
     mean: float
     sem: float
     median: float
-
-    def as_json(self) -> dict:
-        return dataclasses.asdict(self)
 
 
 def mean_sem(v) -> MeanSem:
@@ -239,9 +238,6 @@ class ContourFit:
     r: float
     p: float
     slope_stderr: float
-
-    def as_json(self) -> dict:
-        return dataclasses.asdict(self)
 
 
 def lifetime_contour_fit(episodes: list[dict]) -> ContourFit:
@@ -271,9 +267,6 @@ class KindLifetimes:
     median: float
     censored: int
 
-    def as_json(self) -> dict:
-        return dataclasses.asdict(self)
-
 
 @dataclasses.dataclass(frozen=True)
 class TypedLifetimes:
@@ -285,7 +278,7 @@ class TypedLifetimes:
     p_c1_longer: float
 
     def as_json(self) -> dict:
-        return {C1: self.c1.as_json(), C2: self.c2.as_json(), "p_c1_longer": self.p_c1_longer}
+        return {C1: _json(self.c1), C2: _json(self.c2), "p_c1_longer": self.p_c1_longer}
 
 
 def typed_lifetimes(episodes: list[dict]) -> TypedLifetimes:
@@ -327,9 +320,6 @@ class RelaxationTimes:
     q75: float
     crowded_at_end: int
 
-    def as_json(self) -> dict:
-        return dataclasses.asdict(self)
-
 
 @dataclasses.dataclass(frozen=True)
 class LeftPlate:
@@ -337,9 +327,6 @@ class LeftPlate:
 
     robots: int
     trials: int
-
-    def as_json(self) -> dict:
-        return dataclasses.asdict(self)
 
 
 @dataclasses.dataclass(frozen=True)
