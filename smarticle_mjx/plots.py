@@ -147,16 +147,16 @@ def relative_coordinates(rel, kinds, clusters, out_dir, stem, title="", formats=
     return save_figure(fig, out_dir, stem, formats)
 
 
-def lifetimes(runs: dict, periods: int, out_dir, stem, title="", formats=("png",)):
-    """Lifetime distributions of bound runs by glider type (censored runs hatched)."""
+def lifetimes(runs, periods: int, out_dir, stem, title="", formats=("png",)):
+    """Lifetime distributions of bound runs by glider type (``runs``: ``reduce.gliders.TypedRuns``)."""
     from .reduce import gliders as GL
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(4.8, 3.6))
     bins = np.linspace(0.5, periods + 0.5, min(periods, 25) + 1)
     for k, name in ((GL.C1, "C1"), (GL.C2, "C2")):
-        s = runs["kind"] == k
-        ax.hist(runs["length"][s], bins=bins, histtype="step", lw=1.5, color=KIND_COLOURS[name],
-                label=f"{name}: {s.sum()} runs, {runs['censored'][s].sum()} still bound at the end")
+        s = runs.kind == k
+        ax.hist(runs.length[s], bins=bins, histtype="step", lw=1.5, color=KIND_COLOURS[name],
+                label=f"{name}: {s.sum()} runs, {runs.censored[s].sum()} still bound at the end")
     ax.set(xlabel="lifetime (consecutive bound periods)", ylabel="bound runs", yscale="log")
     ax.legend(fontsize=7)
     ax.set_title(title, fontsize=9)

@@ -42,9 +42,9 @@ def random90(c1_samples=300, c2_samples=60, c1_basin=60, c2_basin=10, c1_life=No
     rng = np.random.default_rng(0)
     c1_life = rng.integers(50, 75, 40) if c1_life is None else np.asarray(c1_life)
     c2_life = rng.integers(5, 30, 40) if c2_life is None else np.asarray(c2_life)
-    typed = {"length": np.concatenate([c1_life, c2_life]),
-             "kind": np.array([GL.C1] * len(c1_life) + [GL.C2] * len(c2_life)),
-             "censored": np.zeros(len(c1_life) + len(c2_life), bool)}
+    r = len(c1_life) + len(c2_life)
+    typed = GL.TypedRuns(np.arange(r), np.zeros(r, int), np.concatenate([c1_life, c2_life]), np.zeros(r, bool),
+                         np.array([GL.C1] * len(c1_life) + [GL.C2] * len(c2_life)))
 
     def kind(k, samples, basin, life):
         return A.TypeStats(GL.NAMES[k], samples, basin, basin / valid, len(life), float(np.mean(life)),

@@ -24,11 +24,11 @@ def test_bound_runs_finds_every_run_and_marks_censored_ones():
                   [0, 0, 0, 0, 0, 0],
                   [0, 1, 0, 1, 0, 0]], bool)
     r = binding.bound_runs(t)
-    got = sorted(zip(r["lane"], r["start"], r["length"], r["censored"]))
+    got = sorted(zip(r.lane, r.start, r.length, r.censored))
     assert got == [(0, 0, 2, False), (0, 3, 3, True), (2, 1, 1, False), (2, 3, 1, False)]
     # the longest run per lane is the store's lifetime
     longest = np.zeros(3, int)
-    np.maximum.at(longest, r["lane"], r["length"])
+    np.maximum.at(longest, r.lane, r.length)
     assert np.array_equal(longest, binding.lifetimes(t))
 
 
@@ -230,7 +230,7 @@ def test_final_type_and_typed_lifetimes():
     t[3, 1:3] = True   # a transient contact outside both clusters
     assert list(GL.final_type(kinds, t, window=3)) == [GL.C1, GL.NONE, GL.C2, GL.NONE]
     runs = GL.typed_lifetimes(kinds, t)
-    got = sorted(zip(runs["lane"], runs["length"], runs["kind"], runs["censored"]))
+    got = sorted(zip(runs.lane, runs.length, runs.kind, runs.censored))
     assert got == [(0, 6, GL.C1, True), (1, 3, GL.C2, False), (2, 4, GL.C2, True), (3, 2, GL.NONE, False)]
 
 

@@ -97,7 +97,7 @@ def binding(touched, valid, status) -> Binding:
     pb = B.binding_probability(t, valid)
     iv = {k: Interval(float(pb[k][0]), float(pb[k][1]), float(pb[k][2]), int(pb["n"])) for k in ("end", "throughout")}
     bad = int(((np.asarray(status) & int(BAD_STATUS)) != 0).sum())
-    return Binding(iv["end"], iv["throughout"], int(len(B.bound_runs(t)["length"])), bad)
+    return Binding(iv["end"], iv["throughout"], int(len(B.bound_runs(t).length)), bad)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -134,7 +134,7 @@ class GliderTypes:
     clusters: GL.Clusters
     kinds: np.ndarray
     final: np.ndarray
-    typed: dict
+    typed: GL.TypedRuns
     samples: np.ndarray
     sample_kinds: np.ndarray
     c1: TypeStats
@@ -165,13 +165,13 @@ def glider_types(rel, touched, valid, burn_in: int, clusters: int = 8, window: i
     nv = max(int(np.asarray(valid, bool).sum()), 1)
 
     def stats(kind: int) -> TypeStats:
-        sel = typed["kind"] == kind
-        lt = typed["length"][sel]
+        sel = typed.kind == kind
+        lt = typed.length[sel]
         return TypeStats(GL.NAMES[kind], int((kinds[steady] == kind).sum()), int((final == kind).sum()),
                          float((final == kind).sum() / nv), int(sel.sum()),
                          float(lt.mean()) if len(lt) else float("nan"),
                          float(np.median(lt)) if len(lt) else float("nan"),
-                         float(typed["censored"][sel].mean()) if len(lt) else float("nan"))
+                         float(typed.censored[sel].mean()) if len(lt) else float("nan"))
 
     return GliderTypes(cl, kinds, final, typed, samples, kinds[steady], stats(GL.C1), stats(GL.C2))
 

@@ -11,6 +11,8 @@ A pair is bound in a period if its robots touched at least once in it
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 
@@ -49,16 +51,23 @@ def labels(touched, valid) -> np.ndarray:
     return np.where(valid, out, INVALID)
 
 
-def bound_runs(touched) -> dict[str, np.ndarray]:
-    """Every maximal run of consecutive bound periods.
+@dataclasses.dataclass(frozen=True)
+class Runs:
+    """Maximal runs of consecutive bound periods, each [R]: its ``lane``, ``start`` (first period),
+    ``length`` (periods) and whether it is ``censored`` (it reaches the last period, so the pair's true
+    lifetime is at least ``length``), lane-major."""
+
+    lane: np.ndarray
+    start: np.ndarray
+    length: np.ndarray
+    censored: np.ndarray
+
+
+def bound_runs(touched) -> Runs:
+    """Every maximal run of consecutive bound periods (:class:`Runs`).
 
     Args:
       touched: [M, K] bool, bound in period k.
-
-    Returns:
-      dict of [R] arrays: ``lane``, ``start`` (first period), ``length``
-      (periods), ``censored`` (the run reaches the last period, so the
-      pair's true lifetime is at least ``length``).
     """
     t = np.asarray(touched, bool)
     m, k = t.shape
@@ -69,7 +78,7 @@ def bound_runs(touched) -> dict[str, np.ndarray]:
     lane_e, stop = np.nonzero(d == -1)  # both sorted lane-major, so they pair up
     assert np.array_equal(lane_s, lane_e)
     length = stop - start
-    return {"lane": lane_s, "start": start, "length": length, "censored": stop == k}
+    return Runs(lane_s, start, length, stop == k)
 
 
 def binomial_interval(k, n, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:

@@ -126,19 +126,21 @@ def final_type(kinds, touched, window: int = 10) -> np.ndarray:
     return np.where(last_t.all(1), out, NONE)
 
 
-def typed_lifetimes(kinds, touched) -> dict:
-    """Lifetimes of bound runs, each run typed by the majority of its periods
-    (NONE when most of them are transients outside both clusters).
+@dataclasses.dataclass(frozen=True)
+class TypedRuns(binding.Runs):
+    """Bound runs (:class:`binding.Runs`) and each run's ``kind`` [R]: C1, C2 or NONE."""
 
-    Returns:
-      the :func:`binding.bound_runs` dict plus ``kind`` [R].
-    """
+    kind: np.ndarray
+
+
+def typed_lifetimes(kinds, touched) -> TypedRuns:
+    """Lifetimes of bound runs, each run typed by the majority of its periods
+    (NONE when most of them are transients outside both clusters)."""
     runs = binding.bound_runs(touched)
     kinds = np.asarray(kinds)
     kind = np.array([np.bincount(kinds[m, s:s + n], minlength=3).argmax()
-                     for m, s, n in zip(runs["lane"], runs["start"], runs["length"])], dtype=int)
-    runs["kind"] = kind
-    return runs
+                     for m, s, n in zip(runs.lane, runs.start, runs.length)], dtype=int)
+    return TypedRuns(runs.lane, runs.start, runs.length, runs.censored, kind)
 
 
 def glider_runs(touched, min_periods: int = 30) -> list[tuple[int, int, int]]:
@@ -147,7 +149,7 @@ def glider_runs(touched, min_periods: int = 30) -> list[tuple[int, int, int]]:
     (lane, first period, length), in lane order."""
     runs = binding.bound_runs(touched)
     best: dict[int, tuple[int, int]] = {}
-    for m, s, n in zip(runs["lane"], runs["start"], runs["length"]):
+    for m, s, n in zip(runs.lane, runs.start, runs.length):
         if n >= min_periods and n > best.get(m, (0, 0))[1]:
             best[int(m)] = (int(s), int(n))
     return [(m, s, n) for m, (s, n) in sorted(best.items())]

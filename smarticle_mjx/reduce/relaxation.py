@@ -111,7 +111,7 @@ def trial_episodes(poses, touched, start, left_plate=None, periods_run=None, bod
         if not ok.any():
             continue
         runs = binding.bound_runs(ok[None])
-        for s, length, cens in zip(runs["start"], runs["length"], runs["censored"]):
+        for s, length, cens in zip(runs.start, runs.length, runs.censored):
             s, length = int(s), int(length)
             prev = start if s == 0 else poses[s - 1]
             seg = np.concatenate([prev[None], poses[s:s + length]])  # [L+1, N, 5]
@@ -772,7 +772,7 @@ def pair_runs(poses, touched, start, body_length: float, left_plate=None, period
         else:
             gap = np.full(k + 1, np.nan)
         r = binding.bound_runs(ok[None])
-        for s0, length in zip(r["start"], r["length"]):
+        for s0, length in zip(r.start, r.length):
             s0, length = int(s0), int(length)
             if length < min_periods:
                 continue

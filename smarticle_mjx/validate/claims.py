@@ -178,7 +178,7 @@ def c1_basin(a90) -> Outcome:
        evidence="random_90")
 def c1_lifetime(a90) -> Outcome:
     c1, c2, typed = a90.types.c1, a90.types.c2, a90.types.typed
-    l1, l2 = typed["length"][typed["kind"] == GL.C1], typed["length"][typed["kind"] == GL.C2]
+    l1, l2 = typed.length[typed.kind == GL.C1], typed.length[typed.kind == GL.C2]
     from scipy.stats import mannwhitneyu
     p = float(mannwhitneyu(l1, l2, alternative="greater").pvalue) if len(l1) and len(l2) else np.nan
     m1 = c1.lifetime_mean if finite(c1.lifetime_mean) else 0.0
