@@ -118,7 +118,7 @@ def test_the_reducers_import_no_store_engine_or_page_and_the_study_runner_no_rep
 DICT_REDUCERS_PENDING = {
     "binding.binding_probability", "collisions.kind_summary", "collisions.period_totals",
     "collisions.sequence", "gliders.glide_summary", "gliders.glider_transport", "gliders.repeatability",
-    "gliders.sign_persistence", "gliders.steady_separation",
+    "gliders.sign_persistence",
     "relaxation.trial_episodes", "stepcheck.entry", "stepcheck.table",
 }
 

@@ -241,7 +241,7 @@ class Separation:
 
 def separation(rel, touched, window: int) -> Separation:
     ss = GL.steady_separation(rel, touched, window=window)
-    return Separation(float(ss["mean"]), float(ss["std"]), float(ss["sem"]), int(ss["pairs"]), int(window))
+    return Separation(float(ss.mean), float(ss.std), float(ss.sem), int(ss.pairs), int(window))
 
 
 def bound_heading_turn(heading, touched) -> float:

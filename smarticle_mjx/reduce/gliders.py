@@ -176,18 +176,26 @@ def glider_tracks(com, touched, min_periods: int = 30) -> np.ndarray:
     return out
 
 
-def steady_separation(rel, touched, window: int = 20) -> dict:
-    """Steady-state |r| of pairs bound in every one of the last ``window`` periods.
+@dataclasses.dataclass(frozen=True)
+class SteadyPairs:
+    """Steady-state |r| (W) of the pairs bound in every one of the last periods: the mean, the s.d. over
+    pairs, the s.e.m. (NaN below two pairs), the pairs and each one's mean [G]."""
 
-    Returns:
-      {"mean", "std" (over pairs), "sem", "pairs", "per_pair" [G]}.
-    """
+    mean: float
+    std: float
+    sem: float
+    pairs: int
+    per_pair: np.ndarray
+
+
+def steady_separation(rel, touched, window: int = 20) -> SteadyPairs:
+    """Steady-state |r| of pairs bound in every one of the last ``window`` periods (:class:`SteadyPairs`)."""
     rel, t = np.asarray(rel, float), np.asarray(touched, bool)
     sel = t[:, -window:].all(1)
     per = rel[sel, -window:, 0].mean(1) if sel.any() else np.zeros(0)
     n = len(per)
-    return {"mean": float(per.mean()) if n else np.nan, "std": float(per.std(ddof=1)) if n > 1 else np.nan,
-            "sem": float(per.std(ddof=1) / np.sqrt(n)) if n > 1 else np.nan, "pairs": n, "per_pair": per}
+    return SteadyPairs(float(per.mean()) if n else np.nan, float(per.std(ddof=1)) if n > 1 else np.nan,
+                       float(per.std(ddof=1) / np.sqrt(n)) if n > 1 else np.nan, n, per)
 
 
 def sign_runs(phi) -> np.ndarray:

@@ -96,7 +96,7 @@ def descent(paths: list, window: int) -> list[SteadyR]:
         d = st.run(st.runs[0], fields=("rel", "touched", "valid"))
         t = d["touched"][:, :, 0] & d["valid"][:, None]
         ss = GL.steady_separation(d["rel"].astype(float), t, window=min(window, t.shape[1]))
-        m, lo, hi, n = transport.bootstrap_interval(ss["per_pair"])
+        m, lo, hi, n = transport.bootstrap_interval(ss.per_pair)
         sep.append((float(st.run_attrs[st.runs[0]]["amplitude_deg"]), m, lo, hi, n, int(d["valid"].sum())))
     sep.sort()
     return [SteadyR(*x) for x in sep]
