@@ -195,8 +195,9 @@ def pb_part(engine: str, workers: int, rows: dict, label: str | None = None, mod
                           model=model)
         tr = store_tracks(path, params.robot.body_length)
         p = binding.binding_probability(tr["touched"], tr["valid"])
-        rows.setdefault(label, {})[name] = {"n": p["n"], "periods": PB["periods"], "end": p["end"],
-                                            "throughout": p["throughout"], "wall_s": time.perf_counter() - t,
+        rows.setdefault(label, {})[name] = {"n": p.n, "periods": PB["periods"], "end": dataclasses.astuple(p.end),
+                                            "throughout": dataclasses.astuple(p.throughout),
+                                            "wall_s": time.perf_counter() - t,
                                             "lane_periods": int(tr["periods_run"].sum())}
         if save:
             save()

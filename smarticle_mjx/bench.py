@@ -192,7 +192,8 @@ def pb(params, amplitude: float, n: int, periods: int, seed: int, robots=None) -
     poses = pair_starts(params, n, seed, amplitude, r_range=(0.5, 2.5))
     _, touched, wall, steps = run_pairs(params, GaitSpec(amplitude), poses, periods, quiet=2, robots=robots)
     p = binding.binding_probability(touched, np.ones(n, bool))
-    return {"n": n, "periods": periods, "end": p["end"], "throughout": p["throughout"], "wall_s": wall}
+    return {"n": n, "periods": periods, "end": dataclasses.astuple(p.end), "throughout": dataclasses.astuple(p.throughout),
+            "wall_s": wall}
 
 
 def relaxation(name: str, trials: int, seed: int, imperfections: str | None, store: pathlib.Path) -> dict:

@@ -167,7 +167,7 @@ def _collision_figure(st: Store, run: str, out: pathlib.Path, s: dict) -> list[s
         title=f"configuration {lane} (bound {int(d['lifetime'][lane])} periods), α_max = {s['amplitude_deg']:g}°")]
 
 
-def pb_by_amplitude(path) -> list[tuple[float, dict]]:
+def pb_by_amplitude(path) -> list[tuple[float, binding.BindingProbability]]:
     """(amplitude, :func:`smarticle_mjx.reduce.binding.binding_probability`) of every run of a sweep
     store, in the store's run order: P_b at the end and throughout with 95 % exact intervals."""
     st = Store(path)
@@ -185,11 +185,11 @@ def pb_table(store_path, out_dir) -> tuple[list[str], list]:
     rows = pb_by_amplitude(store_path)
     lines = [f"{'alpha_max':>9}  {'valid':>6}  {'P_b end [95% CI]':>24}  {'P_b throughout [95% CI]':>24}"]
     for a, p in rows:
-        e, t = p["end"], p["throughout"]
-        lines.append(f"{a:>9g}  {p['n']:>6}  {e[0]:.3f} [{e[1]:.3f}, {e[2]:.3f}]".ljust(44)
-                     + f"  {t[0]:.3f} [{t[1]:.3f}, {t[2]:.3f}]")
-    written = plots.pb_curve([a for a, _ in rows], [p["end"][:3] for _, p in rows],
-                             [p["throughout"][:3] for _, p in rows], out)
+        e, t = p.end, p.throughout
+        lines.append(f"{a:>9g}  {p.n:>6}  {e.value:.3f} [{e.lo:.3f}, {e.hi:.3f}]".ljust(44)
+                     + f"  {t.value:.3f} [{t.lo:.3f}, {t.hi:.3f}]")
+    written = plots.pb_curve([a for a, _ in rows], [(p.end.value, p.end.lo, p.end.hi) for _, p in rows],
+                             [(p.throughout.value, p.throughout.lo, p.throughout.hi) for _, p in rows], out)
     return lines, written
 
 

@@ -51,8 +51,8 @@ def test_binding_probability_ignores_invalid_starts():
     t[1, 2:] = True        # bound at the end only
     t[5] = True            # invalid: must not count
     p = binding.binding_probability(t, np.array([1, 1, 1, 1, 1, 0], bool))
-    assert p["n"] == 5 and p["end"][3] == 2 and p["throughout"][3] == 1
-    assert p["end"][0] == pytest.approx(0.4) and p["end"][1] < 0.4 < p["end"][2]
+    assert p.n == 5 and p.end.k == 2 and p.throughout.k == 1
+    assert p.end.value == pytest.approx(0.4) and p.end.lo < 0.4 < p.end.hi
 
 
 # ----------------------------------------------------------------- transport

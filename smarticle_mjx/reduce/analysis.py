@@ -95,9 +95,9 @@ class Binding:
 def binding(touched, valid, status) -> Binding:
     t = np.asarray(touched, bool)
     pb = B.binding_probability(t, valid)
-    iv = {k: Interval(float(pb[k][0]), float(pb[k][1]), float(pb[k][2]), int(pb["n"])) for k in ("end", "throughout")}
+    end, through = (Interval(float(p.value), float(p.lo), float(p.hi), int(pb.n)) for p in (pb.end, pb.throughout))
     bad = int(((np.asarray(status) & int(BAD_STATUS)) != 0).sum())
-    return Binding(iv["end"], iv["throughout"], int(len(B.bound_runs(t).length)), bad)
+    return Binding(end, through, int(len(B.bound_runs(t).length)), bad)
 
 
 @dataclasses.dataclass(frozen=True)

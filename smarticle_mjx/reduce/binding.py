@@ -92,20 +92,35 @@ def binomial_interval(k, n, level: float = 0.95) -> tuple[np.ndarray, np.ndarray
     return lo, hi
 
 
-def binding_probability(touched, valid, level: float = 0.95) -> dict:
-    """P_b from one run: bound at the end and bound throughout, with intervals.
+@dataclasses.dataclass(frozen=True)
+class Proportion:
+    """k of n as a fraction ``value`` with its exact interval (lo, hi); NaN when n is 0."""
+
+    value: float
+    lo: float
+    hi: float
+    k: int
+
+
+@dataclasses.dataclass(frozen=True)
+class BindingProbability:
+    """P_b of one run over its ``n`` valid starts: bound at the end and bound throughout."""
+
+    n: int
+    end: Proportion
+    throughout: Proportion
+
+
+def binding_probability(touched, valid, level: float = 0.95) -> BindingProbability:
+    """P_b from one run: bound at the end and bound throughout, with exact intervals.
 
     Args:
       touched: [M, K] bool; valid: [M] bool (invalid starts are excluded).
-
-    Returns:
-      {"n": valid count, "end": (p, lo, hi, k), "throughout": (p, lo, hi, k)}.
     """
     t = np.asarray(touched, bool)[np.asarray(valid, bool)]
     n = len(t)
-    out = {"n": n}
-    for name, k in (("end", int(bound_end(t).sum()) if n else 0),
-                    ("throughout", int(bound_throughout(t).sum()) if n else 0)):
+    parts = []
+    for k in (int(bound_end(t).sum()) if n else 0, int(bound_throughout(t).sum()) if n else 0):
         lo, hi = binomial_interval(k, n, level) if n else (np.nan, np.nan)
-        out[name] = (k / n if n else np.nan, float(lo), float(hi), k)
-    return out
+        parts.append(Proportion(k / n if n else np.nan, float(lo), float(hi), k))
+    return BindingProbability(n, *parts)
