@@ -45,7 +45,7 @@ def quantities(com: np.ndarray, touched: np.ndarray) -> dict:
     glide = steady_gliders(touched, BURN_IN)
     if glide.sum() < 3:
         return dict(gliders=int(glide.sum()), beta=np.nan, net_speed=np.nan, persistence=np.nan)
-    return dict(gliders=int(glide.sum()), **glider_transport(com[glide, BURN_IN:].astype(float)))
+    return dict(gliders=int(glide.sum()), **dataclasses.asdict(glider_transport(com[glide, BURN_IN:].astype(float))))
 
 
 def tracks(poses: np.ndarray, dt: float) -> pathlib.Path:
@@ -67,7 +67,7 @@ def quantities_runs30(com: np.ndarray, touched: np.ndarray) -> dict:
     tr = glider_tracks(com, touched, 30)
     if len(tr) < 3:
         return dict(gliders=int(len(tr)), beta=np.nan, net_speed=np.nan, persistence=np.nan)
-    return dict(gliders=int(len(tr)), **glider_transport(tr))
+    return dict(gliders=int(len(tr)), **dataclasses.asdict(glider_transport(tr)))
 
 
 def paired_rows(data: dict, ref: str, boot: int, width: int = 20, measure=quantities) -> dict:

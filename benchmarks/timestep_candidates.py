@@ -33,6 +33,7 @@ blocks, confirm on more:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import pathlib
@@ -190,20 +191,20 @@ def fidelity(names, args, res, n_boot: int = 400):
         raise SystemExit(f"no confirmation tracks of {model}: run benchmarks/fidelity_screen.py --models {model} "
                          "--pairs 128 --periods 100 --pb 0")
     g_ref = _glider_tracks(ref_path)
-    q_ref = glider_transport(g_ref)
+    q_ref = dataclasses.asdict(glider_transport(g_ref))
     rng = np.random.default_rng(0)
     for name in names:
         path = tracks / f"{model}~{name}_glide_128x100_s1.npz"
         if name == REFERENCE or not path.exists():
             continue
         g = _glider_tracks(path)
-        q = glider_transport(g)
+        q = dataclasses.asdict(glider_transport(g))
         diffs = {k: [] for k in q}
         for _ in range(n_boot):
             a = glider_transport(g[rng.integers(0, len(g), len(g))])
             b = glider_transport(g_ref[rng.integers(0, len(g_ref), len(g_ref))])
             for k in q:
-                diffs[k].append(a[k] - b[k])
+                diffs[k].append(getattr(a, k) - getattr(b, k))
         row = dict(gliders=len(g), gliders_default=len(g_ref))
         for k in q:
             lo, hi = np.nanpercentile(diffs[k], [2.5, 97.5])

@@ -286,13 +286,23 @@ def steady_gliders(touched, burn_in: int) -> np.ndarray:
     return np.asarray(touched)[:, burn_in:].all(1)
 
 
-def glider_transport(tracks) -> dict:
+@dataclasses.dataclass(frozen=True)
+class GliderQuantities:
+    """What the time-step study compares: net speed (mean over gliders, W/period), direction persistence
+    and beta (centred MSD over delays 5-15, no bootstrap)."""
+
+    net_speed: float
+    persistence: float
+    beta: float
+
+
+def glider_transport(tracks) -> GliderQuantities:
     """Net speed (mean over gliders, W/period), direction persistence and beta (centred MSD over
     delays 5-15, no bootstrap) of gliders' [G, K, 2] centre tracks: the quantities the time-step
     study compares between steps."""
-    return dict(net_speed=float(np.nanmean(_transport.net_speed(tracks))),
-                persistence=_transport.direction_persistence(tracks),
-                beta=_transport.msd_exponent(tracks, lag_range=(5, 15), centered=True, n_boot=0).beta)
+    return GliderQuantities(float(np.nanmean(_transport.net_speed(tracks))),
+                            _transport.direction_persistence(tracks),
+                            _transport.msd_exponent(tracks, lag_range=(5, 15), centered=True, n_boot=0).beta)
 
 
 def glide_summary(com, rel, touched, burn_in: int) -> dict:
