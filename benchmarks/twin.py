@@ -139,8 +139,8 @@ def collision_level(coll: dict, touched: np.ndarray) -> dict:
     from smarticle_mjx.reduce import collisions as RC
     t = RC.period_totals(coll)
     on = touched.astype(bool)
-    ir, st = t["impulse_r"][..., 0][on], t["steps"][..., 0][on]
-    by = t["impulse_r_by_kind"][..., 0, :][on]
+    ir, st = t.impulse_r[..., 0][on], t.steps[..., 0][on]
+    by = t.impulse_r_by_kind[..., 0, :][on]
     group = {"arm-arm": [k for k, n in enumerate(RC.KINDS) if "body" not in n],
              "arm-body": [k for k, n in enumerate(RC.KINDS) if n.count("body") == 1],
              "body-body": [RC.KINDS.index("body-body")]}

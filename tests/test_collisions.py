@@ -83,7 +83,7 @@ def test_collision_record_matches_mujoco_contact_forces_summed_by_hand(model):
     np.testing.assert_allclose(rec["impulse_r"][0, 0], imp_r, atol=1e-4 * scale)
     # the reducer's per-period totals are the same sums
     tot = RC.period_totals({k: v[None] for k, v in rec.items()})
-    np.testing.assert_allclose(tot["impulse_r"][0, 0, 0], imp_r.sum(), atol=1e-4 * scale)
+    np.testing.assert_allclose(tot.impulse_r[0, 0, 0], imp_r.sum(), atol=1e-4 * scale)
 
 
 def test_collision_record_needs_the_native_backend_and_sensors():

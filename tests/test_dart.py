@@ -358,7 +358,7 @@ def test_the_dart_collision_record_is_the_native_record_s_layout_and_its_touches
     touched = d["touched"][v][:, 0, 0]
     assert touched.sum() >= 2
     for k, t in tot.items():
-        assert (t["impulse_r"][touched, 0, 0] < 0).all(), (k, t["impulse_r"][:, 0, 0])
+        assert (t.impulse_r[touched, 0, 0] < 0).all(), (k, t.impulse_r[:, 0, 0])
 
 
 @needs_dart

@@ -12,30 +12,37 @@ opposite impulse, which pulls it toward robot i just as much.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..labels import CONTACT_KINDS as KINDS, PARTS  # noqa: F401 (the record's kinds, in its order)
 
 
-def period_totals(coll: dict) -> dict:
-    """Per lane, period and pair: the impulse along r and the steps in contact,
-    summed over kinds and bins, and the impulse along r per kind.
+@dataclasses.dataclass(frozen=True)
+class PeriodTotals:
+    """Per lane, period and pair: the impulse along r (N s) and the steps in contact summed over kinds
+    and bins ([B, K, P]), and both per contact kind ([B, K, P, 9], in ``KINDS`` order)."""
 
-    Returns:
-      {"impulse_r": [B, K, P] (N s), "steps": [B, K, P],
-       "impulse_r_by_kind": [B, K, P, 9], "steps_by_kind": [B, K, P, 9]}.
-    """
+    impulse_r: np.ndarray
+    steps: np.ndarray
+    impulse_r_by_kind: np.ndarray
+    steps_by_kind: np.ndarray
+
+
+def period_totals(coll: dict) -> PeriodTotals:
+    """Per lane, period and pair: the impulse along r and the steps in contact,
+    summed over kinds and bins, and both per kind (``coll``: the collision record's arrays)."""
     ir = np.asarray(coll["impulse_r"], float)
     st = np.asarray(coll["steps"])
     by_kind = ir.sum(-1)
-    return {"impulse_r": by_kind.sum(-1), "steps": st.sum((-1, -2)),
-            "impulse_r_by_kind": by_kind, "steps_by_kind": st.sum(-1)}
+    return PeriodTotals(by_kind.sum(-1), st.sum((-1, -2)), by_kind, st.sum(-1))
 
 
 def attractive_periods(coll: dict) -> np.ndarray:
     """[B, K, P] bool: some contact kind's impulse along r was positive in
     that period (at least one attractive collision, the paper's criterion)."""
-    return (period_totals(coll)["impulse_r_by_kind"] > 0).any(-1)
+    return (period_totals(coll).impulse_r_by_kind > 0).any(-1)
 
 
 def sequence(coll: dict, lane: int, period: int, pair: int = 0, min_steps: int = 1) -> list[dict]:
@@ -75,7 +82,7 @@ def kind_summary(coll: dict, mask=None) -> dict:
     fraction of periods with that contact, mean impulse along r per period
     (N s), and the fraction of those contacts whose impulse along r was attractive."""
     t = period_totals(coll)
-    st, ir = t["steps_by_kind"][..., 0, :], t["impulse_r_by_kind"][..., 0, :]  # pair 0
+    st, ir = t.steps_by_kind[..., 0, :], t.impulse_r_by_kind[..., 0, :]  # pair 0
     if mask is not None:
         st, ir = st[np.asarray(mask, bool)], ir[np.asarray(mask, bool)]
     st, ir = st.reshape(-1, len(KINDS)), ir.reshape(-1, len(KINDS))
