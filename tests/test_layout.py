@@ -117,8 +117,7 @@ def test_the_reducers_import_no_store_engine_or_page_and_the_study_runner_no_rep
 # stepcheck's table and entry are the JSON records of step checks, read and written as such, not measures.
 DICT_REDUCERS_PENDING = {
     "collisions.kind_summary",
-    "collisions.sequence", "gliders.glide_summary", "gliders.repeatability",
-    "gliders.sign_persistence",
+    "collisions.sequence", "gliders.glide_summary",
     "relaxation.trial_episodes", "stepcheck.entry", "stepcheck.table",
 }
 

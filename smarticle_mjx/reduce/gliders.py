@@ -225,7 +225,20 @@ def sign_runs(phi) -> np.ndarray:
     return np.array(runs, int)
 
 
-def sign_persistence(rel_tracks, hold: int = 50) -> dict:
+@dataclasses.dataclass(frozen=True)
+class SignPersistence:
+    """How gliders keep the sign of phi - 180 deg: sign changes per glider-period, the mean run length
+    (periods, censored runs included, so a lower bound), the fraction of gliders holding it (longest run
+    >= the hold or the whole track), and per glider [G] its longest run and its track's length."""
+
+    flips_per_period: float
+    mean_run: float
+    held: float
+    longest: np.ndarray
+    length: np.ndarray
+
+
+def sign_persistence(rel_tracks, hold: int = 50) -> SignPersistence:
     """How long gliders keep the sign of phi - 180 deg (the paper: the sign
     sets the direction of travel and stays).
 
@@ -233,11 +246,7 @@ def sign_persistence(rel_tracks, hold: int = 50) -> dict:
       rel_tracks: [G, L, 3] per-period (|r|, theta, phi) of G gliders (NaN-padded).
       hold: periods a glider must keep its sign to count as holding it.
 
-    Returns:
-      {"flips_per_period": sign changes per glider-period, "mean_run": mean
-       run length (periods, censored runs included, so a lower bound),
-       "held": fraction of gliders whose longest run is >= ``hold`` or covers
-       the whole track, "longest": [G] longest run per glider, "length": [G]}.
+    Returns: :class:`SignPersistence`.
     """
     rel_tracks = np.asarray(rel_tracks, float)
     longest, lengths, flips, runs_all = [], [], 0, []
@@ -253,13 +262,23 @@ def sign_persistence(rel_tracks, hold: int = 50) -> dict:
         lengths.append(int(ok.sum()))
     longest, lengths = np.array(longest), np.array(lengths)
     n = int(lengths.sum())
-    return {"flips_per_period": flips / max(n - len(lengths), 1) if len(lengths) else np.nan,
-            "mean_run": float(np.mean(runs_all)) if runs_all else np.nan,
-            "held": float(np.mean((longest >= hold) | (longest == lengths))) if len(lengths) else np.nan,
-            "longest": longest, "length": lengths}
+    return SignPersistence(flips / max(n - len(lengths), 1) if len(lengths) else np.nan,
+                           float(np.mean(runs_all)) if runs_all else np.nan,
+                           float(np.mean((longest >= hold) | (longest == lengths))) if len(lengths) else np.nan,
+                           longest, lengths)
 
 
-def repeatability(rel_tracks) -> dict:
+@dataclasses.dataclass(frozen=True)
+class Repeatability:
+    """Median over gliders of the spread of their once-per-period |r| (W, s.d.), theta and phi (rad,
+    circular s.d.); NaN without a glider of three samples."""
+
+    r: float
+    theta: float
+    phi: float
+
+
+def repeatability(rel_tracks) -> Repeatability:
     """How tightly the once-per-period (|r|, theta, phi) of a glider repeats
     (a limit cycle repeats exactly): per glider the standard deviation of |r|
     (W) and the circular standard deviations of theta and phi (rad),
@@ -273,7 +292,7 @@ def repeatability(rel_tracks) -> dict:
         for k, name in ((1, "theta"), (2, "phi")):
             R = np.abs(np.exp(1j * tr[:, k]).mean())
             out[name].append(np.sqrt(-2 * np.log(min(max(R, 1e-12), 1.0))))  # R rounds above 1 for a constant angle
-    return {k: float(np.median(v)) if v else np.nan for k, v in out.items()}
+    return Repeatability(*(float(np.median(out[k])) if out[k] else np.nan for k in ("r", "theta", "phi")))
 
 
 def steady_gliders(touched, burn_in: int) -> np.ndarray:
@@ -346,9 +365,9 @@ def glide_summary(com, rel, touched, burn_in: int) -> dict:
         "median_turn_deg": float(np.degrees(_transport.median_direction_change(g_com))),
         "straightness20": _transport.straightness(g_com, 20),
         "beta": beta.beta, "beta_err": beta.err, "beta_lags": list(beta.lag_range),
-        "sign_flips_per_period": sp["flips_per_period"], "sign_mean_run": sp["mean_run"],
-        "sign_held_frac": sp["held"], "sign_hold_periods": min(50, periods - burn_in),
-        "repeat": repeatability(g_rel),
+        "sign_flips_per_period": sp.flips_per_period, "sign_mean_run": sp.mean_run,
+        "sign_held_frac": sp.held, "sign_hold_periods": min(50, periods - burn_in),
+        "repeat": dataclasses.asdict(repeatability(g_rel)),
         "C2_fraction": float(aligned.mean()),
         "C1_gliders": int(c1.sum()),
         "steady_r_W": float(np.nanmean(g_rel[..., 0])),
@@ -357,6 +376,6 @@ def glide_summary(com, rel, touched, burn_in: int) -> dict:
         dev = np.degrees(np.abs(np.angle(np.exp(1j * (g_rel[c1, :, 2] - np.pi)))))
         out["C1_phi_dev_deg"] = float(np.median(dev))  # symmetry breaking: 0 for a symmetric C1
         spc = sign_persistence(g_rel[c1], hold=min(50, periods - burn_in))
-        out["C1_sign_held_frac"] = spc["held"]
+        out["C1_sign_held_frac"] = spc.held
         out["C1_straightness20"] = _transport.straightness(g_com[c1], 20)
     return out
