@@ -36,6 +36,7 @@ a set computed with another generator or scoring (their source hashes are stored
     python benchmarks/calibration_stress.py --sets 0-59                  # the reported suite (seed 2026)
     python benchmarks/calibration_stress.py --suite-seed 7 --sets 0-9    # development seeds
     python benchmarks/calibration_stress.py --summary                    # tables of what is stored
+    python benchmarks/calibration_stress.py --sets 5,9 --tag rerun       # reported sets again, kept apart
 """
 
 from __future__ import annotations
@@ -283,8 +284,11 @@ def main():
     ap.add_argument("--max-minutes", type=float, default=None, help="start no set after this long")
     ap.add_argument("--summary", action="store_true", help="print the tables of what is stored and stop")
     ap.add_argument("--draw-only", action="store_true", help="print what each set hides and stop")
+    ap.add_argument("--tag", default="", help="keep this run's results apart (calibration_stress/<seed>-<tag>/): "
+                                              "sets of a reported seed run again under later rules")
     args = ap.parse_args()
-    folder = RESULTS / "calibration_stress" / str(args.suite_seed)
+    name = str(args.suite_seed) + (f"-{args.tag}" if args.tag else "")
+    folder = RESULTS / "calibration_stress" / name
     folder.mkdir(parents=True, exist_ok=True)
     src = source_hash()
     t0 = time.perf_counter()
@@ -313,7 +317,7 @@ def main():
     rows = [json.loads(p.read_text()) for p in sorted(folder.glob("set_*.json"))]
     rows = [r for r in rows if r.get("source") == src]
     summary = summarise(rows)
-    out = RESULTS / f"calibration_stress_{args.suite_seed}.json"
+    out = RESULTS / f"calibration_stress_{name}.json"
     out.write_text(json.dumps({"suite_seed": args.suite_seed, "source": src, "summary": summary,
                                "rows": rows}, indent=1, default=float))
     print(json.dumps(summary, indent=1))
