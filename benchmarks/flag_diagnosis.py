@@ -52,11 +52,40 @@ def _normal_speed(m, d, i: int) -> float:
     return -rel  # the normal points from geom1 to geom2: closing when geom2 moves toward geom1
 
 
+def _stepped(scene, lanes, periods: int):
+    """Step the one lane of ``lanes`` (already on the step grid) with ``mj_step`` as the native backend runs
+    it: its initial state, each period's controls at that period's phase, and each period started from a
+    zero warm start as the backend's rollout does (checked: it reproduces the stored flags). Yields
+    (period, step, MjData) after every step."""
+    import mujoco
+    from smarticle_mjx.engine.core import lane_controls
+    from smarticle_mjx.engine.native import NativeBackend
+    be = NativeBackend(scene, nthread=1)
+    state = be.initial_state(lanes)
+    be.close()
+    m = scene.model
+    d = mujoco.MjData(m)
+    mujoco.mj_setState(m, d, np.asarray(state[0]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    dt = m.opt.timestep
+    nstep = int(round(lanes.period / dt))
+    for p in range(periods):
+        ctrl = lane_controls(scene, lanes.at_time(p * lanes.period), dt * np.arange(nstep))[0]
+        d.qacc_warmstart[:] = 0.0
+        for k in range(nstep):
+            d.ctrl[:] = ctrl[k]
+            mujoco.mj_step(m, d)
+            yield p, k, d
+
+
+def _tilts_deg(d, bodies) -> np.ndarray:
+    """Each body's tilt from upright (degrees): the angle between its z axis and the world's."""
+    return np.degrees(np.arccos(np.clip(d.xmat[bodies][:, 8], -1, 1)))
+
+
 def replay_to_flag(path, trial: int) -> dict:
     import mujoco
     from smarticle_mjx.engine import Lanes, Scene
-    from smarticle_mjx.engine.core import lane_controls, on_step_grid
-    from smarticle_mjx.engine.native import NativeBackend
+    from smarticle_mjx.engine.core import on_step_grid
     from smarticle_mjx.relax import RUN, start_poses
     from smarticle_mjx.scene import params_from_json
     from smarticle_mjx.specs import relax_config_from_json
@@ -74,14 +103,8 @@ def replay_to_flag(path, trial: int) -> dict:
         from smarticle_mjx.relax import retrigger_of
         lanes = dataclasses.replace(lanes, retrigger=retrigger_of(config, trial))
     lanes = on_step_grid(lanes, params.timestep)
-    be = NativeBackend(scene, nthread=1)
-    state = be.initial_state(lanes)
-    be.close()
     m = scene.model
-    d = mujoco.MjData(m)
-    mujoco.mj_setState(m, d, np.asarray(state[0]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    dt = m.opt.timestep
-    nstep = int(round(lanes.period / dt))
+    nstep = int(round(lanes.period / m.opt.timestep))
     gname = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, i) for i in range(m.ngeom)]
     robot_of = [int(n[1:].split("_")[0]) if n and n.startswith("r") and "_" in n else -1 for n in gname]
     bodies = [m.geom(f"r{i}_body").bodyid[0] for i in range(len(start[0]))]
@@ -89,55 +112,51 @@ def replay_to_flag(path, trial: int) -> dict:
     onset: dict = {}  # robot-robot geom pair -> (approach speed, depth, step) when its contact began
     last: dict = {}
     tilt_max, tilt_onset = 0.0, None
+    on_plate = np.zeros(n_rob, bool)  # robots with a plate contact before the step (none before the first)
     out = {"store": str(path), "trial": trial, "stored_status": int(rows["status"][trial - lo]),
            "stored_periods_run": int(rows["periods_run"][trial - lo]), "timeconst_s": params.contact_timeconst}
-    for p in range(int(rows["periods_run"][trial - lo]) + 1):
-        ctrl = lane_controls(scene, lanes.at_time(p * lanes.period), dt * np.arange(nstep))[0]
-        d.qacc_warmstart[:] = 0.0  # as the backend's rollout starts each period (checked: reproduces the stored flags)
-        for k in range(nstep):
-            d.ctrl[:] = ctrl[k]
-            on_plate = np.zeros(n_rob, bool)
-            for i in range(d.ncon):
-                r1, r2 = robot_of[d.contact.geom1[i]], robot_of[d.contact.geom2[i]]
-                if r1 < 0 or r2 < 0:
-                    on_plate[max(r1, r2)] = True
-            mujoco.mj_step(m, d)
-            z = d.xmat[bodies][:, 8]  # body z axis . world z
-            tilt_max = max(tilt_max, float(np.degrees(np.arccos(np.clip(z.min(), -1, 1)))))
-            if tilt_onset is None and tilt_max > TILT_ONSET_DEG:  # the first robot to tip: what touched it
-                r = int(np.argmin(z))
-                touching = sorted({gname[g] for i in range(d.ncon) for g in (d.contact.geom1[i], d.contact.geom2[i])
-                                   if robot_of[d.contact.geom1[i]] >= 0 and robot_of[d.contact.geom2[i]] >= 0
-                                   and r in (robot_of[d.contact.geom1[i]], robot_of[d.contact.geom2[i]])
-                                   and robot_of[d.contact.geom1[i]] != robot_of[d.contact.geom2[i]]})
-                tilt_onset = {"period": p, "step": k, "robot": r, "touching_geoms": touching,
-                              "on_plate": bool(on_plate[r])}
-            now = {}
-            for i in range(d.ncon):
-                g1, g2 = int(d.contact.geom1[i]), int(d.contact.geom2[i])
-                if robot_of[g1] < 0 or robot_of[g2] < 0 or robot_of[g1] == robot_of[g2]:
-                    continue
-                key = (min(g1, g2), max(g1, g2))
-                if key not in now or d.contact.dist[i] < now[key][0]:
-                    now[key] = (float(d.contact.dist[i]), i)
-            for key, (dist, i) in now.items():
-                if key not in last:  # the pair's contact began this step: its approach speed along the normal
-                    onset[key] = (_normal_speed(m, d, i), -dist, p * nstep + k)
-            last = now
-            bad = not np.isfinite(d.qacc).all() or d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
-            deep = min(now.items(), key=lambda kv: kv[1][0]) if now else None
-            if bad or (deep is not None and deep[1][0] < -FLAG_DEPTH):
-                ev = {"period": p, "step": k, "t_s": float(d.time), "nonfinite": bool(bad),
-                      "airborne_robots": [int(i) for i in np.flatnonzero(~on_plate)], "tilt_max_deg": tilt_max,
-                      "tilt_onset": tilt_onset}
-                if deep is not None:
-                    (g1, g2), (dist, _) = deep
-                    v, first_depth, first_step = onset[(g1, g2)]
-                    ev.update(geoms=[gname[g1], gname[g2]], depth_mm=-dist * 1e3, onset_speed_m_s=v,
-                              onset_depth_mm=first_depth * 1e3, steps_in_contact=p * nstep + k - first_step,
-                              closed_form_depth_mm=v * params.contact_timeconst / math.e * 1e3)
-                out["event"] = ev
-                return out
+    for p, k, d in _stepped(scene, lanes, int(rows["periods_run"][trial - lo]) + 1):
+        tilt = _tilts_deg(d, bodies)
+        tilt_max = max(tilt_max, float(tilt.max()))
+        if tilt_onset is None and tilt_max > TILT_ONSET_DEG:  # the first robot to tip: what touched it
+            r = int(np.argmax(tilt))
+            touching = sorted({gname[g] for i in range(d.ncon) for g in (d.contact.geom1[i], d.contact.geom2[i])
+                               if robot_of[d.contact.geom1[i]] >= 0 and robot_of[d.contact.geom2[i]] >= 0
+                               and r in (robot_of[d.contact.geom1[i]], robot_of[d.contact.geom2[i]])
+                               and robot_of[d.contact.geom1[i]] != robot_of[d.contact.geom2[i]]})
+            tilt_onset = {"period": p, "step": k, "robot": r, "touching_geoms": touching,
+                          "on_plate": bool(on_plate[r])}
+        now = {}
+        for i in range(d.ncon):
+            g1, g2 = int(d.contact.geom1[i]), int(d.contact.geom2[i])
+            if robot_of[g1] < 0 or robot_of[g2] < 0 or robot_of[g1] == robot_of[g2]:
+                continue
+            key = (min(g1, g2), max(g1, g2))
+            if key not in now or d.contact.dist[i] < now[key][0]:
+                now[key] = (float(d.contact.dist[i]), i)
+        for key, (dist, i) in now.items():
+            if key not in last:  # the pair's contact began this step: its approach speed along the normal
+                onset[key] = (_normal_speed(m, d, i), -dist, p * nstep + k)
+        last = now
+        bad = not np.isfinite(d.qacc).all() or d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
+        deep = min(now.items(), key=lambda kv: kv[1][0]) if now else None
+        if bad or (deep is not None and deep[1][0] < -FLAG_DEPTH):
+            ev = {"period": p, "step": k, "t_s": float(d.time), "nonfinite": bool(bad),
+                  "airborne_robots": [int(i) for i in np.flatnonzero(~on_plate)], "tilt_max_deg": tilt_max,
+                  "tilt_onset": tilt_onset}
+            if deep is not None:
+                (g1, g2), (dist, _) = deep
+                v, first_depth, first_step = onset[(g1, g2)]
+                ev.update(geoms=[gname[g1], gname[g2]], depth_mm=-dist * 1e3, onset_speed_m_s=v,
+                          onset_depth_mm=first_depth * 1e3, steps_in_contact=p * nstep + k - first_step,
+                          closed_form_depth_mm=v * params.contact_timeconst / math.e * 1e3)
+            out["event"] = ev
+            return out
+        on_plate = np.zeros(n_rob, bool)
+        for i in range(d.ncon):
+            r1, r2 = robot_of[d.contact.geom1[i]], robot_of[d.contact.geom2[i]]
+            if r1 < 0 or r2 < 0:
+                on_plate[max(r1, r2)] = True
     out["event"] = None
     return out
 
@@ -166,11 +185,9 @@ def max_tilts(imperfections: str, phase_jitter: float, overrides: dict, teeth: f
               trials: int = 4, periods: int = 3, model: str = "lab-lag") -> list[float]:
     """Each trial's largest body tilt (degrees from upright) over ``periods`` periods from the relaxation's
     compressed start (seed 0), ``teeth`` replacing the gear-teeth stops' time constant (2 dt) when given."""
-    import mujoco
     from smarticle_mjx import presets
     from smarticle_mjx.engine import Lanes, Scene
-    from smarticle_mjx.engine.core import SceneLayout, lane_controls, on_step_grid
-    from smarticle_mjx.engine.native import NativeBackend
+    from smarticle_mjx.engine.core import SceneLayout, on_step_grid
     from smarticle_mjx.relax import start_poses
     from smarticle_mjx.scene import compile_model
     from smarticle_mjx.specs import RelaxConfig
@@ -186,23 +203,13 @@ def max_tilts(imperfections: str, phase_jitter: float, overrides: dict, teeth: f
     m = compile_model(xml)
     scene = Scene(params, m, SceneLayout.of(m), xml, False)
     bodies = [m.geom(f"r{i}_body").bodyid[0] for i in range(config.n_robots)]
-    dt, out = m.opt.timestep, []
+    out = []
     for t in range(trials):
         lanes = config.robots().lanes(Lanes.from_gait(starts[t], config.gait_spec(), phase[t]), [t])
-        lanes = on_step_grid(lanes, dt)
-        be = NativeBackend(scene, nthread=1)
-        state = be.initial_state(lanes)
-        be.close()
-        d = mujoco.MjData(m)
-        mujoco.mj_setState(m, d, np.asarray(state[0]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
-        nstep, tilt = int(round(lanes.period / dt)), 0.0
-        for p in range(periods):
-            ctrl = lane_controls(scene, lanes.at_time(p * lanes.period), dt * np.arange(nstep))[0]
-            d.qacc_warmstart[:] = 0.0
-            for k in range(nstep):
-                d.ctrl[:] = ctrl[k]
-                mujoco.mj_step(m, d)
-                tilt = max(tilt, float(np.degrees(np.arccos(np.clip(d.xmat[bodies][:, 8].min(), -1, 1)))))
+        lanes = on_step_grid(lanes, m.opt.timestep)
+        tilt = 0.0
+        for _, _, d in _stepped(scene, lanes, periods):
+            tilt = max(tilt, float(_tilts_deg(d, bodies).max()))
         out.append(tilt)
     return out
 
