@@ -103,7 +103,8 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     # had bent to split the difference between the robots), so it is a joint hypothesis too,
     # started from the offset at which the robots' own arm curves align
     joint = SERVO_HYPOTHESES + (("phase_offset",) if max(tr.robots for tr in trials) > 1 else ())
-    if servo_skip_reason(trials, dtest) == NO_ARMS:
+    servo_skip = servo_skip_reason(trials, dtest)  # why a lag or dead time is not tried here, or None
+    if servo_skip == NO_ARMS:
         say("no arm angles tracked: a servo lag or dead time is not tried (body motion alone cannot tell a "
             "servo's timing from its law)")
     hypotheses, best, tasks = [], None, []
@@ -111,9 +112,8 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         if name not in {e.name for e in library}:
             continue
         e, e_start = BY_NAME[name], None
-        skip = servo_skip_reason(trials, dtest) if name in SERVO_HYPOTHESES else None
-        if skip is not None:
-            hypotheses.append({"effect": name, "tried": False, "accepted": False, "reason": skip})
+        if name in SERVO_HYPOTHESES and servo_skip is not None:
+            hypotheses.append({"effect": name, "tried": False, "accepted": False, "reason": servo_skip})
             continue
         if name == "phase_offset":  # started where the robots' arm curves align (model-free)
             est = estimate_offset(train.trials)
