@@ -60,7 +60,7 @@ def simulate_track(out, scene: str = "pair", config: str | None = None, gait=Non
     before anything is simulated. ``overrides``: single fields of the preset changed (``--set``), recorded
     in the sidecar. Returns robots, periods, the period, touched periods, files written."""
     from . import configs, presets, scene as scene_mod, tracks
-    from .engine import StudyEngine, check_backend
+    from .engine import StudyEngine
     from .engine.simulate import simulate
     from .gait import GaitSpec
     preset = presets.get(model)
@@ -69,9 +69,8 @@ def simulate_track(out, scene: str = "pair", config: str | None = None, gait=Non
     g.validate(params.robot.servo_speed, params.robot.arm_limit_deg)
     if periods < 1 or track_stride < 1:
         raise ValueError("--periods and --track-stride must be positive")
-    check_backend(backend, tracks=True)
     engine = StudyEngine(backend)
-    engine.check(overrides=overrides)  # dart: installed, reads what --set changes
+    engine.check(overrides=overrides, tracks=True)  # records tracks; dart: installed, reads what --set changes
     dt = engine.timestep(params.timestep)
     if pathlib.Path(out).exists() and not overwrite:
         raise ValueError(f"{out} exists; pass --overwrite to replace it")

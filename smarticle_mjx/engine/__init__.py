@@ -53,11 +53,11 @@ class StudyEngine:
     backend: str = "native"
     settings: tuple | None = None
 
-    def check(self, params=None, overrides=(), collisions: bool = False) -> None:
-        """ValueError (one line) for a backend the engine does not know, a record it cannot make, settings
-        it does not take or cannot build ``params`` with, a field of ``overrides`` it does not read, or a
-        backend whose package is not installed."""
-        check_backend(self.backend, collisions)
+    def check(self, params=None, overrides=(), collisions: bool = False, tracks: bool = False) -> None:
+        """ValueError (one line) for a backend the engine does not know, a record it cannot make (the
+        collision record, full-rate tracks), settings it does not take or cannot build ``params`` with, a
+        field of ``overrides`` it does not read, or a backend whose package is not installed."""
+        check_backend(self.backend, collisions, tracks)
         from .dart import check_study
         check_study(self.backend, self.settings, params, overrides)
         if self.backend == "warp":
