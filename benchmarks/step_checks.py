@@ -8,7 +8,8 @@ results/step_mechanism_lab_runs30.json (the same with the `lab` imperfection set
 reference; a glider there is a start's longest bound run of >= 30 periods, because the drawn robots'
 drifting clocks leave no pair bound from period 10 to 100 at any step, so the steady rule of the other
 sources measures nothing). Only
-measurements with no field changed from the preset enter; an integrator switch is a key of its own.
+measurements with no field changed from the preset but the numerics enter; an integrator switch, and
+near-contact sub-stepping, are keys of their own.
 
     python benchmarks/step_checks.py        # rewrites the table; prints it
 """
@@ -42,11 +43,13 @@ def collect() -> list[dict]:
         m = json.loads((ROOT / source).read_text())
         ref_name = next(k for k in m["runs"] if "reference" in k)
         for name, row in m["runs"].items():
-            if name == ref_name or set(row["changes"]) - {"integrator"}:
+            if name == ref_name or set(row["changes"]) - {"integrator", "contact_substeps", "substep_gate"}:
                 continue
-            e = stepcheck.entry(m["model"], m.get("imperfections", "none"), row["dt_s"],
-                                row["changes"].get("integrator", base.integrator), m["runs"][ref_name]["dt_s"],
-                                source, row, m["runs"][ref_name])
+            ch = row["changes"]
+            label = stepcheck.numerics(ch.get("integrator", base.integrator), ch.get("contact_substeps", 1),
+                                       ch.get("substep_gate", base.substep_gate))
+            e = stepcheck.entry(m["model"], m.get("imperfections", "none"), row["dt_s"], label,
+                                m["runs"][ref_name]["dt_s"], source, row, m["runs"][ref_name])
             out.setdefault(e["key"], e)  # glider_step's measurement of the same key comes first
     return list(out.values())
 

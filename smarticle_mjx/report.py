@@ -137,8 +137,10 @@ def store_step_check(st: Store) -> stepcheck.StepCheck:
     (reduce.stepcheck; "not checked" where nobody measured it)."""
     spec = st.config.get("scan") or st.config.get("relax") or {}
     scene = st.config.get("scene") or {}
+    integrator = stepcheck.numerics(scene.get("integrator", SceneParams.integrator),
+                                    scene.get("contact_substeps", 1), scene.get("substep_gate"))
     return stepcheck.lookup(st.model, spec.get("imperfections", "none"), float(scene.get("timestep", float("nan"))),
-                            scene.get("integrator", SceneParams.integrator), st.overrides, spec.get("backend", "native"))
+                            integrator, st.overrides, spec.get("backend", "native"))
 
 
 def step_note(c: dict) -> str:

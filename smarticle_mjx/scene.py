@@ -233,6 +233,11 @@ class SceneParams:
     # MuJoCo's integrator (docs/timestep.md compares them); "discrete" merges the
     # constraint solve and the implicit velocity update (MuJoCo >= 3.13; native and warp, not MJX)
     integrator: str = "implicitfast"
+    # Near-contact sub-stepping (native backend; docs/timestep.md): while two robots of a lane may be
+    # closer than ``substep_gate`` (m), its steps are split into this many, so contacts between robots
+    # are resolved at timestep / contact_substeps and the robots apart run at the full step. 1: off.
+    contact_substeps: int = 1
+    substep_gate: float = 0.004
     iterations: int = 20
     # MuJoCo's default. At the impact of an arm on a body the C solver's line
     # search needs up to ~23 evaluations; capped at 10 it stopped early with
@@ -268,6 +273,10 @@ class SceneParams:
                     f"integrator {self.integrator} takes the servo's velocity gain explicitly and "
                     f"timestep * kv / hinge inertia = {stiff:.3g} > {EXPLICIT_DAMPING_MAX:g} would misintegrate it; "
                     "use implicitfast or a smaller timestep")
+        if not (isinstance(self.contact_substeps, int) and 1 <= self.contact_substeps <= 16):
+            raise ValueError(f"contact_substeps must be a whole number in 1-16, got {self.contact_substeps!r}")
+        if not self.substep_gate > 0:
+            raise ValueError(f"substep_gate must be positive (m), got {self.substep_gate!r}")
         if self.contact_timeconst < 2 * self.timestep:
             raise ValueError(
                 f"contact_timeconst {self.contact_timeconst} < 2 * timestep {self.timestep}: "

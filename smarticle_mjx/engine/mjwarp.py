@@ -22,6 +22,8 @@ an overflow cannot be pinned on one lane).
 
 from __future__ import annotations
 
+import copy
+
 import dataclasses
 import time
 
@@ -161,6 +163,11 @@ class WarpBackend(BackendBase):
         self._wp, self._mjw = wp, mjw
         self.scene = scene
         self.model = scene.model
+        if scene.params.contact_substeps > 1:
+            # near-contact sub-stepping (SceneParams.contact_substeps): the GPU's lanes run in lock-step, so
+            # a lane that skips sub-steps saves nothing; every step is split (the gate always open)
+            self.model = copy.deepcopy(scene.model)
+            self.model.opt.timestep = scene.params.timestep / scene.params.contact_substeps
         self.device = wp.get_device(device if device is not None else
                                     ("cuda:0" if wp.is_cuda_available() else "cpu"))
         self.penetration_limit = penetration_limit

@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
+from .gate import chunk_steps, make_gate
 from .core import (BackendBase, collision_bin_of, COLLISION_WIDTH, CONTACT_KINDS, SENSOR_WIDTH, Lanes, PeriodRecords, Record, Scene, Status,
                    blank_collisions, lane_controls, on_step_grid, steps_per_period)
 
@@ -25,6 +26,12 @@ def state_offsets(model: mujoco.MjModel) -> tuple[int, int]:
     t = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_TIME.value)
     nq = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_QPOS.value)
     return t, t + nq
+
+
+def _copy_model(model: mujoco.MjModel) -> mujoco.MjModel:
+    """An independent copy of a compiled model."""
+    import copy
+    return copy.deepcopy(model)
 
 
 class NativeBackend(BackendBase):
@@ -44,6 +51,13 @@ class NativeBackend(BackendBase):
         self.qpos_at, self.qvel_at = state_offsets(self.model)
         self.memory_budget = memory_budget
         self.penetration_limit = penetration_limit
+        self.substeps = scene.params.contact_substeps
+        if self.substeps > 1:  # the same compiled model at the sub-step: every solref stays in seconds
+            self.fine_model = _copy_model(self.model)
+            self.fine_model.opt.timestep = self.model.opt.timestep / self.substeps
+            self.fine_datas = [mujoco.MjData(self.fine_model) for _ in range(self.nthread)]
+            self.gate = make_gate(scene.layout, scene.params.robot, scene.params.substep_gate)
+            self.substep_stats = [0, 0]  # coarse steps run whole, and split, since the backend was made
 
     def close(self):
         if self.pool is not None:
@@ -82,6 +96,8 @@ class NativeBackend(BackendBase):
         """
         record = record or Record()
         record.validate()
+        if self.substeps > 1 and self.scene.n_robots > 1:
+            return self._advance_gated(state, lanes, n_periods, t0, record)
         track_stride = record.track_stride
         if track_stride and np.ndim(t0):
             raise ValueError("a full-rate track needs one start time t0 for every lane")
@@ -145,6 +161,125 @@ class NativeBackend(BackendBase):
         if track_stride:
             track = {"t": np.concatenate(track_t), "qpos": np.concatenate(track_q, 1)}
         return state, PeriodRecords(poses, touched, min_dist, status, coll), track
+
+    def _advance_gated(self, state: np.ndarray, lanes: Lanes, n_periods: int, t0, record: Record):
+        """:meth:`advance` with near-contact sub-stepping (``SceneParams.contact_substeps`` = K > 1).
+
+        Every ``C`` steps (:func:`gate.chunk_steps`: robots ``substep_gate`` apart cannot meet in fewer)
+        each lane's robots are asked how far apart they are at least (:func:`gate.gap_lower_bound`
+        over every pair); lanes with a pair nearer than the gate run the next C steps as C x K steps of
+        timestep / K, the others as C steps. The records are those of :meth:`advance`: touches,
+        deepest contacts and penetration from every (sub-)step, the collision record's step counts on
+        the full step's grid (a step counts when any of its sub-steps touched), impulses of every
+        sub-step, tracks on the full step's grid. Each chunk starts the solver cold, as each period
+        of :meth:`advance` does.
+        """
+        m, mf, k_sub = self.model, self.fine_model, self.substeps
+        dt = m.opt.timestep
+        track_stride = record.track_stride
+        if track_stride and np.ndim(t0):
+            raise ValueError("a full-rate track needs one start time t0 for every lane")
+        if record.collisions and not self.scene.collisions:
+            raise ValueError("the collision record needs a scene built with Scene.build(..., collisions=True)")
+        lanes = on_step_grid(lanes, dt)
+        nstep = steps_per_period(lanes.period, dt)
+        chunk = chunk_steps(dt, self.scene.params.substep_gate)
+        near_of = self.gate
+        b, n_pairs = lanes.size, self.scene.n_pairs
+        per_lane = nstep * (1 + k_sub) * m.nu * 8 + (nstep * m.nq * 8 if track_stride else 0)
+        slice_size = max(1, min(b, int(self.memory_budget // per_lane)))
+        poses = np.empty((b, n_periods, self.scene.n_robots, 5))
+        touched = np.zeros((b, n_periods, n_pairs), dtype=bool)
+        min_dist = np.full((b, n_periods, n_pairs), np.inf)
+        status = np.zeros(b, dtype=np.int32)
+        coll = blank_collisions(b, n_periods, n_pairs, record.collision_bins) if record.collisions else None
+        bin_of = collision_bin_of(nstep, record.collision_bins) if record.collisions else None
+        state = np.array(state, dtype=np.float64, copy=True)
+        qa = slice(self.qpos_at, self.qpos_at + m.nq)
+        track_t, track_q = [], []
+        t_rel = dt * np.arange(nstep)
+        t_fine = (dt / k_sub) * np.arange(nstep * k_sub)
+        for k in range(n_periods):
+            t_start = t0 + k * lanes.period
+            lanes_k = lanes.at_time(t_start)
+            out_q = []
+            for lo in range(0, b, slice_size):
+                sl = slice(lo, min(b, lo + slice_size))
+                lk = lanes_k.take(sl)
+                ctrl_c = lane_controls(self.scene, lk, t_rel)
+                ctrl_f = lane_controls(self.scene, lk, t_fine)
+                st = state[sl].copy()
+                nb = st.shape[0]
+                found = np.zeros((nb, n_pairs), bool)
+                dist = np.full((nb, n_pairs), np.inf)
+                bad = np.zeros(nb, bool)
+                q_grid = np.empty((nb, nstep, m.nq)) if track_stride else None
+                for c0 in range(0, nstep, chunk):
+                    n = min(chunk, nstep - c0)
+                    near = near_of(st[:, qa])
+                    for fine in (False, True):
+                        idx = np.flatnonzero(near == fine)
+                        if not idx.size:
+                            continue
+                        kk = k_sub if fine else 1
+                        ctrl = (ctrl_f[idx, c0 * k_sub:(c0 + n) * k_sub] if fine else ctrl_c[idx, c0:c0 + n])
+                        init = st[idx]
+                        states, sens = self.pool.rollout(mf if fine else m, self.fine_datas if fine else self.datas,
+                                                         init, ctrl, nstep=n * kk)
+                        self.substep_stats[int(fine)] += idx.size * n
+                        if coll is not None:
+                            self._collisions_rows(coll, lo + idx, k, init, states, sens, bin_of[c0:c0 + n], kk,
+                                                  dt / kk)
+                        ps = sens[..., :n_pairs * SENSOR_WIDTH].reshape(idx.size, n * kk, n_pairs, SENSOR_WIDTH)
+                        f = ps[..., 0] > 0
+                        found[idx] |= f.any(1)
+                        dist[idx] = np.minimum(dist[idx], np.where(f, ps[..., 1], np.inf).min(1))
+                        clock = np.concatenate([init[:, :1], states[:, :, 0]], axis=1)
+                        bad[idx] |= ~np.isfinite(states).all(axis=(1, 2)) | (np.diff(clock, axis=1) <= 0).any(1)
+                        if q_grid is not None:
+                            q_grid[idx, c0:c0 + n] = states[:, kk - 1::kk, qa]
+                        st[idx] = states[:, -1]
+                touched[sl, k] = found
+                min_dist[sl, k] = dist
+                status[sl] |= np.where(bad, int(Status.NONFINITE), 0)
+                status[sl] |= np.where((dist < -self.penetration_limit).any(-1), int(Status.PENETRATION), 0)
+                state[sl] = st
+                poses[sl, k] = self.scene.poses_from_qpos(st[:, qa])
+                if track_stride:
+                    out_q.append(q_grid[:, track_stride - 1::track_stride])
+            if track_stride:
+                track_q.append(np.concatenate(out_q, 0))
+                track_t.append(t_start + t_rel[track_stride - 1::track_stride] + dt)
+        track = None
+        if track_stride:
+            track = {"t": np.concatenate(track_t), "qpos": np.concatenate(track_q, 1)}
+        return state, PeriodRecords(poses, touched, min_dist, status, coll), track
+
+    def _collisions_rows(self, coll: dict, lanes_at: np.ndarray, k: int, init, states, sens, bins_of_steps,
+                         kk: int, dt_row: float):
+        """:meth:`_collisions` for one chunk of ``len(bins_of_steps)`` full steps run as ``kk`` sub-steps
+        each (rows of ``dt_row`` s): impulses of every row, a full step counted in contact when any of
+        its sub-steps was."""
+        m, lay = self.model, self.scene.layout
+        n_pairs, n_kinds = self.scene.n_pairs, len(CONTACT_KINDS)
+        nb, rows = states.shape[0], states.shape[1]
+        cs = sens[..., n_pairs * SENSOR_WIDTH:].reshape(nb, rows, n_pairs, n_kinds, COLLISION_WIDTH)
+        qa = slice(self.qpos_at, self.qpos_at + m.nq)
+        q = np.concatenate([init[:, None, qa], states[:, :-1, qa]], 1)
+        row_bin = np.repeat(bins_of_steps, kk)
+        for p, (i, j) in enumerate(lay.pairs):
+            ci, cj = q[..., lay.free_qpos[i]:lay.free_qpos[i] + 2], q[..., lay.free_qpos[j]:lay.free_qpos[j] + 2]
+            rvec = cj - ci
+            rhat = rvec / np.maximum(np.linalg.norm(rvec, axis=-1, keepdims=True), 1e-12)
+            found = cs[:, :, p, :, 0] > 0  # [nb, rows, kinds]
+            step_found = found.reshape(nb, rows // kk, kk, n_kinds).any(2)
+            imp = cs[:, :, p, :, 1:3] * dt_row
+            imp_r = (imp * rhat[:, :, None, :]).sum(-1)
+            for g in np.unique(bins_of_steps):
+                at, at_row = bins_of_steps == g, row_bin == g
+                coll["steps"][lanes_at, k, p, :, g] += step_found[:, at].sum(1).astype(np.int32)
+                coll["impulse"][lanes_at, k, p, :, g] += imp[:, at_row].sum(1).astype(np.float32)
+                coll["impulse_r"][lanes_at, k, p, :, g] += imp_r[:, at_row].sum(1).astype(np.float32)
 
     def _collisions(self, coll: dict, sl: slice, k: int, init, states, sens, nstep: int, bins: int):
         """Fold one period's contact-force sensors into the collision record."""

@@ -30,7 +30,16 @@ SPEED_MAX = 0.20  # |net speed / reference - 1|
 TABLE = pathlib.Path(__file__).with_name("step_checks.json")
 PASSED, FAILED, NOT_CHECKED = "passed", "failed", "not checked"
 QUANTITIES = ("beta", "net_speed", "persistence")  # the glider quantities a check measures
-KEYED_NUMERICS = ("timestep", "integrator")  # scene fields a check is keyed by (changing them is no other model)
+# scene fields a check is keyed by (changing them is no other model)
+KEYED_NUMERICS = ("timestep", "integrator", "contact_substeps", "substep_gate")
+
+
+def numerics(integrator: str, contact_substeps: int = 1, substep_gate: float | None = None) -> str:
+    """The integrator as a check names it, with the native backend's near-contact sub-stepping when on
+    (``implicitfast + 2 sub-steps within 4 mm``)."""
+    if int(contact_substeps) <= 1:
+        return integrator
+    return f"{integrator} + {int(contact_substeps)} sub-steps within {float(substep_gate) * 1e3:g} mm"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,6 +64,7 @@ class Difference:
 class StepCheck:
     """What is known of a store's step: ``status`` (passed, failed, not checked) and, when measured, the
     biases of β (slope), net speed (W/period) and direction persistence against ``reference_dt_s``.
+    ``integrator`` names the numerics as :func:`numerics` does (sub-stepping included).
 
     ``why`` says, for "not checked", what no measurement covers; ``source`` names the benchmark JSON.
     """
