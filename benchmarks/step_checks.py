@@ -25,7 +25,7 @@ from smarticle_mjx.reduce import stepcheck
 ROOT = pathlib.Path(__file__).resolve().parent / "results"
 
 
-def collect() -> list[dict]:
+def collect() -> list[stepcheck.StepCheck]:
     out = {}
     g = json.loads((ROOT / "glider_step.json").read_text())
     base = presets.params(g["model"])
@@ -36,7 +36,7 @@ def collect() -> list[dict]:
         dt = float(name.split()[0]) * 1e-3
         e = stepcheck.entry(g["model"], "none", dt, base.integrator, g["reference_dt_s"], "glider_step.json", row,
                             g["runs"][ref_name])
-        out[e["key"]] = e
+        out[stepcheck.key_of(e)] = e
     for source in ("step_mechanism.json", "step_mechanism_lab_runs30.json"):
         if not (ROOT / source).exists():
             continue
@@ -50,7 +50,7 @@ def collect() -> list[dict]:
                                        ch.get("substep_gate", base.substep_gate))
             e = stepcheck.entry(m["model"], m.get("imperfections", "none"), row["dt_s"], label,
                                 m["runs"][ref_name]["dt_s"], source, row, m["runs"][ref_name])
-            out.setdefault(e["key"], e)  # glider_step's measurement of the same key comes first
+            out.setdefault(stepcheck.key_of(e), e)  # glider_step's measurement of the same key comes first
     return list(out.values())
 
 
@@ -58,10 +58,11 @@ def main():
     checks = collect()
     stepcheck.TABLE.write_text(json.dumps({"criteria": {"beta_max": stepcheck.BETA_MAX,
                                                         "speed_max": stepcheck.SPEED_MAX},
-                                           "checks": checks}, indent=1) + "\n")
-    for e in checks:
-        c = stepcheck.lookup(e["model"], e["imperfections"], e["timestep_s"], e["integrator"])
-        print(f"{e['key']:40s} {c.status:8s} beta {c.beta.value:+.3f} {c.beta.ci95} speed {c.net_speed.relative:+.0%}")
+                                           "checks": [{"key": stepcheck.key_of(c), **c.as_dict()} for c in checks]},
+                                          indent=1) + "\n")
+    for c in stepcheck.table():
+        print(f"{stepcheck.key_of(c):60s} {c.status:8s} beta {c.beta.value:+.3f} {c.beta.ci95} "
+              f"speed {c.net_speed.relative:+.0%}")
 
 
 if __name__ == "__main__":

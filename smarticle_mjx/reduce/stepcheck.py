@@ -105,15 +105,27 @@ def _key(model: str, imperfections: str, timestep_s: float, integrator: str) -> 
     return f"{model}|{imperfections}|{timestep_s * 1e3:.6g} ms|{integrator}"
 
 
-def table(path: pathlib.Path = TABLE) -> dict:
-    """The recorded checks, {key: entry} (an empty table if none was written)."""
+def table(path: pathlib.Path = TABLE) -> tuple[StepCheck, ...]:
+    """The recorded checks, each with its verdict under today's criteria (none if no table was written)."""
     if not path.exists():
-        return {}
-    return {e["key"]: e for e in json.loads(path.read_text())["checks"]}
+        return ()
+    out = []
+    for e in json.loads(path.read_text())["checks"]:
+        diff = {k: Difference(e[k]["value"], tuple(e[k]["ci95"]), e[k]["reference"]) for k in QUANTITIES}
+        c = StepCheck(model=e["model"], imperfections=e["imperfections"], timestep_s=float(e["timestep_s"]),
+                      integrator=e["integrator"], status=verdict(**diff), reference_dt_s=e["reference_dt_s"],
+                      source=e["source"], **diff)
+        out.append(c)
+    return tuple(out)
+
+
+def key_of(c: StepCheck) -> str:
+    """The table's key of a check: model, imperfections, step and numerics."""
+    return _key(c.model, c.imperfections, c.timestep_s, c.integrator)
 
 
 def lookup(model: str, imperfections: str, timestep_s: float, integrator: str, overrides: dict | None = None,
-           backend: str = "native", checks: dict | None = None) -> StepCheck:
+           backend: str = "native", checks: tuple[StepCheck, ...] | None = None) -> StepCheck:
     """The check of a store's (model preset, imperfection set, step, integrator), or why there is none."""
     base = dict(model=model, imperfections=imperfections, timestep_s=float(timestep_s), integrator=integrator)
     if backend == "dart":
@@ -123,31 +135,30 @@ def lookup(model: str, imperfections: str, timestep_s: float, integrator: str, o
     changed = sorted(set(overrides or ()) - set(KEYED_NUMERICS))
     if changed:
         return StepCheck(**base, status=NOT_CHECKED, why="fields changed from the preset: " + ", ".join(changed))
-    e = (table() if checks is None else checks).get(_key(model, imperfections, timestep_s, integrator))
-    if e is None:
+    key = _key(model, imperfections, timestep_s, integrator)
+    found = next((c for c in (table() if checks is None else checks) if key_of(c) == key), None)
+    if found is None:
         return StepCheck(**base, status=NOT_CHECKED, why="no glider-quantity check at this model, step and integrator")
-    diff = {k: Difference(e[k]["value"], tuple(e[k]["ci95"]), e[k]["reference"]) for k in QUANTITIES}
-    return StepCheck(**base, status=verdict(**diff), reference_dt_s=e["reference_dt_s"], source=e["source"], **diff)
+    return found
 
 
 def entry(model: str, imperfections: str, timestep_s: float, integrator: str, reference_dt_s: float, source: str,
-          runs_row: dict, reference_row: dict) -> dict:
-    """One table entry from a benchmark row ({quantity: {value, minus_reference, minus_reference_ci95}}) and
-    its reference row ({quantity: {value}}); quantities beta, net_speed, persistence.
+          runs_row: dict, reference_row: dict) -> StepCheck:
+    """The check one benchmark row measured ({quantity: {value, minus_reference, minus_reference_ci95}}),
+    against its reference row ({quantity: {value}}); quantities beta, net_speed, persistence.
+    ``as_dict()`` is the table's JSON record of it.
 
     Raises:
       ValueError: a quantity is not a number (a run without gliders measures nothing; it is no check).
     """
-    out = {"key": _key(model, imperfections, timestep_s, integrator), "model": model,
-           "imperfections": imperfections, "timestep_s": timestep_s, "integrator": integrator,
-           "reference_dt_s": reference_dt_s, "source": source}
-    bad = []
+    diff, bad = {}, []
     for k in QUANTITIES:
         value, ci95, ref = runs_row[k]["minus_reference"], runs_row[k]["minus_reference_ci95"], reference_row[k]["value"]
         if not all(math.isfinite(float(x)) for x in (value, *ci95, ref)):
             bad.append(k)
-        out[k] = {"value": value, "ci95": list(ci95), "reference": ref}
+        diff[k] = Difference(float(value), (float(ci95[0]), float(ci95[1])), float(ref))
     if bad:
         raise ValueError(f"no {', '.join(bad)} measured for {model}+{imperfections} at {timestep_s * 1e3:g} ms "
                          "(no gliders in a run): not a check")
-    return out
+    return StepCheck(model=model, imperfections=imperfections, timestep_s=float(timestep_s), integrator=integrator,
+                     status=verdict(**diff), reference_dt_s=float(reference_dt_s), source=source, **diff)
