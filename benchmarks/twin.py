@@ -173,7 +173,7 @@ def pairs_part(engine: str, workers: int, rows: dict, servo: str = "constraint",
     path = scan_store(engine, f"{label.replace(' ', '_')}_{name}", starts, 90.0, GLIDE["periods"], True, workers,
                       params=params if servo == "pd" else None, dart_numerics=numerics)
     tr = store_tracks(path, params.robot.body_length)
-    summary = gliders.glide_summary(tr["com"], tr["rel"], tr["touched"], GLIDE["burn_in"])
+    summary = gliders.glide_summary(tr["com"], tr["rel"], tr["touched"], GLIDE["burn_in"]).as_json()
     summary.update({"starts": GLIDE["n"], "periods": GLIDE["periods"], "burn_in": GLIDE["burn_in"],
                     "wall_s": time.perf_counter() - t, "lane_periods": int(tr["periods_run"].sum())})
     summary["collisions"] = collision_level(tr["coll"], tr["touched"])
@@ -347,7 +347,7 @@ def mujoco_variant_pairs(params, edit, starts: np.ndarray) -> dict:
         be.close()
     r, th, ph = C.relative_coordinates(tr[:, :, 0], tr[:, :, 1], W)
     out = gliders.glide_summary((tr[:, :, 0, :2] + tr[:, :, 1, :2]) / 2 / W, np.stack([r, th, ph], -1), touched,
-                                GLIDE["burn_in"])
+                                GLIDE["burn_in"]).as_json()
     out.update({"starts": m, "periods": K, "burn_in": GLIDE["burn_in"], "wall_s": time.perf_counter() - t,
                 "lane_periods": int(run.sum()), "collisions": collision_level(coll, touched)})
     return out
@@ -414,7 +414,7 @@ def refresh(path: pathlib.Path) -> dict:
         if gname in e and store.exists():
             tr = store_tracks(store, presets.params(done.get("model")).robot.body_length)
             rows[key] = {gname: {**e[gname], **gliders.glide_summary(tr["com"], tr["rel"], tr["touched"],
-                                                                      GLIDE["burn_in"])}}
+                                                                      GLIDE["burn_in"]).as_json()}}
     _save(rows, path)
     return json.loads(path.read_text())
 

@@ -190,7 +190,7 @@ def gliding(params, n: int, periods: int, seed: int, burn_in: int, save: pathlib
                             poses=poses)
     out = {"starts": n, "periods": periods, "burn_in": burn_in, "wall_s": wall, "steps": int(steps),
            "sim_s_per_wall_s": float(steps * params.timestep / wall)}
-    out.update(gliders.glide_summary(com, rel, touched, burn_in))
+    out.update(gliders.glide_summary(com, rel, touched, burn_in).as_json())
     return out
 
 

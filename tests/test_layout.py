@@ -116,7 +116,7 @@ def test_the_reducers_import_no_store_engine_or_page_and_the_study_runner_no_rep
 # asks; any other public function of reduce/ must say it returns a dataclass, an array or plain numbers.
 DICT_REDUCERS_PENDING = {
     "collisions.kind_summary",
-    "collisions.sequence", "gliders.glide_summary",
+    "collisions.sequence",
     "relaxation.trial_episodes",
 }
 

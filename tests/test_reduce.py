@@ -397,18 +397,25 @@ def test_glide_summary_of_built_tracks():
     touched[1, 25] = False
     touched[2] = False
     s = glide_summary(com, rel, touched, burn)
-    assert s["gliders"] == 2 and s["bound_end"] == 3
-    assert s["net_speed_W_per_period"] == pytest.approx(0.01, rel=1e-9)
-    assert s["persistence"] == pytest.approx(1.0) and s["straightness20"] == pytest.approx(1.0)
-    assert s["beta"] == pytest.approx(2.0, abs=1e-6)
-    assert s["C2_fraction"] == 0 and s["C1_gliders"] == 2 and s["C1_sign_held_frac"] == 1.0
-    assert s["sign_flips_per_period"] == 0
-    assert s["C1_phi_dev_deg"] == pytest.approx(np.degrees(0.1))
+    assert s.gliders == 2 and s.bound_end == 3
+    assert s.net_speed_W_per_period == pytest.approx(0.01, rel=1e-9)
+    assert s.persistence == pytest.approx(1.0) and s.straightness20 == pytest.approx(1.0)
+    assert s.beta == pytest.approx(2.0, abs=1e-6)
+    assert s.C2_fraction == 0 and s.C1_gliders == 2 and s.C1_sign_held_frac == 1.0
+    assert s.sign_flips_per_period == 0
+    assert s.C1_phi_dev_deg == pytest.approx(np.degrees(0.1))
+    # the benchmarks' JSON record: every measured quantity under its name, nothing unmeasured
+    j = s.as_json()
+    assert j["beta"] == s.beta and j["beta_lags"] == list(s.beta_lags) and j["repeat"]["phi"] == s.repeat.phi
     # the same pairs stepping back and forth do not travel and are not ballistic
     com[0, :, 0] = 0.01 * (np.arange(K) % 2)
     com[3, :, 1] = 0.01 * (np.arange(K) % 2)
     s = glide_summary(com, rel, touched, burn)
-    assert s["net_speed_W_per_period"] < 0.001 and s["beta"] < 0.5
+    assert s.net_speed_W_per_period < 0.001 and s.beta < 0.5
+    # no glider: the counts alone
+    touched[:, 20] = False
+    s = glide_summary(com, rel, touched, burn)
+    assert s.gliders == 0 and s.beta is None and s.as_json() == {"gliders": 0, "bound_end": 3}
 
 
 def _store_with(tmp_path, name, model=None, timestep=5e-4, overrides=None):

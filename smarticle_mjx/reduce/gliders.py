@@ -324,7 +324,54 @@ def glider_transport(tracks) -> GliderQuantities:
                             _transport.msd_exponent(tracks, lag_range=(5, 15), centered=True, n_boot=0).beta)
 
 
-def glide_summary(com, rel, touched, burn_in: int) -> dict:
+@dataclasses.dataclass(frozen=True)
+class GlideSummary:
+    """The glider quantities of pairs' per-period tracks (:func:`glide_summary`), unrounded.
+
+    ``gliders`` and ``bound_end`` always; the rest is None without gliders, and the ``C1_`` fields are None
+    without C1 (anti-aligned) gliders. Units: W per period for speeds and steps, degrees for angles,
+    periods for runs; ``net_speed_interval`` is the 95 % bootstrap interval over gliders (NaN below 3).
+    """
+
+    gliders: int
+    bound_end: int
+    net_speed_W_per_period: float | None = None
+    net_speed_interval: tuple[float, float] | None = None
+    mean_step_W_per_period: float | None = None
+    persistence: float | None = None
+    median_turn_deg: float | None = None
+    straightness20: float | None = None
+    beta: float | None = None
+    beta_err: float | None = None
+    beta_lags: tuple[int, int] | None = None
+    sign_flips_per_period: float | None = None
+    sign_mean_run: float | None = None
+    sign_held_frac: float | None = None
+    sign_hold_periods: int | None = None
+    repeat: Repeatability | None = None
+    C2_fraction: float | None = None
+    C1_gliders: int | None = None
+    steady_r_W: float | None = None
+    C1_phi_dev_deg: float | None = None  # symmetry breaking: 0 for a symmetric C1
+    C1_sign_held_frac: float | None = None
+    C1_straightness20: float | None = None
+
+    def as_json(self) -> dict:
+        """The fidelity and twin benchmarks' JSON record: the quantities measured (None ones left out)."""
+        out = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if v is None:
+                continue
+            if isinstance(v, Repeatability):
+                v = dataclasses.asdict(v)
+            elif isinstance(v, tuple):
+                v = list(v)
+            out[f.name] = v
+        return out
+
+
+def glide_summary(com, rel, touched, burn_in: int) -> GlideSummary:
     """The glider quantities of pairs' per-period tracks, as docs/fidelity.md
     and docs/twin.md report them.
 
@@ -338,7 +385,7 @@ def glide_summary(com, rel, touched, burn_in: int) -> dict:
       burn_in: periods skipped before a pair must stay bound.
 
     Returns:
-      gliders and pairs bound at the end; for the gliders: net speed (with a
+      :class:`GlideSummary`: gliders and pairs bound at the end; for the gliders: net speed (with a
       95 % bootstrap interval over gliders) and mean step (W/period), direction persistence, median change of
       direction (deg), straightness over 20 periods, beta over delays 5-15
       (centred MSD, bootstrap sd), sign persistence of phi - 180 deg,
@@ -348,9 +395,38 @@ def glide_summary(com, rel, touched, burn_in: int) -> dict:
     periods = touched.shape[1]
     glide = steady_gliders(touched, burn_in)
     g_com, g_rel = com[glide, burn_in:], rel[glide, burn_in:]
-    out = {"gliders": int(glide.sum()), "bound_end": int(touched[:, -1].sum())}
+    counts = dict(gliders=int(glide.sum()), bound_end=int(touched[:, -1].sum()))
     if glide.sum() == 0:
-        return out
+        return GlideSummary(**counts)
+    ns = _transport.net_speed(g_com)
+    beta = _transport.msd_exponent(g_com, lag_range=(5, min(15, periods - burn_in - 2)), centered=True)
+    hold = min(50, periods - burn_in)
+    sp = sign_persistence(g_rel, hold=hold)
+    aligned = np.cos(g_rel[..., 2]) > 0
+    c1 = ~aligned.any(1)
+    _, ns_lo, ns_hi, _ = _transport.bootstrap_interval(ns)
+    c1_parts = {}
+    if c1.any():
+        dev = np.degrees(np.abs(np.angle(np.exp(1j * (g_rel[c1, :, 2] - np.pi)))))
+        c1_parts = dict(C1_phi_dev_deg=float(np.median(dev)),
+                        C1_sign_held_frac=sign_persistence(g_rel[c1], hold=hold).held,
+                        C1_straightness20=_transport.straightness(g_com[c1], 20))
+    return GlideSummary(
+        **counts,
+        net_speed_W_per_period=float(np.nanmean(ns)),
+        net_speed_interval=(float(ns_lo), float(ns_hi)),
+        mean_step_W_per_period=float(np.nanmean(_transport.step_lengths(g_com))),
+        persistence=_transport.direction_persistence(g_com),
+        median_turn_deg=float(np.degrees(_transport.median_direction_change(g_com))),
+        straightness20=_transport.straightness(g_com, 20),
+        beta=beta.beta, beta_err=beta.err, beta_lags=tuple(beta.lag_range),
+        sign_flips_per_period=sp.flips_per_period, sign_mean_run=sp.mean_run,
+        sign_held_frac=sp.held, sign_hold_periods=hold,
+        repeat=repeatability(g_rel),
+        C2_fraction=float(aligned.mean()),
+        C1_gliders=int(c1.sum()),
+        steady_r_W=float(np.nanmean(g_rel[..., 0])),
+        **c1_parts)
     ns = _transport.net_speed(g_com)
     beta = _transport.msd_exponent(g_com, lag_range=(5, min(15, periods - burn_in - 2)), centered=True)
     sp = sign_persistence(g_rel, hold=min(50, periods - burn_in))
