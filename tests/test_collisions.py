@@ -133,3 +133,34 @@ def test_collision_record_through_a_scan_store_and_report(tmp_path):
     bad = CliRunner().invoke(app, ["scan", "--configs", "polar", "--positions", "2", "--periods", "1",
                                    "--collisions", "--backend", "mjx", "--out", str(tmp_path / "m.h5")])
     assert bad.exit_code == 2 and "native and dart backends only" in bad.output
+
+
+def test_sequence_and_kind_summary_of_a_built_record():
+    """A built record of one lane, two periods, 8 bins: in period 0 an arm-arm contact in bins 2-4 that
+    attracts (+1e-4 N s along r per bin) and a body-body contact in bin 7 that repels; in period 1 the
+    arm-arm contact alone, repelling. The sequence lists the two runs of period 0 in gait order with their
+    summed steps and impulses; the kind summary counts arm-arm in both periods (attractive in one of two)
+    and body-body in one (never attractive)."""
+    bins, n = 8, len(CONTACT_KINDS)
+    coll = {"steps": np.zeros((1, 2, 1, n, bins), np.int32), "impulse": np.zeros((1, 2, 1, n, bins, 2)),
+            "impulse_r": np.zeros((1, 2, 1, n, bins))}
+    aa, bb = CONTACT_KINDS.index("arm1-arm1"), CONTACT_KINDS.index("body-body")
+    coll["steps"][0, 0, 0, aa, 2:5] = 3
+    coll["impulse_r"][0, 0, 0, aa, 2:5] = 1e-4
+    coll["impulse"][0, 0, 0, aa, 2:5] = (1e-4, 0.0)
+    coll["steps"][0, 0, 0, bb, 7] = 2
+    coll["impulse_r"][0, 0, 0, bb, 7] = -5e-5
+    coll["steps"][0, 1, 0, aa, 0] = 1
+    coll["impulse_r"][0, 1, 0, aa, 0] = -2e-4
+    seq = RC.sequence(coll, 0, 0)
+    assert [(c.kind, c.first_bin, c.last_bin, c.steps) for c in seq] == [("arm1-arm1", 2, 4, 9), ("body-body", 7, 7, 2)]
+    assert seq[0].phase == 2 / bins and seq[0].impulse_r == pytest.approx(3e-4) and seq[0].impulse == pytest.approx((3e-4, 0))
+    assert RC.sequence(coll, 0, 0, min_steps=3)[0].kind == "arm1-arm1" and len(RC.sequence(coll, 0, 0, min_steps=3)) == 1
+    summary = {k.kind: k for k in RC.kind_summary(coll)}
+    assert tuple(summary) == tuple(CONTACT_KINDS)
+    assert summary["arm1-arm1"].periods_with_contact == 1.0 and summary["arm1-arm1"].attractive_fraction == 0.5
+    assert summary["arm1-arm1"].mean_impulse_r == pytest.approx((3e-4 - 2e-4) / 2)
+    assert summary["body-body"].periods_with_contact == 0.5 and summary["body-body"].attractive_fraction == 0.0
+    assert summary["arm2-arm2"].periods_with_contact == 0.0 and math.isnan(summary["arm2-arm2"].attractive_fraction)
+    only_first = {k.kind: k for k in RC.kind_summary(coll, mask=np.array([[True, False]]))}
+    assert only_first["arm1-arm1"].attractive_fraction == 1.0

@@ -45,15 +45,27 @@ def attractive_periods(coll: dict) -> np.ndarray:
     return (period_totals(coll).impulse_r_by_kind > 0).any(-1)
 
 
-def sequence(coll: dict, lane: int, period: int, pair: int = 0, min_steps: int = 1) -> list[dict]:
-    """The collisions of one period of one lane in gait order.
+@dataclasses.dataclass(frozen=True)
+class Collision:
+    """One contiguous run of phase bins in which one contact kind was in contact, in one period.
 
-    Returns:
-      One dict per contiguous run of bins in which a contact kind was in
-      contact: kind, first and last bin, phase (fraction of the period) at
-      its start, steps in contact, impulse along r (N s) and the impulse
-      vector (N s) on robot i. Sorted by start bin.
+    ``kind``: the contact kind (``KINDS``); ``first_bin``, ``last_bin``: its bins (inclusive); ``phase``:
+    the fraction of the period at its start; ``steps``: time steps in contact; ``impulse_r``: the impulse
+    along r on robot i (N s, positive attracts); ``impulse``: the impulse vector on robot i (N s, world x, y).
     """
+
+    kind: str
+    first_bin: int
+    last_bin: int
+    phase: float
+    steps: int
+    impulse_r: float
+    impulse: tuple[float, float]
+
+
+def sequence(coll: dict, lane: int, period: int, pair: int = 0, min_steps: int = 1) -> list[Collision]:
+    """The collisions of one period of one lane in gait order: one :class:`Collision` per contiguous run
+    of bins with at least ``min_steps`` steps in contact of a kind, sorted by start bin (then kind)."""
     st = np.asarray(coll["steps"])[lane, period, pair]
     ir = np.asarray(coll["impulse_r"], float)[lane, period, pair]
     iv = np.asarray(coll["impulse"], float)[lane, period, pair]
@@ -70,26 +82,36 @@ def sequence(coll: dict, lane: int, period: int, pair: int = 0, min_steps: int =
             while h + 1 < bins and on[h + 1]:
                 h += 1
             sl = slice(g, h + 1)
-            out.append({"kind": name, "first_bin": g, "last_bin": h, "phase": g / bins,
-                        "steps": int(st[k, sl].sum()), "impulse_r": float(ir[k, sl].sum()),
-                        "impulse": [float(v) for v in iv[k, sl].sum(0)]})
+            vec = iv[k, sl].sum(0)
+            out.append(Collision(name, g, h, g / bins, int(st[k, sl].sum()), float(ir[k, sl].sum()),
+                                 (float(vec[0]), float(vec[1]))))
             g = h + 1
-    return sorted(out, key=lambda e: (e["first_bin"], e["kind"]))
+    return sorted(out, key=lambda e: (e.first_bin, e.kind))
 
 
-def kind_summary(coll: dict, mask=None) -> dict:
-    """Per contact kind over the periods selected by ``mask`` [B, K] (default all):
-    fraction of periods with that contact, mean impulse along r per period
-    (N s), and the fraction of those contacts whose impulse along r was attractive."""
+@dataclasses.dataclass(frozen=True)
+class KindContacts:
+    """One contact kind over the periods a :func:`kind_summary` selected: the fraction of periods with
+    that contact (NaN without periods), the mean impulse along r per such period (N s; 0 without one) and
+    the fraction of those periods whose impulse along r attracted (NaN without one)."""
+
+    kind: str
+    periods_with_contact: float
+    mean_impulse_r: float
+    attractive_fraction: float
+
+
+def kind_summary(coll: dict, mask=None) -> tuple[KindContacts, ...]:
+    """Per contact kind (``KINDS`` order) over the periods selected by ``mask`` [B, K] (default all), pair 0."""
     t = period_totals(coll)
     st, ir = t.steps_by_kind[..., 0, :], t.impulse_r_by_kind[..., 0, :]  # pair 0
     if mask is not None:
         st, ir = st[np.asarray(mask, bool)], ir[np.asarray(mask, bool)]
     st, ir = st.reshape(-1, len(KINDS)), ir.reshape(-1, len(KINDS))
-    out = {}
+    out = []
     for k, name in enumerate(KINDS):
         hit = st[:, k] > 0
-        out[name] = {"periods_with_contact": float(hit.mean()) if len(hit) else np.nan,
-                     "mean_impulse_r": float(ir[hit, k].mean()) if hit.any() else 0.0,
-                     "attractive_fraction": float((ir[hit, k] > 0).mean()) if hit.any() else np.nan}
-    return out
+        out.append(KindContacts(name, float(hit.mean()) if len(hit) else np.nan,
+                                float(ir[hit, k].mean()) if hit.any() else 0.0,
+                                float((ir[hit, k] > 0).mean()) if hit.any() else np.nan))
+    return tuple(out)
