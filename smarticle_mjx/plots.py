@@ -234,7 +234,7 @@ def relaxation_trial(xy, episodes, plate_half_W, out_dir, stem, title="", format
 
     Args:
       xy: [K+1, N, 2] body centres in W, start first (NaN after an early stop).
-      episodes: the trial's episodes (``reduce.relaxation.trial_episodes``).
+      episodes: the trial's episodes (``reduce.relaxation.Episode``, from ``trial_episodes``).
       plate_half_W: half the plate's side in W (drawn if finite).
     """
     plt = pyplot()
@@ -247,11 +247,11 @@ def relaxation_trial(xy, episodes, plate_half_W, out_dir, stem, title="", format
         ax.annotate(str(i), t[0], fontsize=6, color="0.2")
     shown = set()
     for e in episodes:
-        tr = np.asarray(e["track"])
-        lab = f"{e['kind']} pair {e['pair'][0]}-{e['pair'][1]}, {e['lifetime']} periods"
-        colour = KIND_COLOURS[e["kind"]]
-        for r in e["pair"]:  # the two robots' own tracks while bound, then the pair centre
-            seg = xy[e["start"]:e["start"] + e["lifetime"] + 1, r]
+        tr = np.asarray(e.track)
+        lab = f"{e.kind} pair {e.pair[0]}-{e.pair[1]}, {e.lifetime} periods"
+        colour = KIND_COLOURS[e.kind]
+        for r in e.pair:  # the two robots' own tracks while bound, then the pair centre
+            seg = xy[e.start:e.start + e.lifetime + 1, r]
             ax.plot(seg[:, 0], seg[:, 1], color=colour, lw=0.8, alpha=0.6)
         ax.plot(tr[:, 0], tr[:, 1], color=colour, lw=1.8, label=lab if lab not in shown else None)
         ax.plot(tr[-1:, 0], tr[-1:, 1], "s", color=colour, ms=4)

@@ -350,7 +350,7 @@ def trial_figure(data: dict, a: dict, out: pathlib.Path) -> list[str]:
     xy = np.concatenate([data["start_poses"][t][None, :, :2], data["poses"][t][:, :, :2]]) / W
     eps = [e for e in RX.trial_episodes(data["poses"][t], data["touched"][t], data["start_poses"][t],
                                         data["left_plate"][t], data["periods_run"][t], W, a["apart_W"])
-           if e["lifetime"] >= a["min_periods"]]
+           if e.lifetime >= a["min_periods"]]
     title = (f"trial {best['trial']}: {len(eps)} glider(s)" if eps else f"trial {best['trial']}: no glider") + \
         f", {int(data['periods_run'][t])} periods"
     return [p.name for p in plots.relaxation_trial(xy, eps, data["settings"]["plate_m"] / 2 / W, out,

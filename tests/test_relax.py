@@ -44,17 +44,17 @@ def _synthetic(k=150, n=4):
 def test_detector_finds_the_known_glider_and_rejects_the_short_pair():
     poses, touched, start, _ = _synthetic()
     eps = RX.trial_episodes(poses, touched, start, body_length=W)
-    by_pair = {e["pair"]: e for e in eps}
+    by_pair = {e.pair: e for e in eps}
     g = by_pair[(0, 1)]
     # brute force: the pair centre moves 0.02 W per period for 150 periods in a straight line
-    assert g["start"] == 0 and g["lifetime"] == 150 and g["censored"]
-    assert g["distance_W"] == pytest.approx(0.02 * 150, rel=1e-9)
-    assert g["contour_W"] == pytest.approx(0.02 * 150, rel=1e-9)
-    assert g["kind"] == "C1" and g["mean_cos_phi"] == pytest.approx(-1.0)
+    assert g.start == 0 and g.lifetime == 150 and g.censored
+    assert g.distance_W == pytest.approx(0.02 * 150, rel=1e-9)
+    assert g.contour_W == pytest.approx(0.02 * 150, rel=1e-9)
+    assert g.kind == "C1" and g.mean_cos_phi == pytest.approx(-1.0)
     short = by_pair[(2, 3)]
-    assert short["lifetime"] == 50 and not short["censored"]
-    long_enough = [e for e in eps if e["lifetime"] >= 100]
-    assert [e["pair"] for e in long_enough] == [(0, 1)]
+    assert short.lifetime == 50 and not short.censored
+    long_enough = [e for e in eps if e.lifetime >= 100]
+    assert [e.pair for e in long_enough] == [(0, 1)]
 
 
 def test_a_third_robot_nearby_or_touching_breaks_the_glider():
@@ -63,18 +63,18 @@ def test_a_third_robot_nearby_or_touching_breaks_the_glider():
     near = poses.copy()
     near[70:80, 2, :2] = near[70:80, 0, :2] + np.array([0.0, -1.5 * W])
     eps = RX.trial_episodes(near, touched, start, body_length=W, apart_W=2.0)
-    runs = sorted((e["start"], e["lifetime"]) for e in eps if e["pair"] == (0, 1))
+    runs = sorted((e.start, e.lifetime) for e in eps if e.pair == (0, 1))
     assert runs == [(0, 70), (80, 70)]
     # touching a third robot for one period splits it the same way, whatever the distance
     t2 = touched.copy()
     p02 = [i for i, (a, b) in enumerate(pairs) if (a, b) == (0, 2)][0]
     t2[100, p02] = True
     eps = RX.trial_episodes(poses, t2, start, body_length=W)
-    assert sorted((e["start"], e["lifetime"]) for e in eps if e["pair"] == (0, 1)) == [(0, 100), (101, 49)]
+    assert sorted((e.start, e.lifetime) for e in eps if e.pair == (0, 1)) == [(0, 100), (101, 49)]
     # a robot off the plate ends its pair's episode there
     eps = RX.trial_episodes(poses, touched, start, left_plate=np.array([0, 120, 0, 0]), body_length=W)
-    g = [e for e in eps if e["pair"] == (0, 1)][0]
-    assert g["lifetime"] == 119 and not g["censored"]
+    g = [e for e in eps if e.pair == (0, 1)][0]
+    assert g.lifetime == 119 and not g.censored
 
 
 def test_aligned_pair_is_C2_and_early_stop_is_not_censored():
@@ -82,8 +82,8 @@ def test_aligned_pair_is_C2_and_early_stop_is_not_censored():
     poses[:, 1, 2] = 0.0
     start[1, 2] = 0.0
     eps = RX.trial_episodes(poses, touched, start, body_length=W, periods_run=140)
-    g = [e for e in eps if e["pair"] == (0, 1)][0]
-    assert g["kind"] == "C2" and g["lifetime"] == 140 and not g["censored"]
+    g = [e for e in eps if e.pair == (0, 1)][0]
+    assert g.kind == "C2" and g.lifetime == 140 and not g.censored
 
 
 def test_relaxation_time_and_fit_by_brute_force():
@@ -95,7 +95,7 @@ def test_relaxation_time_and_fit_by_brute_force():
     assert RX.relaxation_time(touched) == (30, False)
     touched[49, 0] = touched[49, 1] = True  # robot 0 touches 1 and 2 again in the last period: still crowded
     assert RX.relaxation_time(touched) == (50, True)
-    eps = [{"lifetime": L, "contour_W": 0.01 * L + 0.2, "kind": "C1", "censored": False} for L in (5, 10, 40, 90)]
+    eps = [RX.Episode((0, 1), 0, L, False, 0.0, 0.01 * L + 0.2, "C1", -1.0, np.zeros((L + 1, 2))) for L in (5, 10, 40, 90)]
     fit = RX.lifetime_contour_fit(eps)
     assert fit.slope == pytest.approx(0.01) and fit.intercept == pytest.approx(0.2)
     assert fit.r == pytest.approx(1.0) and fit.n == 4

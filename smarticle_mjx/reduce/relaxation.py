@@ -65,8 +65,50 @@ def _third_touch(touched: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     return (per_robot[:, pairs[:, 0]] - own > 0) | (per_robot[:, pairs[:, 1]] - own > 0)
 
 
+@dataclasses.dataclass(frozen=True)
+class Episode:
+    """One bound-and-apart episode of a trial (:func:`trial_episodes`).
+
+    Attributes:
+      pair: the two robots (i < j).
+      start: first period (0-based) of the episode.
+      lifetime: its periods.
+      censored: it ran to the trial's last period.
+      distance_W, contour_W: the pair centre's net and path displacement over the episode (W).
+      kind: C1 (anti-aligned, mean cos phi < 0) or C2.
+      mean_cos_phi: mean of cos(phi) over the episode.
+      track: [lifetime + 1, 2] the pair centre from the period before the episode (W).
+      trial: the store's trial number (-1 where the caller did not say).
+    """
+
+    pair: tuple[int, int]
+    start: int
+    lifetime: int
+    censored: bool
+    distance_W: float
+    contour_W: float
+    kind: str
+    mean_cos_phi: float
+    track: np.ndarray
+    trial: int = -1
+
+
+@dataclasses.dataclass(frozen=True)
+class TrialRow:
+    """One valid trial of :func:`analyse`: its gliders (episodes of at least ``min_periods``), the longest
+    of them (None without), the contact rule's relaxation time and whether it was still crowded at the
+    end, and the periods it ran."""
+
+    trial: int
+    gliders: int
+    glider: Episode | None
+    relaxation_periods: int
+    crowded_at_end: bool
+    periods_run: int
+
+
 def trial_episodes(poses, touched, start, left_plate=None, periods_run=None, body_length: float = 0.05,
-                   apart_W: float = 2.0) -> list[dict]:
+                   apart_W: float = 2.0, trial: int = -1) -> list[Episode]:
     """Every bound-and-apart episode of one trial.
 
     Args:
@@ -77,11 +119,10 @@ def trial_episodes(poses, touched, start, left_plate=None, periods_run=None, bod
       periods_run: periods simulated (default K).
       body_length: W in metres.
       apart_W: closest a third robot's centre may come (W).
+      trial: the trial's number, recorded in each episode.
 
     Returns:
-      one dict per episode: pair (i, j), start (0-based first period),
-      lifetime, censored, distance_W, contour_W, kind, mean_cos_phi,
-      track [lifetime + 1, 2] (W).
+      one :class:`Episode` per episode, pair by pair in order of start.
     """
     poses = np.asarray(poses, float)
     touched = np.asarray(touched, bool)
@@ -119,11 +160,9 @@ def trial_episodes(poses, touched, start, left_plate=None, periods_run=None, bod
             steps = np.linalg.norm(np.diff(track, axis=0), axis=1)
             _, _, phi = C.relative_coordinates(poses[s:s + length, i], poses[s:s + length, j], body_length)
             mc = float(np.mean(np.cos(phi)))
-            out.append({"pair": (int(i), int(j)), "start": s, "lifetime": length,
-                        "censored": bool(cens and k == k_all),
-                        "distance_W": float(np.linalg.norm(track[-1] - track[0])),
-                        "contour_W": float(steps.sum()), "kind": C1 if mc < 0 else C2, "mean_cos_phi": mc,
-                        "track": track})
+            out.append(Episode((int(i), int(j)), s, length, bool(cens and k == k_all),
+                               float(np.linalg.norm(track[-1] - track[0])), float(steps.sum()),
+                               C1 if mc < 0 else C2, mc, track, int(trial)))
     return out
 
 
@@ -166,21 +205,17 @@ def analyse(data: dict, min_periods: int = 100, apart_W: float = 2.0, min_episod
     episodes, per_trial, relax_t = [], [], []
     for t in np.flatnonzero(valid):
         eps = trial_episodes(data["poses"][t], data["touched"][t], data["start_poses"][t], data["left_plate"][t],
-                             data["periods_run"][t], W, apart_W)
-        for e in eps:
-            e["trial"] = int(data["trial"][t])
-        episodes += [e for e in eps if e["lifetime"] >= min_episode]
-        gl = [e for e in eps if e["lifetime"] >= min_periods]
-        best = max(gl, key=lambda e: e["lifetime"]) if gl else None
+                             data["periods_run"][t], W, apart_W, trial=int(data["trial"][t]))
+        episodes += [e for e in eps if e.lifetime >= min_episode]
+        gl = [e for e in eps if e.lifetime >= min_periods]
+        best = max(gl, key=lambda e: e.lifetime) if gl else None
         rt, crowded = relaxation_time(data["touched"][t], data["periods_run"][t])
-        per_trial.append({"trial": int(data["trial"][t]), "gliders": len(gl), "glider": best,
-                          "relaxation_periods": rt, "crowded_at_end": crowded,
-                          "periods_run": int(data["periods_run"][t])})
+        per_trial.append(TrialRow(int(data["trial"][t]), len(gl), best, rt, crowded, int(data["periods_run"][t])))
         relax_t.append(rt)
     n = int(valid.sum())
-    k = sum(1 for r in per_trial if r["glider"] is not None)
+    k = sum(1 for r in per_trial if r.glider is not None)
     lo, hi = binding.binomial_interval(k, n, level) if n else (np.nan, np.nan)
-    gl = [r["glider"] for r in per_trial if r["glider"] is not None]
+    gl = [r.glider for r in per_trial if r.glider is not None]
     rt = np.array(relax_t, float)
     nan = float("nan")
     lp = np.asarray(data["left_plate"])[valid]
@@ -188,16 +223,16 @@ def analyse(data: dict, min_periods: int = 100, apart_W: float = 2.0, min_episod
         trials=int(len(data["valid"])), valid=n, emerged=k, fraction=k / n if n else nan,
         interval=(float(lo), float(hi)), min_periods=min_periods, apart_W=apart_W, periods=periods,
         per_trial=per_trial, episodes=episodes,
-        distance=mean_sem(np.array([g["distance_W"] for g in gl])),
-        glider_contour=mean_sem(np.array([g["contour_W"] for g in gl])),
-        glider_lifetime=mean_sem(np.array([g["lifetime"] for g in gl], float)),
-        glider_censored=int(sum(g["censored"] for g in gl)),
-        glider_kinds=KindCounts(sum(g["kind"] == C1 for g in gl), sum(g["kind"] == C2 for g in gl)),
+        distance=mean_sem(np.array([g.distance_W for g in gl])),
+        glider_contour=mean_sem(np.array([g.contour_W for g in gl])),
+        glider_lifetime=mean_sem(np.array([g.lifetime for g in gl], float)),
+        glider_censored=int(sum(g.censored for g in gl)),
+        glider_kinds=KindCounts(sum(g.kind == C1 for g in gl), sum(g.kind == C2 for g in gl)),
         fit=lifetime_contour_fit(episodes), typed=typed_lifetimes(episodes),
         relaxation_periods=RelaxationTimes(float(np.median(rt)) if len(rt) else nan,
                                            float(np.percentile(rt, 25)) if len(rt) else nan,
                                            float(np.percentile(rt, 75)) if len(rt) else nan,
-                                           int(sum(r["crowded_at_end"] for r in per_trial))),
+                                           int(sum(r.crowded_at_end for r in per_trial))),
         left_plate=LeftPlate(int((lp > 0).sum()), int((lp > 0).any(1).sum())),
         stopped_early=int((np.asarray(data["periods_run"])[valid] < periods).sum()))
 
@@ -240,7 +275,7 @@ class ContourFit:
     slope_stderr: float
 
 
-def lifetime_contour_fit(episodes: list[dict]) -> ContourFit:
+def lifetime_contour_fit(episodes: list[Episode]) -> ContourFit:
     """Least-squares line contour = slope * lifetime + intercept over every
     episode, with Pearson's r and its p-value (the paper's SI reports a
     linear correlation)."""
@@ -248,8 +283,8 @@ def lifetime_contour_fit(episodes: list[dict]) -> ContourFit:
     if len(episodes) < 3:
         return ContourFit(len(episodes), nan, nan, nan, nan, nan)
     from scipy.stats import linregress
-    x = np.array([e["lifetime"] for e in episodes], float)
-    y = np.array([e["contour_W"] for e in episodes], float)
+    x = np.array([e.lifetime for e in episodes], float)
+    y = np.array([e.contour_W for e in episodes], float)
     if np.ptp(x) == 0:
         return ContourFit(len(x), nan, nan, nan, nan, nan)
     f = linregress(x, y)
@@ -281,17 +316,17 @@ class TypedLifetimes:
         return {C1: _json(self.c1), C2: _json(self.c2), "p_c1_longer": self.p_c1_longer}
 
 
-def typed_lifetimes(episodes: list[dict]) -> TypedLifetimes:
+def typed_lifetimes(episodes: list[Episode]) -> TypedLifetimes:
     """Lifetimes of C1 and C2 episodes (mean, median, censored count) and a
     one-sided Mann-Whitney test that C1 lives longer."""
     kinds = []
     for kind in (C1, C2):
-        v = np.array([e["lifetime"] for e in episodes if e["kind"] == kind], float)
+        v = np.array([e.lifetime for e in episodes if e.kind == kind], float)
         ms = mean_sem(v)
         kinds.append(KindLifetimes(ms.n, ms.mean, ms.sem, ms.median,
-                                   int(sum(e["censored"] for e in episodes if e["kind"] == kind))))
-    a = [e["lifetime"] for e in episodes if e["kind"] == C1]
-    b = [e["lifetime"] for e in episodes if e["kind"] == C2]
+                                   int(sum(e.censored for e in episodes if e.kind == kind))))
+    a = [e.lifetime for e in episodes if e.kind == C1]
+    b = [e.lifetime for e in episodes if e.kind == C2]
     p = float("nan")
     if a and b:
         from scipy.stats import mannwhitneyu
@@ -333,7 +368,7 @@ class LeftPlate:
 class RelaxAnalysis:
     """The relaxation study's numbers (:func:`analyse`): trials (all, valid: unflagged), the trials in
     which a glider emerged with its exact interval, the rule's ``min_periods`` and ``apart_W``, the
-    periods run; per-trial rows and every episode (dicts: a trial's record, an episode's record with its
+    periods run; per-trial rows (:class:`TrialRow`) and every episode (:class:`Episode`, with its
     track); the gliders' distance, contour length and lifetime (W, W, periods), how many were still
     bound at the end and of which type; the lifetime-contour fit over episodes; typed lifetimes; the
     contact rule's relaxation times; robots that left the plate; trials stopped early."""
@@ -346,8 +381,8 @@ class RelaxAnalysis:
     min_periods: int
     apart_W: float
     periods: int
-    per_trial: list
-    episodes: list
+    per_trial: list[TrialRow]
+    episodes: list[Episode]
     distance: MeanSem
     glider_contour: MeanSem
     glider_lifetime: MeanSem
@@ -360,8 +395,18 @@ class RelaxAnalysis:
     stopped_early: int
 
     def as_json(self) -> dict:
-        """The report's form: every field under its name, typed parts as dicts, in field order."""
-        return {f.name: _json(getattr(self, f.name)) for f in dataclasses.fields(self)}
+        """The report's form: every field under its name, typed parts as dicts, in field order (an
+        episode's track stays an array)."""
+        out = {f.name: _json(getattr(self, f.name)) for f in dataclasses.fields(self)
+               if f.name not in ("per_trial", "episodes")}
+        out["per_trial"] = [{**dataclasses.asdict(dataclasses.replace(r, glider=None)),
+                             "glider": None if r.glider is None else _episode_json(r.glider)} for r in self.per_trial]
+        out["episodes"] = [_episode_json(e) for e in self.episodes]
+        return {f.name: out[f.name] for f in dataclasses.fields(self)}
+
+
+def _episode_json(e: Episode) -> dict:
+    return {f.name: getattr(e, f.name) for f in dataclasses.fields(e)}
 
 
 # ------------------------------------------------------------------ the crowd
