@@ -273,28 +273,29 @@ def relaxation_trial(xy, episodes, plate_half_W, out_dir, stem, title="", format
 def lifetime_contour(episodes, fit, min_periods, out_dir, stem="lifetime_contour", title="", formats=("png",)):
     """Contour length vs lifetime of every bound-and-apart episode (the
     paper's SI figure), coloured by type, with the fitted line; and the
-    lifetimes of C1 and C2 episodes (censored ones hatched)."""
+    lifetimes of C1 and C2 episodes (censored ones hatched). ``episodes``: ``reduce.relaxation.Episode``
+    objects; ``fit``: its ``ContourFit``."""
     plt = pyplot()
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(8.6, 3.6))
     for kind in ("C1", "C2"):
-        ee = [e for e in episodes if e["kind"] == kind]
+        ee = [e for e in episodes if e.kind == kind]
         if ee:
-            ax.scatter([e["lifetime"] for e in ee], [e["contour_W"] for e in ee], s=10, alpha=0.7,
+            ax.scatter([e.lifetime for e in ee], [e.contour_W for e in ee], s=10, alpha=0.7,
                        color=KIND_COLOURS[kind], label=f"{kind} ({len(ee)})")
-    if np.isfinite(fit.get("slope", np.nan)) and episodes:
-        x = np.array([0, max(e["lifetime"] for e in episodes)])
-        ax.plot(x, fit["intercept"] + fit["slope"] * x, "k-", lw=1,
-                label=f"fit: {fit['slope']:.3g} W/period, r = {fit['r']:.2f}")
+    if np.isfinite(fit.slope) and episodes:
+        x = np.array([0, max(e.lifetime for e in episodes)])
+        ax.plot(x, fit.intercept + fit.slope * x, "k-", lw=1,
+                label=f"fit: {fit.slope:.3g} W/period, r = {fit.r:.2f}")
     ax.axvline(min_periods, color="0.5", ls=":", lw=0.8)
     ax.set(xlabel="lifetime (periods)", ylabel="contour length (W)")
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=7)
     ax.set_title(title or "bound pairs apart from the rest", fontsize=9)
-    top = max([e["lifetime"] for e in episodes] + [min_periods, 2])
+    top = max([e.lifetime for e in episodes] + [min_periods, 2])
     bins = np.linspace(0, top + 1, 21)
     for kind in ("C1", "C2"):
-        v = [e["lifetime"] for e in episodes if e["kind"] == kind]
-        c = [e["lifetime"] for e in episodes if e["kind"] == kind and e["censored"]]
+        v = [e.lifetime for e in episodes if e.kind == kind]
+        c = [e.lifetime for e in episodes if e.kind == kind and e.censored]
         if v:
             ax2.hist(v, bins=bins, histtype="step", color=KIND_COLOURS[kind], label=f"{kind}")
         if c:

@@ -338,20 +338,21 @@ def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0, crow
     return a
 
 
-def trial_figure(data: dict, a: dict, out: pathlib.Path) -> list[str]:
-    """Tracks of the trial with the longest glider (else the first trial)."""
+def trial_figure(data: dict, a, out: pathlib.Path) -> list[str]:
+    """Tracks of the trial with the longest glider (else the first trial); ``a``: the study's
+    ``reduce.relaxation.RelaxAnalysis``."""
     from .reduce import relaxation as RX
     W = float(data["body_length"])
-    best = max((r for r in a["per_trial"] if r["glider"] is not None), key=lambda r: r["glider"]["lifetime"],
-               default=a["per_trial"][0] if a["per_trial"] else None)
+    best = max((r for r in a.per_trial if r.glider is not None), key=lambda r: r.glider.lifetime,
+               default=a.per_trial[0] if a.per_trial else None)
     if best is None:
         return []
-    t = int(np.flatnonzero(data["trial"] == best["trial"])[0])
+    t = int(np.flatnonzero(data["trial"] == best.trial)[0])
     xy = np.concatenate([data["start_poses"][t][None, :, :2], data["poses"][t][:, :, :2]]) / W
     eps = [e for e in RX.trial_episodes(data["poses"][t], data["touched"][t], data["start_poses"][t],
-                                        data["left_plate"][t], data["periods_run"][t], W, a["apart_W"])
-           if e.lifetime >= a["min_periods"]]
-    title = (f"trial {best['trial']}: {len(eps)} glider(s)" if eps else f"trial {best['trial']}: no glider") + \
+                                        data["left_plate"][t], data["periods_run"][t], W, a.apart_W)
+           if e.lifetime >= a.min_periods]
+    title = (f"trial {best.trial}: {len(eps)} glider(s)" if eps else f"trial {best.trial}: no glider") + \
         f", {int(data['periods_run'][t])} periods"
     return [p.name for p in plots.relaxation_trial(xy, eps, data["settings"]["plate_m"] / 2 / W, out,
                                                    "relax_tracks", title=title)]
@@ -367,9 +368,10 @@ def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 
     out.mkdir(parents=True, exist_ok=True)
     from .reduce import relaxation as RX
     crowd, trials = RX.crowd(data)
-    a = relax_summary(data, min_periods, apart_W, crowd=crowd)
-    figs = trial_figure(data, a, out)
-    figs += [p.name for p in plots.lifetime_contour(a["episodes"], a["fit"], min_periods, out)]
+    ra = RX.analyse(data, min_periods=min_periods, apart_W=apart_W)
+    a = relax_summary(data, min_periods, apart_W, crowd=crowd, analysis=ra)
+    figs = trial_figure(data, ra, out)
+    figs += [p.name for p in plots.lifetime_contour(ra.episodes, ra.fit, min_periods, out)]
     if trials:
         figs += [p.name for p in plots.crowd(np.stack([t.phi for t in trials]), np.stack([t.in_chain for t in trials]),
                                              [np.nan if t.plateau.censored else t.plateau.period for t in trials],

@@ -128,12 +128,12 @@ def relax(paths: list, figures: pathlib.Path, made: list) -> tuple[Relaxation, d
     data = read_relax(paths)
     ra, crowd = RX.analyse(data), RX.crowd(data)[0]
     a = relax_summary(data, crowd=crowd, analysis=ra)
-    made += trial_figure(data, a, figures)
-    made += [p.name for p in plots.lifetime_contour(a["episodes"], a["fit"], a["min_periods"], figures)]
+    made += trial_figure(data, ra, figures)
+    made += [p.name for p in plots.lifetime_contour(ra.episodes, ra.fit, ra.min_periods, figures)]
     k, n = ra.emerged, ra.valid
     lab_k, lab_n = LAB_RELAX["emerged"], LAB_RELAX["trials"]
     p_fisher = float(fisher_exact([[k, n - k], [lab_k, lab_n - lab_k]])[1]) if n else float("nan")
-    a["p_fisher"] = p_fisher
+    a = {**a, "p_fisher": p_fisher}
     fraction, interval = lab_relax_fraction()
     return Relaxation(ra, crowd, relax_config_from_json(data["settings"]), fraction, interval, p_fisher,
                       len(paths)), a
