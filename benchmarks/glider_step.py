@@ -55,7 +55,7 @@ def tracks(poses: np.ndarray, dt: float) -> pathlib.Path:
         print(f"reusing {path.name}")
         return path
     t = time.perf_counter()
-    gliding(dataclasses.replace(presets.params("lab-lag"), timestep=dt, integrator="implicitfast"), POOL, PERIODS, SEED, BURN_IN, save=path)
+    gliding(dataclasses.replace(presets.params("lab-lag"), timestep=dt, integrator="implicitfast", contact_substeps=1), POOL, PERIODS, SEED, BURN_IN, save=path)
     print(f"ran {POOL} starts x {PERIODS} periods at {dt * 1e3:g} ms in {time.perf_counter() - t:.0f} s")
     return path
 
