@@ -42,6 +42,7 @@ NUMERICS: dict[str, dict] = {
     "implicitfast-0.35ms": dict(timestep=3.5e-4, integrator="implicitfast"),
     # near-contact sub-stepping (native backend): 0.5 ms while the robots are apart, 0.25 ms while some pair
     # may be within 4 mm (added after the contacts' family of docs/timestep.md)
+    # (measured before SceneParams refused sub-stepping with implicitfast; kept to say what it measured)
     "implicitfast-0.5ms-sub2": dict(timestep=5e-4, integrator="implicitfast", contact_substeps=2, substep_gate=0.004),
     # after implicitfast-0.5ms-sub2 over-bound: discrete's slip per arm move does not depend on the step, so a
     # step that changes with the robots' distance cannot turn it into a drift (docs/timestep.md)
