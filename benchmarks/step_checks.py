@@ -4,7 +4,8 @@ been checked and, if it has not passed, how it biases β and glider speed.
 
 Sources: results/glider_step.json (steps against the 0.0625 ms reference, model lab-lag, ideal robots),
 results/step_mechanism.json (integrators and steps against the same reference, same starts) and
-results/step_mechanism_substeps.json (near-contact sub-stepping against the same reference, same starts),
+results/step_mechanism_substeps.json and step_mechanism_substeps_discrete.json (near-contact sub-stepping
+with implicitfast and with discrete, against the same reference, same starts),
 results/step_mechanism_lab_runs30.json (the same with the `lab` imperfection set, against its own
 reference; a glider there is a start's longest bound run of >= 30 periods, because the drawn robots'
 drifting clocks leave no pair bound from period 10 to 100 at any step, so the steady rule of the other
@@ -38,7 +39,8 @@ def collect() -> list[stepcheck.StepCheck]:
         e = stepcheck.entry(g["model"], "none", dt, base.integrator, g["reference_dt_s"], "glider_step.json", row,
                             g["runs"][ref_name])
         out[stepcheck.key_of(e)] = e
-    for source in ("step_mechanism.json", "step_mechanism_lab_runs30.json", "step_mechanism_substeps.json"):
+    for source in ("step_mechanism.json", "step_mechanism_lab_runs30.json", "step_mechanism_substeps.json",
+                   "step_mechanism_substeps_discrete.json"):
         if not (ROOT / source).exists():
             continue
         m = json.loads((ROOT / source).read_text())

@@ -1,5 +1,6 @@
-"""What near-contact sub-stepping costs: the native backend at 0.5 ms, at 0.5 ms with 2 sub-steps while
-some pair may be within 4 mm, and at 0.25 ms, timed in interleaved passes over the same lanes.
+"""What near-contact sub-stepping costs: the native backend at 0.5 ms (implicitfast, the default, and
+discrete), discrete at 0.5 ms with 2 sub-steps while some pair may be within 4 mm, and implicitfast at
+0.25 ms, timed in interleaved passes over the same lanes.
 
 Workloads (the scan's, as benchmarks/scan_gap.py picks them: ``smx scan``'s default starts, 0.5-2.5 W,
 seed 0, 90 deg, classified by whether they touch in their first ``--classify-periods`` periods):
@@ -12,7 +13,7 @@ once, in rotating order, so that the machine's load falls on all of them alike; 
 each numerics' wall time over the 0.5 ms run's in the same pass (median over passes), with the
 fraction of full steps the sub-stepped run split (the native backend's own count).
 
-    python benchmarks/substep_cost.py              # ~10 minutes on 2 cores
+    python benchmarks/substep_cost.py              # ~5 minutes on 2 cores
 
 Writes results/substep_cost.json.
 """
@@ -34,18 +35,20 @@ from smarticle_mjx.engine.batch import RetireRule, run_lanes
 from smarticle_mjx.scan import RunInputs, ScanConfig
 
 NUMERICS = {  # name -> SceneParams changes
-    "0.5 ms": dict(timestep=5e-4, contact_substeps=1),
-    "0.5 ms + 2 sub-steps within 4 mm": dict(timestep=5e-4, contact_substeps=2, substep_gate=0.004),
-    "0.25 ms": dict(timestep=2.5e-4, contact_substeps=1),
+    "0.5 ms": dict(timestep=5e-4, integrator="implicitfast", contact_substeps=1),
+    "0.5 ms discrete": dict(timestep=5e-4, integrator="discrete", contact_substeps=1),
+    "0.5 ms discrete + 2 sub-steps within 4 mm": dict(timestep=5e-4, integrator="discrete", contact_substeps=2,
+                                                      substep_gate=0.004),
+    "0.25 ms": dict(timestep=2.5e-4, integrator="implicitfast", contact_substeps=1),
 }
 BASE = "0.5 ms"
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--batch", type=int, default=128)
-    ap.add_argument("--periods", type=int, default=3)
-    ap.add_argument("--passes", type=int, default=3)
+    ap.add_argument("--batch", type=int, default=256, help="lanes per workload (smx scan's batch)")
+    ap.add_argument("--periods", type=int, default=2)
+    ap.add_argument("--passes", type=int, default=2)
     ap.add_argument("--classify-periods", type=int, default=3)
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "substep_cost.json"))
     args = ap.parse_args()
