@@ -289,6 +289,15 @@ def main():
     unknown = [n for n in names if n not in CANDIDATES]
     if unknown:
         raise SystemExit(f"unknown candidate(s) {', '.join(unknown)}; known: {', '.join(CANDIDATES)}")
+    if not args.table:  # a candidate SceneParams now refuses (its measurement stays in the JSON and the table)
+        refused = []
+        for n in names:
+            try:
+                params_of(n, args.model)
+            except ValueError as e:
+                refused.append(n)
+                print(f"skipping {n}: {e}")
+        names = [n for n in names if n not in refused]
     out = pathlib.Path(args.out)
     res = json.loads(out.read_text()) if out.exists() else {}
     res["meta"] = dict(model=presets.get(args.model).name, periods=args.periods, block=args.block,
