@@ -34,6 +34,13 @@ def _copy_model(model: mujoco.MjModel) -> mujoco.MjModel:
     return copy.deepcopy(model)
 
 
+def _joined_track(track_t: list, track_q: list) -> dict | None:
+    """The periods' strided track pieces as one track (None when no track was asked for)."""
+    if not track_t:
+        return None
+    return {"t": np.concatenate(track_t), "qpos": np.concatenate(track_q, 1)}
+
+
 class NativeBackend(BackendBase):
     """Batched native MuJoCo rollouts on ``nthread`` threads (default: all cores)."""
 
@@ -96,13 +103,13 @@ class NativeBackend(BackendBase):
         """
         record = record or Record()
         record.validate()
-        if self.substeps > 1 and self.scene.n_robots > 1:
-            return self._advance_gated(state, lanes, n_periods, t0, record)
         track_stride = record.track_stride
         if track_stride and np.ndim(t0):
             raise ValueError("a full-rate track needs one start time t0 for every lane")
         if record.collisions and not self.scene.collisions:
             raise ValueError("the collision record needs a scene built with Scene.build(..., collisions=True)")
+        if self.substeps > 1 and self.scene.n_robots > 1:
+            return self._advance_gated(state, lanes, n_periods, t0, record)
         m = self.model
         dt = m.opt.timestep
         lanes = on_step_grid(lanes, dt)
@@ -148,8 +155,7 @@ class NativeBackend(BackendBase):
                 # The reset sets the clock back to 0, so a step whose time does not advance marks it.
                 clock = np.concatenate([init[:, :1], states[:, :, 0]], axis=1)
                 bad |= (np.diff(clock, axis=1) <= 0).any(1)
-                status[sl] |= np.where(bad, int(Status.NONFINITE), 0)
-                status[sl] |= np.where((dist < -self.penetration_limit).any(-1), int(Status.PENETRATION), 0)
+                status[sl] |= self._status_bits(bad, dist)
                 state[sl] = final
                 poses[sl, k] = self.scene.poses_from_qpos(final[:, self.qpos_at:self.qpos_at + m.nq])
                 if track_stride:
@@ -157,10 +163,7 @@ class NativeBackend(BackendBase):
             if track_stride:
                 track_q.append(np.concatenate(out_q, 0))
                 track_t.append(t_start + t_rel[track_stride - 1::track_stride] + dt)
-        track = None
-        if track_stride:
-            track = {"t": np.concatenate(track_t), "qpos": np.concatenate(track_q, 1)}
-        return state, PeriodRecords(poses, touched, min_dist, status, coll), track
+        return state, PeriodRecords(poses, touched, min_dist, status, coll), _joined_track(track_t, track_q)
 
     def _advance_gated(self, state: np.ndarray, lanes: Lanes, n_periods: int, t0, record: Record):
         """:meth:`advance` with near-contact sub-stepping (``SceneParams.contact_substeps`` = K > 1).
@@ -177,10 +180,6 @@ class NativeBackend(BackendBase):
         m, mf, k_sub = self.model, self.fine_model, self.substeps
         dt = m.opt.timestep
         track_stride = record.track_stride
-        if track_stride and np.ndim(t0):
-            raise ValueError("a full-rate track needs one start time t0 for every lane")
-        if record.collisions and not self.scene.collisions:
-            raise ValueError("the collision record needs a scene built with Scene.build(..., collisions=True)")
         lanes = on_step_grid(lanes, dt)
         nstep = steps_per_period(lanes.period, dt)
         chunk = chunk_steps(dt, self.scene.params.substep_gate)
@@ -241,8 +240,7 @@ class NativeBackend(BackendBase):
                         st[idx] = states[:, -1]
                 touched[sl, k] = found
                 min_dist[sl, k] = dist
-                status[sl] |= np.where(bad, int(Status.NONFINITE), 0)
-                status[sl] |= np.where((dist < -self.penetration_limit).any(-1), int(Status.PENETRATION), 0)
+                status[sl] |= self._status_bits(bad, dist)
                 state[sl] = st
                 poses[sl, k] = self.scene.poses_from_qpos(st[:, qa])
                 if track_stride:
@@ -250,10 +248,12 @@ class NativeBackend(BackendBase):
             if track_stride:
                 track_q.append(np.concatenate(out_q, 0))
                 track_t.append(t_start + t_rel[track_stride - 1::track_stride] + dt)
-        track = None
-        if track_stride:
-            track = {"t": np.concatenate(track_t), "qpos": np.concatenate(track_q, 1)}
-        return state, PeriodRecords(poses, touched, min_dist, status, coll), track
+        return state, PeriodRecords(poses, touched, min_dist, status, coll), _joined_track(track_t, track_q)
+
+    def _status_bits(self, bad: np.ndarray, dist: np.ndarray) -> np.ndarray:
+        """Status bits of a slice's period: non-finite (or reset) states, and contacts past the penetration limit."""
+        return (np.where(bad, int(Status.NONFINITE), 0)
+                | np.where((dist < -self.penetration_limit).any(-1), int(Status.PENETRATION), 0))
 
     def _collisions_rows(self, coll: dict, lanes_at: np.ndarray, k: int, init, states, sens, bins_of_steps,
                          kk: int, dt_row: float):
