@@ -117,11 +117,7 @@ class NativeBackend(BackendBase):
         b, n_pairs = lanes.size, self.scene.n_pairs
         per_lane = nstep * (self.nstate + m.nsensordata + m.nu) * 8
         slice_size = max(1, min(b, int(self.memory_budget // per_lane)))
-        poses = np.empty((b, n_periods, self.scene.n_robots, 5))
-        touched = np.zeros((b, n_periods, n_pairs), dtype=bool)
-        min_dist = np.full((b, n_periods, n_pairs), np.inf)
-        status = np.zeros(b, dtype=np.int32)
-        coll = blank_collisions(b, n_periods, n_pairs, record.collision_bins) if record.collisions else None
+        poses, touched, min_dist, status, coll = self._blank_records(b, n_periods, record)
         state = np.array(state, dtype=np.float64, copy=True)
         track_t, track_q = [], []
         # every call starts at gait phase 0 and the gait is periodic, so the
@@ -187,11 +183,7 @@ class NativeBackend(BackendBase):
         b, n_pairs = lanes.size, self.scene.n_pairs
         per_lane = nstep * (1 + k_sub) * m.nu * 8 + (nstep * m.nq * 8 if track_stride else 0)
         slice_size = max(1, min(b, int(self.memory_budget // per_lane)))
-        poses = np.empty((b, n_periods, self.scene.n_robots, 5))
-        touched = np.zeros((b, n_periods, n_pairs), dtype=bool)
-        min_dist = np.full((b, n_periods, n_pairs), np.inf)
-        status = np.zeros(b, dtype=np.int32)
-        coll = blank_collisions(b, n_periods, n_pairs, record.collision_bins) if record.collisions else None
+        poses, touched, min_dist, status, coll = self._blank_records(b, n_periods, record)
         bin_of = collision_bin_of(nstep, record.collision_bins) if record.collisions else None
         state = np.array(state, dtype=np.float64, copy=True)
         qa = slice(self.qpos_at, self.qpos_at + m.nq)
@@ -249,6 +241,13 @@ class NativeBackend(BackendBase):
                 track_q.append(np.concatenate(out_q, 0))
                 track_t.append(t_start + t_rel[track_stride - 1::track_stride] + dt)
         return state, PeriodRecords(poses, touched, min_dist, status, coll), _joined_track(track_t, track_q)
+
+    def _blank_records(self, b: int, n_periods: int, record: Record):
+        """Empty per-period records of ``b`` lanes: poses, touches, deepest contacts, status, collisions."""
+        n_pairs = self.scene.n_pairs
+        return (np.empty((b, n_periods, self.scene.n_robots, 5)), np.zeros((b, n_periods, n_pairs), dtype=bool),
+                np.full((b, n_periods, n_pairs), np.inf), np.zeros(b, dtype=np.int32),
+                blank_collisions(b, n_periods, n_pairs, record.collision_bins) if record.collisions else None)
 
     def _status_bits(self, bad: np.ndarray, dist: np.ndarray) -> np.ndarray:
         """Status bits of a slice's period: non-finite (or reset) states, and contacts past the penetration limit."""
