@@ -418,12 +418,12 @@ def test_glide_summary_of_built_tracks():
     assert s.gliders == 0 and s.beta is None and s.as_json() == {"gliders": 0, "bound_end": 3}
 
 
-def _store_with(tmp_path, name, model=None, timestep=5e-4, overrides=None):
+def _store_with(tmp_path, name, model=None, timestep=5e-4, overrides=None, scene=None):
     path = tmp_path / f"{name}.h5"
     cfg = ScanConfig(n=M, periods=K, amplitudes_deg=(90.0,))
     runs = {run_name(90.0): {"amplitude_deg": 90.0, "period_s": 1.6, "chirality": "ccw", "gait": "square",
                              "periods": K, "n_configs": M}}
-    header = {"scan": cfg.to_json(), "scene": params_json(SceneParams(timestep=timestep))}
+    header = {"scan": cfg.to_json(), "scene": params_json(SceneParams(timestep=timestep, **(scene or {})))}
     if model:
         header["model"] = model
     if overrides:
@@ -450,6 +450,18 @@ def test_a_stores_step_check_is_read_from_its_header(tmp_path, model, timestep, 
     c = store_step_check(Store(_store_with(tmp_path, "s", model, timestep, overrides)))
     assert want in step_note(c.as_dict())
     assert c.status == ("passed" if "passed" in want else "failed" if "biased" in want else "not checked")
+
+
+def test_a_sub_stepped_store_is_looked_up_under_its_own_numerics(tmp_path):
+    """Near-contact sub-stepping is part of the numerics a check is keyed by: a store made with
+    --set integrator=discrete --set contact_substeps=2 carries that measurement (failed, on persistence),
+    not the plain 0.5 ms one, and is not 'fields changed from the preset'."""
+    from smarticle_mjx.report import step_note, store_step_check
+    changes = {"integrator": "discrete", "contact_substeps": 2}
+    c = store_step_check(Store(_store_with(tmp_path, "s", "lab-lag", 5e-4, changes, scene=changes)))
+    assert c.integrator == "discrete + 2 sub-steps within 4 mm" and c.status == "failed"
+    assert not c.persistence.contains_zero and c.beta.contains_zero and abs(c.net_speed.relative) < 0.2
+    assert "discrete + 2 sub-steps within 4 mm: biased" in step_note(c.as_dict())
 
 
 def test_smx_report_puts_the_steps_check_on_the_line_of_every_transport_number(tmp_path):
