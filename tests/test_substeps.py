@@ -121,6 +121,7 @@ def test_lanes_apart_run_at_the_full_step_and_near_ones_split():
     assert not np.array_equal(r_gate.poses, r_full.poses)
 
 
+@pytest.mark.slow  # 20 s: building an MJX backend
 def test_lock_step_backends_split_every_step():
     """MJX runs its lanes in lock-step, where skipping sub-steps for some lanes saves nothing: it honours
     sub-stepping by splitting every step (the gate always open), not by ignoring it."""
