@@ -311,6 +311,11 @@ class SceneParams:
             raise ValueError("arms on the plate (arm_plate_friction > 0) need robot.arm_clearance = 0")
 
     @property
+    def sub_timestep(self) -> float:
+        """The step near contacts: ``timestep / contact_substeps`` (the step everywhere when 1)."""
+        return self.timestep / self.contact_substeps
+
+    @property
     def gravity(self) -> tuple[float, float, float]:
         """Gravity in plate coordinates (m/s^2): the plate tilts, gravity does not."""
         gx, gy = (9.81 * math.sin(math.radians(a)) for a in self.plate_tilt_deg)

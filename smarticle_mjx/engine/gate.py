@@ -78,13 +78,17 @@ def _bound(pose1, pose2, dims):
     return d.min(-1)
 
 
+def _cover(robot: RobotParams) -> tuple[float, ...]:
+    """The capsule cover's sizes (m): body axis half-length and radius, arm radius, hinge offset, arm length."""
+    hw, hd = robot.body_length / 2, robot.body_thickness / 2
+    return (float(hw - hd), float(hd * np.sqrt(2.0)), float(robot.arm_thickness / 2), float(robot.hinge_x),
+            float(max(robot.arm_lengths)))
+
+
 def gap_lower_bound(pose1, pose2, robot: RobotParams) -> np.ndarray:
     """A lower bound (m) on the planar gap between robots at ``pose1`` and ``pose2`` ([..., 5] each:
     x, y, heading, alpha1, alpha2); negative where the covers overlap."""
-    hw, hd = robot.body_length / 2, robot.body_thickness / 2
-    dims = (float(hw - hd), float(hd * np.sqrt(2.0)), float(robot.arm_thickness / 2), float(robot.hinge_x),
-            float(max(robot.arm_lengths)))
-    return np.asarray(_bound(jnp.asarray(pose1), jnp.asarray(pose2), dims))
+    return np.asarray(_bound(jnp.asarray(pose1), jnp.asarray(pose2), _cover(robot)))
 
 
 def chunk_steps(timestep: float, gate: float) -> int:
@@ -97,9 +101,7 @@ def make_gate(layout, robot: RobotParams, gate: float):
     """A jitted ``near(qpos [B, nq]) -> bool [B]``: whether any pair of a lane's robots may be closer than
     ``gate`` m (:func:`gap_lower_bound` on poses read straight from MuJoCo's qpos, as
     ``Scene.poses_from_qpos`` reads them)."""
-    hw, hd = robot.body_length / 2, robot.body_thickness / 2
-    dims = (float(hw - hd), float(hd * np.sqrt(2.0)), float(robot.arm_thickness / 2), float(robot.hinge_x),
-            float(max(robot.arm_lengths)))
+    dims = _cover(robot)
     free = np.asarray(layout.free_qpos)
     arm = np.asarray(layout.arm_qpos)
     play = None if layout.play_qpos is None else np.asarray(layout.play_qpos)

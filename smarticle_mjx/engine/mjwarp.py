@@ -23,7 +23,6 @@ an overflow cannot be pinned on one lane).
 from __future__ import annotations
 
 import copy
-
 import dataclasses
 import time
 
@@ -167,7 +166,7 @@ class WarpBackend(BackendBase):
             # near-contact sub-stepping (SceneParams.contact_substeps): the GPU's lanes run in lock-step, so
             # a lane that skips sub-steps saves nothing; every step is split (the gate always open)
             self.model = copy.deepcopy(scene.model)
-            self.model.opt.timestep = scene.params.timestep / scene.params.contact_substeps
+            self.model.opt.timestep = scene.params.sub_timestep
         self.device = wp.get_device(device if device is not None else
                                     ("cuda:0" if wp.is_cuda_available() else "cpu"))
         self.penetration_limit = penetration_limit

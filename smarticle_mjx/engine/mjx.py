@@ -81,7 +81,7 @@ class MjxBackend(BackendBase):
         self.model = mujoco.MjModel.from_xml_string(Scene.mjcf(scene.params, scene.n_robots, sensors="none"))
         # near-contact sub-stepping (SceneParams.contact_substeps): lanes here run in lock-step, so a lane
         # that skips sub-steps saves nothing; every step is split (the gate always open)
-        self.model.opt.timestep = scene.params.timestep / scene.params.contact_substeps
+        self.model.opt.timestep = scene.params.sub_timestep
         if ls_iterations < 1:
             raise ValueError(f"ls_iterations must be >= 1, got {ls_iterations}")
         self.model.opt.ls_iterations = min(int(ls_iterations), scene.params.ls_iterations)

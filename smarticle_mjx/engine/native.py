@@ -8,6 +8,7 @@ stays under ``memory_budget`` bytes; only per-period records leave this module
 
 from __future__ import annotations
 
+import copy
 import os
 
 import mujoco
@@ -26,12 +27,6 @@ def state_offsets(model: mujoco.MjModel) -> tuple[int, int]:
     t = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_TIME.value)
     nq = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_QPOS.value)
     return t, t + nq
-
-
-def _copy_model(model: mujoco.MjModel) -> mujoco.MjModel:
-    """An independent copy of a compiled model."""
-    import copy
-    return copy.deepcopy(model)
 
 
 def _joined_track(track_t: list, track_q: list) -> dict | None:
@@ -60,8 +55,8 @@ class NativeBackend(BackendBase):
         self.penetration_limit = penetration_limit
         self.substeps = scene.params.contact_substeps
         if self.substeps > 1:  # the same compiled model at the sub-step: every solref stays in seconds
-            self.fine_model = _copy_model(self.model)
-            self.fine_model.opt.timestep = self.model.opt.timestep / self.substeps
+            self.fine_model = copy.deepcopy(self.model)
+            self.fine_model.opt.timestep = scene.params.sub_timestep
             self.fine_datas = [mujoco.MjData(self.fine_model) for _ in range(self.nthread)]
             self.gate = make_gate(scene.layout, scene.params.robot, scene.params.substep_gate)
             self.substep_stats = [0, 0]  # coarse steps run whole, and split, since the backend was made
@@ -118,6 +113,7 @@ class NativeBackend(BackendBase):
         per_lane = nstep * (self.nstate + m.nsensordata + m.nu) * 8
         slice_size = max(1, min(b, int(self.memory_budget // per_lane)))
         poses, touched, min_dist, status, coll = self._blank_records(b, n_periods, record)
+        bin_of = collision_bin_of(nstep, record.collision_bins) if record.collisions else None
         state = np.array(state, dtype=np.float64, copy=True)
         track_t, track_q = [], []
         # every call starts at gait phase 0 and the gait is periodic, so the
@@ -138,7 +134,7 @@ class NativeBackend(BackendBase):
                 states, sens = self.pool.rollout(
                     m, self.datas, init, ctrl, nstep=nstep)
                 if coll is not None:
-                    self._collisions(coll, sl, k, init, states, sens, nstep, record.collision_bins)
+                    self._collisions(coll, sl, k, init, states, sens, bin_of, 1, dt)
                 sens = sens[..., :n_pairs * SENSOR_WIDTH].reshape(sens.shape[0], nstep, n_pairs, SENSOR_WIDTH)
                 found = sens[..., 0] > 0
                 touched[sl, k] = found.any(1)
@@ -190,15 +186,19 @@ class NativeBackend(BackendBase):
         track_t, track_q = [], []
         t_rel = dt * np.arange(nstep)
         t_fine = (dt / k_sub) * np.arange(nstep * k_sub)
+        ctrl_all = None
         for k in range(n_periods):
             t_start = t0 + k * lanes.period
             lanes_k = lanes.at_time(t_start)
+            if b <= slice_size and (k == 0 or lanes.varies):  # one period's controls serve every period
+                ctrl_all = lane_controls(self.scene, lanes_k, t_rel), lane_controls(self.scene, lanes_k, t_fine)
             out_q = []
             for lo in range(0, b, slice_size):
                 sl = slice(lo, min(b, lo + slice_size))
-                lk = lanes_k.take(sl)
-                ctrl_c = lane_controls(self.scene, lk, t_rel)
-                ctrl_f = lane_controls(self.scene, lk, t_fine)
+                if ctrl_all is not None:
+                    ctrl_c, ctrl_f = ctrl_all
+                else:
+                    ctrl_c, ctrl_f = (lane_controls(self.scene, lanes_k.take(sl), t) for t in (t_rel, t_fine))
                 st = state[sl].copy()
                 nb = st.shape[0]
                 found = np.zeros((nb, n_pairs), bool)
@@ -219,8 +219,7 @@ class NativeBackend(BackendBase):
                                                          init, ctrl, nstep=n * kk)
                         self.substep_stats[int(fine)] += idx.size * n
                         if coll is not None:
-                            self._collisions_rows(coll, lo + idx, k, init, states, sens, bin_of[c0:c0 + n], kk,
-                                                  dt / kk)
+                            self._collisions(coll, lo + idx, k, init, states, sens, bin_of[c0:c0 + n], kk, dt / kk)
                         ps = sens[..., :n_pairs * SENSOR_WIDTH].reshape(idx.size, n * kk, n_pairs, SENSOR_WIDTH)
                         f = ps[..., 0] > 0
                         found[idx] |= f.any(1)
@@ -254,11 +253,12 @@ class NativeBackend(BackendBase):
         return (np.where(bad, int(Status.NONFINITE), 0)
                 | np.where((dist < -self.penetration_limit).any(-1), int(Status.PENETRATION), 0))
 
-    def _collisions_rows(self, coll: dict, lanes_at: np.ndarray, k: int, init, states, sens, bins_of_steps,
-                         kk: int, dt_row: float):
-        """:meth:`_collisions` for one chunk of ``len(bins_of_steps)`` full steps run as ``kk`` sub-steps
-        each (rows of ``dt_row`` s): impulses of every row, a full step counted in contact when any of
-        its sub-steps was."""
+    def _collisions(self, coll: dict, lanes_at, k: int, init, states, sens, bins_of_steps, kk: int, dt_row: float):
+        """Fold the contact-force sensors of ``len(bins_of_steps)`` full steps of period ``k``, run as ``kk``
+        sub-steps each (rows of ``dt_row`` s; kk = 1: whole steps), into the collision record of lanes
+        ``lanes_at``: impulses of every row, a full step counted in contact when any of its sub-steps was.
+        The sensors of a row read the forces that acted during it, on the state it started from: the
+        previous row of ``states`` (or ``init`` for the first)."""
         m, lay = self.model, self.scene.layout
         n_pairs, n_kinds = self.scene.n_pairs, len(CONTACT_KINDS)
         nb, rows = states.shape[0], states.shape[1]
@@ -279,31 +279,6 @@ class NativeBackend(BackendBase):
                 coll["steps"][lanes_at, k, p, :, g] += step_found[:, at].sum(1).astype(np.int32)
                 coll["impulse"][lanes_at, k, p, :, g] += imp[:, at_row].sum(1).astype(np.float32)
                 coll["impulse_r"][lanes_at, k, p, :, g] += imp_r[:, at_row].sum(1).astype(np.float32)
-
-    def _collisions(self, coll: dict, sl: slice, k: int, init, states, sens, nstep: int, bins: int):
-        """Fold one period's contact-force sensors into the collision record."""
-        m, lay = self.model, self.scene.layout
-        n_pairs, n_kinds = self.scene.n_pairs, len(CONTACT_KINDS)
-        cs = sens[..., n_pairs * SENSOR_WIDTH:].reshape(sens.shape[0], nstep, n_pairs, n_kinds, COLLISION_WIDTH)
-        # the sensors of step s read the forces that acted during step s, on the
-        # state the step started from: the previous row of ``states`` (or the
-        # period's initial state for the first step)
-        qa = slice(self.qpos_at, self.qpos_at + m.nq)
-        q = np.concatenate([init[:, None, qa], states[:, :-1, qa]], 1)
-        dt = m.opt.timestep
-        bin_of = collision_bin_of(nstep, bins)
-        for p, (i, j) in enumerate(lay.pairs):
-            ci, cj = q[..., lay.free_qpos[i]:lay.free_qpos[i] + 2], q[..., lay.free_qpos[j]:lay.free_qpos[j] + 2]
-            rvec = cj - ci
-            rhat = rvec / np.maximum(np.linalg.norm(rvec, axis=-1, keepdims=True), 1e-12)  # [b, nstep, 2]
-            found = cs[:, :, p, :, 0] > 0  # [b, nstep, kinds]
-            imp = cs[:, :, p, :, 1:3] * dt  # [b, nstep, kinds, 2]
-            imp_r = (imp * rhat[:, :, None, :]).sum(-1)
-            for g in range(bins):
-                at = bin_of == g
-                coll["steps"][sl, k, p, :, g] = found[:, at].sum(1)
-                coll["impulse"][sl, k, p, :, g] = imp[:, at].sum(1)
-                coll["impulse_r"][sl, k, p, :, g] = imp_r[:, at].sum(1)
 
     def step_qpos(self, lanes: Lanes, nsteps: int) -> np.ndarray:
         """qpos [B, nsteps, nq] of the first ``nsteps`` steps from rest."""
