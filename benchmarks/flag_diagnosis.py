@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import math
 import pathlib
 import sys
@@ -165,7 +166,8 @@ def replay_to_flag(path, trial: int) -> dict:
 # compressed start (4 trials x 3 periods, seed 0) and records each trial's largest body tilt. Written after
 # the flag table showed tipped robots only with the lab set; the last four rows switch one numerical or
 # contact choice with the combination that tipped (added after it did).
-PROBES = {  # name -> (imperfection set, phase_jitter in periods, scene overrides, gear-teeth stop time constant s)
+CAD_ARMS = {"robot.arm_height": 0.031, "robot.arm_thickness": 0.0029}
+PROBES = {  # name -> (imperfection set, phase_jitter in periods, scene overrides (--set fields), teeth stop time constant s)
     "ideal": ("none", 0.0, {}, None),
     "backlash": ("backlash", 0.0, {}, None),
     "drivetrain": ("drivetrain", 0.0, {}, None),
@@ -178,6 +180,13 @@ PROBES = {  # name -> (imperfection set, phase_jitter in periods, scene override
     "backlash + phase 0.02, 0.25 ms": ("backlash", 0.02, {"timestep": 2.5e-4}, None),
     "backlash + phase 0.02, robot mu 0": ("backlash", 0.02, {"robot_friction": 0.0}, None),
     "backlash + phase 0.02, robot mu 0.1": ("backlash", 0.02, {"robot_friction": 0.1}, None),
+    # The arms as the lab's CAD shows them (wsavoie/ArduinoSmarticle, solidworks/smarticle stls, the arm part
+    # "Servo - Solar Arm": 64.2 x 6.75 x 32.5 mm; a plate 2.9 mm thick and 30.8 mm tall over its outer part,
+    # a C-shaped mount 32.5 mm tall around the servo at the hinge), taller than the 25-26 mm body, where the
+    # presets' plate is 24 mm tall: the tipped robot was pushed at the top edges of the 24 mm plates.
+    # Added after the rows above, before it ran.
+    "backlash + phase 0.02, CAD arms (31 mm plate)": ("backlash", 0.02, CAD_ARMS, None),
+    "lab, CAD arms (31 mm plate)": ("lab", 0.0, CAD_ARMS, None),
 }
 
 
@@ -192,7 +201,7 @@ def max_tilts(imperfections: str, phase_jitter: float, overrides: dict, teeth: f
     from smarticle_mjx.scene import compile_model
     from smarticle_mjx.specs import RelaxConfig
     config = RelaxConfig(trials=trials, periods=periods, imperfections=imperfections, phase_jitter=phase_jitter)
-    params = config.robots().scene(dataclasses.replace(presets.params(model), **overrides))
+    params = config.robots().scene(presets.apply(presets.params(model), overrides.items()))
     starts, phase = start_poses(config, params)
     xml = Scene.mjcf(params, config.n_robots, False)
     if teeth is not None:
@@ -243,17 +252,21 @@ def main(argv=None):
     ap.add_argument("--probes", action="store_true", help="the tilt probe instead (results/flag_tilt_probe.json)")
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "flag_diagnosis.json")
     ap.add_argument("--workers", type=int, default=2, help="trials replayed at once (one core each)")
+    ap.add_argument("--only", default=None, help="with --probes: semicolon-separated probe names (the others kept)")
     args = ap.parse_args(argv)
     from concurrent.futures import ProcessPoolExecutor
     if args.probes:
+        out = ROOT / "results" / "flag_tilt_probe.json"
+        names = [n for n in PROBES if not args.only or n in args.only.split(";")]
         with ProcessPoolExecutor(max_workers=args.workers) as pool:
-            res = dict(pool.map(_probe, PROBES))
+            res = dict(pool.map(_probe, names))
         for name, tilts in res.items():
             print(f"{name}: largest tilt per trial " + ", ".join(f"{x:.2f}" for x in tilts) + " deg")
-        save_json(ROOT / "results" / "flag_tilt_probe.json",
-                  {"trials": 4, "periods": 3, "seed": 0, "model": "lab-lag",
-                   "variants": {n: {"imperfections": v[0], "phase_jitter": v[1], "overrides": v[2],
-                                    "teeth_timeconst_s": v[3], "max_tilt_deg": res[n]} for n, v in PROBES.items()}})
+        kept = json.loads(out.read_text())["variants"] if out.exists() and args.only else {}
+        kept.update({n: {"imperfections": PROBES[n][0], "phase_jitter": PROBES[n][1], "overrides": PROBES[n][2],
+                         "teeth_timeconst_s": PROBES[n][3], "max_tilt_deg": res[n]} for n in names})
+        save_json(out, {"trials": 4, "periods": 3, "seed": 0, "model": "lab-lag",
+                        "variants": {n: kept[n] for n in PROBES if n in kept}})
         return
     if not args.stores:
         sys.exit("error: name the relaxation stores whose flagged trials to replay (or --probes)")

@@ -61,7 +61,7 @@ def test_bad_parameters_are_refused_with_a_clear_message():
         S.SceneParams(timestep=-1).validate()
     with pytest.raises(ValueError, match="contact_timeconst"):
         S.SceneParams(timestep=0.01).validate()
-    with pytest.raises(ValueError, match="arms must lie within"):
+    with pytest.raises(ValueError, match="arms must start below the body's top"):
         S.SceneParams(robot=S.RobotParams(arm_clearance=0.03)).validate()
     with pytest.raises(ValueError, match="pose"):
         S.build_mjcf(S.SceneParams(), [(0, 0, 0, 0)])
@@ -69,6 +69,28 @@ def test_bad_parameters_are_refused_with_a_clear_message():
         S.build_mjcf(S.SceneParams(), [(0, 0, 0, 3.0, 0)])
     with pytest.raises(ValueError, match="integrator must be one of"):
         S.SceneParams(integrator="verlet").validate()
+
+
+def test_arm_plates_may_reach_above_the_body_as_the_lab_arms_do():
+    """The lab's arm plates (about 31 mm) are taller than its body (about 26 mm): a plate arm of 31 mm on a
+    25 mm body stands from its clearance to above the body's top, and its mass and its inertia about the
+    vertical hinge are the shorter plate's (height does not enter a rotation about the hinge axis)."""
+    import dataclasses
+    lab = dataclasses.replace(S.RobotParams(), arm_shape="plate", arm_thickness=0.0029, arm_clearance=0.0005)
+    out = {}
+    for h in (0.024, 0.031):
+        p = S.SceneParams(robot=dataclasses.replace(lab, arm_height=h))
+        m = S.compile_model(S.build_mjcf(p, [(0, 0, 0, 0, 0)]))
+        d = mujoco.MjData(m)
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        mujoco.mj_forward(m, d)
+        arm = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "r0_arm1")
+        bottom, top = d.geom_xpos[arm][2] - m.geom_size[arm][2], d.geom_xpos[arm][2] + m.geom_size[arm][2]
+        assert bottom == pytest.approx(0.0005, abs=1e-9) and top == pytest.approx(0.0005 + h, abs=1e-9)
+        hinge = m.geom_bodyid[arm]
+        out[h] = (m.body_mass[hinge], m.body_inertia[hinge][2])
+    assert 0.0005 + 0.031 > S.RobotParams().body_height
+    assert out[0.031] == pytest.approx(out[0.024], rel=1e-12)
 
 
 def test_every_integrator_reaches_the_compiled_model():
