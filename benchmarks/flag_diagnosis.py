@@ -187,6 +187,12 @@ PROBES = {  # name -> (imperfection set, phase_jitter in periods, scene override
     # Added after the rows above, before it ran.
     "backlash + phase 0.02, CAD arms (31 mm plate)": ("backlash", 0.02, CAD_ARMS, None),
     "lab, CAD arms (31 mm plate)": ("lab", 0.0, CAD_ARMS, None),
+    # Arms that meet the plate when their robot leans (added after the CAD rows still tipped, before it ran):
+    # the presets' collision filter lets arms pass through the plate, but a lab robot's arm hangs 0.5 mm
+    # above it, so a robot leaning about 0.6 deg toward an arm held out sideways puts that arm on the plate,
+    # which props it; mu as the body's on the plate (0.37).
+    "backlash + phase 0.02, arms meet the plate": ("backlash", 0.02, {"arm_plate_friction": 0.37}, None),
+    "lab, arms meet the plate": ("lab", 0.0, {"arm_plate_friction": 0.37}, None),
 }
 
 

@@ -149,8 +149,6 @@ def test_anisotropic_plate_slides_only_along_its_slippery_axis():
 def test_arms_on_the_plate_touch_it_only_when_asked():
     import dataclasses
     from smarticle_mjx.scene import RobotParams, SceneParams
-    with pytest.raises(ValueError, match="arm_clearance"):
-        SceneParams(arm_plate_friction=0.3).validate()
     on = SceneParams(robot=dataclasses.replace(RobotParams(), arm_clearance=0.0), arm_plate_friction=0.3)
     m, d = _rest(on, 200)
     arm_geoms = {m.geom(f"r0_arm{k}").id for k in (1, 2)}
@@ -159,3 +157,29 @@ def test_arms_on_the_plate_touch_it_only_when_asked():
     assert touching
     m, d = _rest(SceneParams(), 200)
     assert not any({c.geom1, c.geom2} & arm_geoms and plate in (c.geom1, c.geom2) for c in d.contact[:d.ncon])
+
+
+def test_raised_arms_meet_the_plate_only_when_their_robot_leans():
+    """With arm-plate contacts and the arms' 5 mm clearance (the default robot), an upright robot's arms
+    never touch the plate; a robot leaning 8 deg about its long axis toward its arms, held out sideways
+    (90 deg, a U, reaching 1-5 cm from that axis), brings them below the plate's surface and they meet it.
+    Without arm-plate contacts the arms pass through it."""
+    import math
+    from smarticle_mjx.scene import SceneParams
+    for mu, expect in ((0.37, True), (0.0, False)):
+        p = SceneParams(arm_plate_friction=mu)
+        m = S.compile_model(S.build_mjcf(p, [(0, 0, 0, math.pi / 2, math.pi / 2)]))
+        d = mujoco.MjData(m)
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        arm_geoms = {m.geom(f"r0_arm{k}").id for k in (1, 2)}
+        plate = m.geom("plate").id
+
+        def arm_plate(d):
+            return [c for c in d.contact[:d.ncon] if {c.geom1, c.geom2} & arm_geoms and plate in (c.geom1, c.geom2)]
+        mujoco.mj_forward(m, d)
+        assert not arm_plate(d)  # upright
+        lean = -math.radians(8.0)  # about the body's long axis (x), toward +y where both arms point (a U)
+        d.qpos[3:7] = [math.cos(lean / 2), math.sin(lean / 2), 0, 0]
+        d.qpos[2] = S.RobotParams().body_thickness / 2 * math.sin(-lean) + S.RobotParams().body_height / 2 * math.cos(lean)
+        mujoco.mj_forward(m, d)
+        assert bool(arm_plate(d)) == expect
