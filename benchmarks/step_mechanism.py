@@ -99,6 +99,42 @@ FAMILIES = {
         "0.5 ms discrete + 2 sub-steps within 4 mm": VARIANTS["0.5 ms discrete + 2 sub-steps within 4 mm"],
     },
 }
+# How far apart do two runs of the same numerics land? (--replicas; added after the discrete reference at
+# 0.0625 ms agreed with implicitfast's on beta and net speed and differed on persistence by +0.08
+# [+0.03, +0.13], before any replica ran.) A glider is chaotic: the per-start speeds of two numerics
+# correlate 0.06-0.37, so each run is one realisation per start. A replica runs the default numerics from
+# the same starts with robot 0 moved by REPLICA_SHIFT (a billionth of a metre, in a direction drawn per start
+# from the replica's seed): the same physics and numerics, another realisation. Its paired differences
+# from the unmoved run are the check's noise floor; a check whose intervals exclude 0 for a replica is
+# measuring realisations, not bias.
+REPLICA_NUMERICS = "0.5 ms implicitfast (default)"
+REPLICA_SHIFT = 1e-9  # m
+REPLICA_SEEDS = (1, 2, 3)
+
+
+def replica_poses(poses: np.ndarray, seed: int) -> np.ndarray:
+    """``poses`` [n, 2, 5] with robot 0 moved by REPLICA_SHIFT in a direction drawn per start from ``seed``."""
+    ang = np.random.default_rng([seed, 7919]).uniform(0.0, 2 * np.pi, len(poses))
+    out = np.array(poses, float, copy=True)
+    out[:, 0, 0] += REPLICA_SHIFT * np.cos(ang)
+    out[:, 0, 1] += REPLICA_SHIFT * np.sin(ang)
+    return out
+
+
+def run_replica(seed: int, poses: np.ndarray) -> pathlib.Path:
+    dt, changes = VARIANTS[REPLICA_NUMERICS]
+    moved = replica_poses(poses, seed)
+    path = RUNS / f"lab-lag_replica{seed}_0.5_ms_implicitfast_{POOL}x{PERIODS}_s{SEED}.npz"
+    if path.exists() and np.array_equal(np.load(path)["poses"], moved):
+        print(f"reusing {path.name}", flush=True)
+        return path
+    t = time.perf_counter()
+    gliding(dataclasses.replace(presets.params("lab-lag"), timestep=dt, **changes), POOL, PERIODS, SEED, BURN_IN,
+            save=path, poses=moved)
+    print(f"replica {seed}: {POOL} starts x {PERIODS} periods in {time.perf_counter() - t:.0f} s", flush=True)
+    return path
+
+
 FAMILY_ONLY = {n for f in FAMILIES.values() for n in f if n not in VARIANTS}  # the main table keeps its own rows
 for _family in FAMILIES.values():
     VARIANTS.update(_family)
@@ -167,6 +203,9 @@ def main():
     ap.add_argument("--kicks", action="store_true", help="the kick level only (a lone robot; seconds)")
     ap.add_argument("--only", default=None, help="comma-separated variant names (the reference always runs)")
     ap.add_argument("--boot", type=int, default=1000)
+    ap.add_argument("--replicas", action="store_true",
+                    help="the check's noise floor: the default numerics again from starts moved by 1e-9 m "
+                         "(results/step_replicas.json)")
     ap.add_argument("--imperfections", default=None, help="robots drawn from this imperfection set (e.g. lab)")
     ap.add_argument("--rule", choices=("steady", "runs30"), default="steady",
                     help="a glider: bound every period after the burn-in (steady, the check's rule) or each start's "
@@ -182,6 +221,20 @@ def main():
     args = ap.parse_args()
     if args.kicks:
         kicks(ROOT / "results" / "step_kicks.json")
+        return
+    if args.replicas:
+        poses = pair_starts(presets.params("lab-lag"), POOL, SEED, 90.0)
+        z = np.load(run(REPLICA_NUMERICS, poses))
+        data = {REPLICA_NUMERICS: (z["com"], z["touched"])}
+        for s in REPLICA_SEEDS:
+            z = np.load(run_replica(s, poses))
+            data[f"replica {s} (robot 0 moved {REPLICA_SHIFT:g} m)"] = (z["com"], z["touched"])
+        rows = paired_rows(data, REPLICA_NUMERICS, args.boot, width=36)
+        out = ROOT / "results" / "step_replicas.json"
+        save_json(out, {"model": "lab-lag", "numerics": REPLICA_NUMERICS, "shift_m": REPLICA_SHIFT,
+                        "reference": REPLICA_NUMERICS, "starts": POOL, "periods": PERIODS, "burn_in": BURN_IN,
+                        "seed": SEED, "runs": rows})
+        print(f"wrote {out}")
         return
     if args.out is None:
         args.out = ROOT / "results" / ("step_mechanism" + (f"_{args.imperfections}" if args.imperfections else "")

@@ -175,13 +175,13 @@ def lone_drift(params, amplitude: float, periods: int, imperfections: str | None
 
 
 def gliding(params, n: int, periods: int, seed: int, burn_in: int, save: pathlib.Path | None = None,
-            robots=None) -> dict:
-    """Glider quantities at 90 deg from ``n`` random valid starts; the
-    per-period tracks go to ``save`` (.npz) so that metrics can be recomputed
+            robots=None, poses=None) -> dict:
+    """Glider quantities at 90 deg from ``n`` random valid starts (or the starts ``poses`` [n, 2, 5] given);
+    the per-period tracks go to ``save`` (.npz) so that metrics can be recomputed
     (``gliders.glide_summary``, ``gliders.glider_transport``) without simulating again."""
     W = params.robot.body_length
     gait = GaitSpec(90.0)
-    poses = pair_starts(params, n, seed, 90.0)
+    poses = pair_starts(params, n, seed, 90.0) if poses is None else np.asarray(poses, float)
     tr, touched, wall, steps = run_pairs(params, gait, poses, periods, quiet=2, robots=robots)
     com = (tr[:, :, 0, :2] + tr[:, :, 1, :2]) / 2 / W
     r, th, ph = C.relative_coordinates(tr[:, :, 0], tr[:, :, 1], W)
