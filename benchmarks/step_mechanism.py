@@ -102,6 +102,13 @@ FAMILIES = {
         # 0.49-0.50 at 0.5 ms (sub-stepped or not); where discrete lies between says which converges
         "0.25 ms discrete": (2.5e-4, {"integrator": "discrete"}),
         "0.125 ms discrete": (1.25e-4, {"integrator": "discrete"}),
+        # Euler with the same sub-stepping (added after discrete's persistence fell with every halving of the
+        # step, 0.49 / 0.44 / 0.38 / 0.31 at 0.5 / 0.25 / 0.125 / 0.0625 ms, while implicitfast gave 0.39 at
+        # 0.0625, 0.25 and 0.5 ms and RK4 0.41-0.42 at 0.5 and 1 ms; before it ran): Euler slips a lone robot
+        # the converged amount per arm move, as discrete does, costs 0.78x the default where discrete costs
+        # 1.1-1.3x, and gave persistence 0.47 at 0.5 ms without sub-stepping
+        "0.5 ms Euler + 2 sub-steps within 4 mm": (5e-4, {"integrator": "Euler", "contact_substeps": 2,
+                                                          "substep_gate": 0.004}),
     },
 }
 # How far apart do two runs of the same numerics land? (--replicas; added after the discrete reference at
