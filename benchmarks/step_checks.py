@@ -6,6 +6,8 @@ Sources: results/glider_step.json (steps against the 0.0625 ms reference, model 
 results/step_mechanism.json (integrators and steps against the same reference, same starts) and
 results/step_mechanism_substeps.json and step_mechanism_substeps_discrete.json (near-contact sub-stepping
 with implicitfast and with discrete, against the same reference, same starts),
+results/step_mechanism_discrete_against-default.json (discrete at 0.0625-0.25 ms and discrete and Euler with
+near-contact sub-stepping, against the same reference, same starts),
 results/step_mechanism_lab_runs30.json (the same with the `lab` imperfection set, against its own
 reference; a glider there is a start's longest bound run of >= 30 periods, because the drawn robots'
 drifting clocks leave no pair bound from period 10 to 100 at any step, so the steady rule of the other
@@ -40,11 +42,11 @@ def collect() -> list[stepcheck.StepCheck]:
                             g["runs"][ref_name])
         out[stepcheck.key_of(e)] = e
     for source in ("step_mechanism.json", "step_mechanism_lab_runs30.json", "step_mechanism_substeps.json",
-                   "step_mechanism_substeps_discrete.json"):
+                   "step_mechanism_substeps_discrete.json", "step_mechanism_discrete_against-default.json"):
         if not (ROOT / source).exists():
             continue
         m = json.loads((ROOT / source).read_text())
-        ref_name = next(k for k in m["runs"] if "reference" in k)
+        ref_name = m.get("reference") or next(k for k in m["runs"] if "reference" in k)
         for name, row in m["runs"].items():
             if name == ref_name or set(row["changes"]) - {"integrator", "contact_substeps", "substep_gate"}:
                 continue

@@ -228,6 +228,9 @@ def main():
                          "against the default's)")
     ap.add_argument("--default-reference", action="store_true",
                     help="with --family: also the default's 0.0625 ms reference, paired with the family's")
+    ap.add_argument("--against-default", action="store_true",
+                    help="with --family: the family's runs paired with the default's 0.0625 ms reference (the glider "
+                         "check's) instead of the family's own (results/step_mechanism_<family>_against-default.json)")
     ap.add_argument("--out", type=pathlib.Path, default=None,
                     help="default results/step_mechanism.json (results/step_mechanism_<set>.json with --imperfections)")
     args = ap.parse_args()
@@ -251,13 +254,16 @@ def main():
     if args.out is None:
         args.out = ROOT / "results" / ("step_mechanism" + (f"_{args.imperfections}" if args.imperfections else "")
                                        + ("" if args.rule == "steady" else f"_{args.rule}")
-                                       + (f"_{args.family}" if args.family else "") + ".json")
+                                       + (f"_{args.family}" if args.family else "")
+                                       + ("_against-default" if args.family and args.against_default else "") + ".json")
     family = FAMILIES.get(args.family, {})
     reference = next((n for n in family if "(reference)" in n), REFERENCE)
     pool = family or {n: v for n, v in VARIANTS.items() if n not in FAMILY_ONLY}
     names = [n for n in pool if n != reference and (not args.only or n in args.only.split(","))] + [reference]
-    if family and args.default_reference:
+    if family and (args.default_reference or args.against_default):
         names.append(REFERENCE)  # the family's reference against the default's: what the change does converged
+    if family and args.against_default:
+        reference = REFERENCE
     poses = pair_starts(presets.params("lab-lag"), POOL, SEED, 90.0)
     data = {}
     for n in names:
