@@ -18,7 +18,10 @@ the servo's velocity gain kv halved and doubled and without armature at a fine a
 ``--family contacts-2ms``: contacts of 2 ms time constant instead of 5 ms at 0.5 and 0.25 ms against
 their own 0.0625 ms reference (results/step_mechanism_contacts-2ms.json): the contacts' softness relative
 to the step. ``--family discrete --default-reference``: discrete at 0.0625 ms (no kick artefact) as the
-reference, against implicitfast's 0.0625 ms reference and discrete with near-contact sub-stepping.
+reference, against implicitfast's 0.0625 ms reference and discrete with near-contact sub-stepping;
+``--against-default`` pairs a family's runs with the check's reference instead (for the step-check table).
+``--replicas``: the default numerics again from starts moved by 1e-9 m, the check's noise floor
+(results/step_replicas.json).
 
 Per variant: gliders, beta, net speed and direction persistence with 95 % bootstrap intervals and the
 paired bootstrap interval of each difference from the reference (starts resampled together).
