@@ -136,20 +136,6 @@ def replica_poses(poses: np.ndarray, seed: int) -> np.ndarray:
     return out
 
 
-def run_replica(seed: int, poses: np.ndarray) -> pathlib.Path:
-    dt, changes = VARIANTS[REPLICA_NUMERICS]
-    moved = replica_poses(poses, seed)
-    path = RUNS / f"lab-lag_replica{seed}_0.5_ms_implicitfast_{POOL}x{PERIODS}_s{SEED}.npz"
-    if path.exists() and np.array_equal(np.load(path)["poses"], moved):
-        print(f"reusing {path.name}", flush=True)
-        return path
-    t = time.perf_counter()
-    gliding(dataclasses.replace(presets.params("lab-lag"), timestep=dt, **changes), POOL, PERIODS, SEED, BURN_IN,
-            save=path, poses=moved)
-    print(f"replica {seed}: {POOL} starts x {PERIODS} periods in {time.perf_counter() - t:.0f} s", flush=True)
-    return path
-
-
 FAMILY_ONLY = {n for f in FAMILIES.values() for n in f if n not in VARIANTS}  # the main table keeps its own rows
 for _family in FAMILIES.values():
     VARIANTS.update(_family)
@@ -157,10 +143,14 @@ for _dt, _changes in VARIANTS.values():  # every variant names its sub-stepping:
     _changes.setdefault("contact_substeps", 1)
 
 
-def run(name: str, poses: np.ndarray, imperfections: str | None = None) -> pathlib.Path:
+def run(name: str, poses: np.ndarray, imperfections: str | None = None, replica: int | None = None) -> pathlib.Path:
+    """Variant ``name``'s tracks from ``poses`` (reused when kept); ``replica``: from those starts moved as
+    :func:`replica_poses` moves them with that seed."""
     dt, changes = VARIANTS[name]
     slug = name.split(" (")[0].replace(",", "").replace(" ", "_")
-    model = "lab-lag" + (f"+{imperfections}" if imperfections else "")
+    model = "lab-lag" + (f"+{imperfections}" if imperfections else "") + (f"_replica{replica}" if replica else "")
+    if replica:
+        poses = replica_poses(poses, replica)
     path = RUNS / f"{model}_{slug}_{POOL}x{PERIODS}_s{SEED}.npz"
     if path.exists() and np.array_equal(np.load(path)["poses"], poses):
         print(f"reusing {path.name}", flush=True)
@@ -171,8 +161,9 @@ def run(name: str, poses: np.ndarray, imperfections: str | None = None) -> pathl
     if imperfections:  # the same two drawn robots in every start, as fidelity_screen.py --imperfections
         from smarticle_mjx import imperfections as imp
         robots = imp.draw(imperfections, 2, SEED)
-    gliding(params, POOL, PERIODS, SEED, BURN_IN, save=path, robots=robots)
-    print(f"{name}: {POOL} starts x {PERIODS} periods in {time.perf_counter() - t:.0f} s", flush=True)
+    gliding(params, POOL, PERIODS, SEED, BURN_IN, save=path, robots=robots, poses=poses if replica else None)
+    print(f"{name}{f' replica {replica}' if replica else ''}: {POOL} starts x {PERIODS} periods in "
+          f"{time.perf_counter() - t:.0f} s", flush=True)
     return path
 
 
@@ -245,7 +236,7 @@ def main():
         z = np.load(run(REPLICA_NUMERICS, poses))
         data = {REPLICA_NUMERICS: (z["com"], z["touched"])}
         for s in REPLICA_SEEDS:
-            z = np.load(run_replica(s, poses))
+            z = np.load(run(REPLICA_NUMERICS, poses, replica=s))
             data[f"replica {s} (robot 0 moved {REPLICA_SHIFT:g} m)"] = (z["com"], z["touched"])
         rows = paired_rows(data, REPLICA_NUMERICS, args.boot, width=36)
         out = ROOT / "results" / "step_replicas.json"
