@@ -55,26 +55,26 @@ def measure(data: dict, seed: int = 0) -> dict:
     """The screen's numbers of one variant's store."""
     rng = np.random.default_rng(seed)
     summary, trials = RX.crowd(data)
-    flagged = int(((np.asarray(data["status"]) & int(BAD_STATUS)) != 0).sum())
+    flagged = int(((np.asarray(data.status) & int(BAD_STATUS)) != 0).sum())
     usable = len(trials)
     a = RX.analyse(data, min_periods=APART_PERIODS)
     apart = a.emerged
     # the lab's own rule (bound and apart >= 100 periods), where the trials are long enough for it
-    lab_rule = RX.analyse(data, min_periods=100).emerged if int(np.max(data["periods_run"])) >= 100 else None
+    lab_rule = RX.analyse(data, min_periods=100).emerged if int(np.max(data.periods_run)) >= 100 else None
     plateau = [[np.nan if t.plateau.censored else t.plateau.period] for t in trials]
     plateau_c = [[t.plateau.period] for t in trials]  # censored ones at their (lower-bound) end
     chains = [[e.lifetime for e in t.chains] for t in trials]
     deg = [t.chain_degrees() for t in trials]
     contact = [[t.contact_relaxation[0]] for t in trials]
     moved = []
-    for i in np.flatnonzero((np.asarray(data["status"]) & int(BAD_STATUS)) == 0):
-        k = int(data["periods_run"][i])
-        d = np.linalg.norm(data["poses"][i][k - 1, :, :2] - data["start_poses"][i][:, :2], axis=1)
-        moved.append([float(d.mean() / data["body_length"])])
+    for i in np.flatnonzero((np.asarray(data.status) & int(BAD_STATUS)) == 0):
+        k = int(data.periods_run[i])
+        d = np.linalg.norm(data.poses[i][k - 1, :, :2] - data.start_poses[i][:, :2], axis=1)
+        moved.append([float(d.mean() / data.body_length)])
     lo, hi = binding.binomial_interval(apart, usable) if usable else (np.nan, np.nan)
     # the deepest robot-robot penetration of each trial (flagged ones included) and, for flagged
     # trials, the first period past the 2 mm flag: a tail of the depth distribution or a cliff?
-    md = np.asarray(data["min_dist"], float)  # [T, K, P] m, +inf without contact
+    md = np.asarray(data.min_dist, float)  # [T, K, P] m, +inf without contact
     md = np.where(np.isfinite(md), md, np.inf)
     depth_mm = -1e3 * np.minimum(md.min(axis=(1, 2)), 0.0)
     first_flag = [int(np.argmax((md[i] < -2e-3).any(-1))) + 1 for i in range(len(md)) if (md[i] < -2e-3).any()]
@@ -101,7 +101,7 @@ def measure(data: dict, seed: int = 0) -> dict:
         "pairs": pairs,
         "depth_mm_median": float(np.median(depth_mm)), "depth_mm_max": float(depth_mm.max()),
         "depth_mm": [float(x) for x in depth_mm], "first_flag_period": first_flag,
-        "trials": int(len(data["valid"])), "flagged": flagged, "usable": usable,
+        "trials": int(len(data.valid)), "flagged": flagged, "usable": usable,
         "plateau_median": summary.plateau.median, "plateau_ci": _boot(plateau_c, np.median, rng),
         "plateau_censored": summary.plateau.censored,
         "phi_start": summary.phi_start.median, "phi_plateau": summary.phi_plateau.median,

@@ -284,7 +284,7 @@ def main(argv=None):
             data = read_relax(path)
         except Exception as e:  # noqa: BLE001 - one line for a bad store
             sys.exit(f"error: {path}: {e}")
-        jobs += [(path, int(t)) for t, st in zip(data["trial"], data["status"]) if int(st) & int(BAD_STATUS)]
+        jobs += [(path, int(t)) for t, st in zip(data.trial, data.status) if int(st) & int(BAD_STATUS)]
     with ProcessPoolExecutor(max_workers=args.workers) as pool:  # one trial per core, in store order
         rows = list(pool.map(replay_to_flag, *zip(*jobs))) if jobs else []
     for r in rows:

@@ -204,22 +204,3 @@ def pb(params, amplitude: float, n: int, periods: int, seed: int, robots=None) -
     p = binding.binding_probability(touched, np.ones(n, bool))
     return {"n": n, "periods": periods, "end": dataclasses.astuple(p.end), "throughout": dataclasses.astuple(p.throughout),
             "wall_s": wall}
-
-
-def relaxation(name: str, trials: int, seed: int, imperfections: str | None, store: pathlib.Path) -> dict:
-    """The relaxation experiment (docs/relax.md) with ``trials`` trials of 7 robots x 300 periods at
-    90 deg, seed ``seed`` (also the seed of the robots' imperfections); the store is kept at ``store``
-    and resumed if it exists."""
-    from .reduce import relaxation as R
-    from .relax import run_relax
-    from .specs import RelaxConfig
-    from .store import read_relax
-    store.parent.mkdir(parents=True, exist_ok=True)
-    config = RelaxConfig(trials=trials, seed=seed, model=name, imperfections=imperfections or "none")
-    t = time.perf_counter()
-    run_relax(config, store, mode="resume" if store.exists() else "new")
-    wall = time.perf_counter() - t
-    a = R.analyse(read_relax([store]))
-    return {"trials": a["valid"], "emerged": a["emerged"], "fraction": a["fraction"],
-            "interval": list(a["interval"]), "distance_W": a["distance"],
-            "relaxation_periods": a["relaxation_periods"], "kinds": a["glider_kinds"], "wall_s": wall}

@@ -379,8 +379,8 @@ def validate(
         res = run_validation(data, out, sweeps or SWEEPS, model=_model(model), on_progress=progress,
                              single_periods=single_periods, studies=chosen, imperfections=imperfections,
                              overrides=overrides)
-    _echo([f"{r['verdict']:>16}: {r['claim']}" for r in res["rows"]]
-          + [f"note: {n}" for n in res["extra"].get("notes", [])] + [f"wrote {out}"])
+    _echo([f"{r.verdict:>16}: {r.claim}" for r in res.rows]
+          + [f"note: {n}" for n in res.extra.get("notes", [])] + [f"wrote {out}"])
 
 
 @_command("movie")

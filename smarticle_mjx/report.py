@@ -92,10 +92,11 @@ def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     figs: dict[str, list[str]] = {}
-    results = {}
+    results, typed = {}, []
     for run in st.runs:
-        a = analyse_run(st, run, opts)
-        results[run] = a
+        res = analyse_store_run(st, run, opts)
+        typed.append(res)
+        a = results[run] = {"summary": res.summary(round_for_report), "arrays": res.arrays()}
         s, arr = a["summary"], a["arrays"]
         names = [p.name for p in plots.phase_diagram(store_path, out, run)]
         if "clusters" in arr:
@@ -119,10 +120,10 @@ def write_report(store_path, out_dir, opts: ReportOptions = ReportOptions()) -> 
     if curves:
         common += [p.name for p in plots.msd_curves(curves, out)]
     if len(summaries) > 1:
-        amps = [s["amplitude_deg"] for s in summaries]
-        common += [p.name for p in plots.pb_curve(amps, [s["pb_end"] for s in summaries],
-                                                   [s["pb_throughout"] for s in summaries], out)]
-        common += [p.name for p in plots.versus_amplitude(amps, amplitude_panels(summaries), out)]
+        # drawn from the unrounded numbers; report.json prints them rounded
+        amps = [a.amplitude_deg for a in typed]
+        common += [p.name for p in plots.pb_curve(amps, *pb_rows(typed), out)]
+        common += [p.name for p in plots.versus_amplitude(amps, amplitude_panels(typed), out)]
     report = {"store": str(store_path), "model": st.model, **({"overrides": st.overrides} if st.overrides else {}),
               "versions": {k: st.attrs.get(k) for k in ("package", "mujoco", "jax")},
               "scan": st.config["scan"], "step_check": store_step_check(st).as_dict(), "runs": summaries,
@@ -195,23 +196,24 @@ def pb_table(store_path, out_dir) -> tuple[list[str], list]:
     return lines, written
 
 
-def amplitude_panels(summaries: list[dict]) -> dict:
-    """beta, V_com and steady |r| of run summaries, as ``plots.versus_amplitude`` panels (NaN if missing)."""
+def amplitude_panels(runs: list[analysis.RunAnalysis]) -> dict:
+    """beta, V_com and steady |r| of typed runs (unrounded), as ``plots.versus_amplitude`` panels (NaN where
+    a run has no glider)."""
     nan = float("nan")
-
-    def get(s, block, key):
-        v = (s.get(block) or {}).get(key)
-        return nan if v is None else v
-
+    beta = [(a.transport.beta.beta, a.transport.beta.err) if a.transport is not None else (nan, nan) for a in runs]
+    v = [(a.transport.net_speed.value, a.transport.net_speed.lo, a.transport.net_speed.hi)
+         if a.transport is not None else (nan, nan, nan) for a in runs]
     return {
-        r"$\beta$ (gliders)": ([get(s, "beta", "value") for s in summaries], [get(s, "beta", "err") for s in summaries]),
-        r"$V_{com}$, net (W/period)": ([get(s, "v_com", "net_W_per_period") for s in summaries],
-                                       [(get(s, "v_com", "net_W_per_period") - get(s, "v_com", "net_lo"),
-                                         get(s, "v_com", "net_hi") - get(s, "v_com", "net_W_per_period"))
-                                        for s in summaries]),
-        "steady |r| (W)": ([get(s, "steady_r", "mean_W") for s in summaries],
-                           [get(s, "steady_r", "std_W") for s in summaries]),
+        r"$\beta$ (gliders)": ([b for b, _ in beta], [e for _, e in beta]),
+        r"$V_{com}$, net (W/period)": ([x for x, _, _ in v], [(x - lo, hi - x) for x, lo, hi in v]),
+        "steady |r| (W)": ([a.separation.mean for a in runs], [a.separation.std for a in runs]),
     }
+
+
+def pb_rows(runs: list[analysis.RunAnalysis]) -> tuple[list, list]:
+    """P_b rows (p, lo, hi) bound at the end and bound throughout, unrounded, for ``plots.pb_curve``."""
+    return ([(a.binding.end.value, a.binding.end.lo, a.binding.end.hi) for a in runs],
+            [(a.binding.throughout.value, a.binding.throughout.lo, a.binding.throughout.hi) for a in runs])
 
 
 def describe_configs(sc: dict, wrap: str = "{}") -> str:
@@ -330,11 +332,11 @@ def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0, crow
     a["crowd"] = dataclasses.asdict(crowd if crowd is not None else RX.crowd(data)[0])
     fraction, interval = lab_relax_fraction()
     a["lab"] = {**LAB_RELAX, "fraction": fraction, "interval": interval}
-    a["settings"] = data["settings"]
-    a["model"] = data["model"]
-    if data.get("overrides"):
-        a["overrides"] = data["overrides"]
-    a["period_s"] = data["period_s"]
+    a["settings"] = data.settings
+    a["model"] = data.model
+    if data.overrides:
+        a["overrides"] = data.overrides
+    a["period_s"] = data.period_s
     return a
 
 
@@ -342,19 +344,19 @@ def trial_figure(data: dict, a, out: pathlib.Path) -> list[str]:
     """Tracks of the trial with the longest glider (else the first trial); ``a``: the study's
     ``reduce.relaxation.RelaxAnalysis``."""
     from .reduce import relaxation as RX
-    W = float(data["body_length"])
+    W = float(data.body_length)
     best = max((r for r in a.per_trial if r.glider is not None), key=lambda r: r.glider.lifetime,
                default=a.per_trial[0] if a.per_trial else None)
     if best is None:
         return []
-    t = int(np.flatnonzero(data["trial"] == best.trial)[0])
-    xy = np.concatenate([data["start_poses"][t][None, :, :2], data["poses"][t][:, :, :2]]) / W
-    eps = [e for e in RX.trial_episodes(data["poses"][t], data["touched"][t], data["start_poses"][t],
-                                        data["left_plate"][t], data["periods_run"][t], W, a.apart_W)
+    t = int(np.flatnonzero(data.trial == best.trial)[0])
+    xy = np.concatenate([data.start_poses[t][None, :, :2], data.poses[t][:, :, :2]]) / W
+    eps = [e for e in RX.trial_episodes(data.poses[t], data.touched[t], data.start_poses[t],
+                                        data.left_plate[t], data.periods_run[t], W, a.apart_W)
            if e.lifetime >= a.min_periods]
     title = (f"trial {best.trial}: {len(eps)} glider(s)" if eps else f"trial {best.trial}: no glider") + \
-        f", {int(data['periods_run'][t])} periods"
-    return [p.name for p in plots.relaxation_trial(xy, eps, data["settings"]["plate_m"] / 2 / W, out,
+        f", {int(data.periods_run[t])} periods"
+    return [p.name for p in plots.relaxation_trial(xy, eps, data.settings["plate_m"] / 2 / W, out,
                                                    "relax_tracks", title=title)]
 
 
@@ -379,7 +381,7 @@ def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 
     episodes = [{k: v for k, v in e.items() if k != "track"} for e in a["episodes"]]
     per_trial = [{**r, "glider": None if r["glider"] is None else
                   {k: v for k, v in r["glider"].items() if k != "track"}} for r in a["per_trial"]]
-    rep = {"stores": [str(p) for p in data["paths"]], "kind": "relax", **{k: v for k, v in a.items()
+    rep = {"stores": [str(p) for p in data.paths], "kind": "relax", **{k: v for k, v in a.items()
                                                                           if k not in ("episodes", "per_trial")},
            "episodes": episodes, "per_trial": per_trial, "figures": figs}
     (out / "report.json").write_text(json.dumps(rep, indent=1, default=json_default))

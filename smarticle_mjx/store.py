@@ -38,6 +38,7 @@ NaN, the canonical quiet NaN (:func:`canonical`), whoever computed them::
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import fcntl
 import json
@@ -531,15 +532,39 @@ class Store:
 _STAGE_KEYS = ("trials", "first_trial", "batch_size", "backend")
 
 
-def read_relax(paths) -> dict:
-    """Rows of one or several relaxation stores (stages of one study; ``smx
-    relax``), trials concatenated in trial order.
+@dataclasses.dataclass(frozen=True)
+class RelaxRecord:
+    """What a relaxation study's stores hold (:func:`read_relax`), trials concatenated in trial order.
+    T trials, K periods, N robots, P = N (N - 1) / 2 pairs; lengths in m, angles in rad (docs/store.md)."""
 
-    Returns:
-      dict of arrays (:data:`RELAX_FIELDS` plus ``trial`` indices) and
-      ``settings`` (the first store's relax settings), ``periods``,
-      ``period_s``, ``body_length`` and ``body_thickness`` (m), ``model``, ``overrides``, ``paths``.
-    """
+    start_poses: np.ndarray  # [T, N, 5] the perturbed compressed start (x, y, heading, alpha1, alpha2)
+    valid: np.ndarray  # [T] bool
+    status: np.ndarray  # [T] engine status bits (labels.BAD_STATUS: flagged)
+    periods_run: np.ndarray  # [T] periods simulated (< K when stopped early)
+    touched: np.ndarray  # [T, K, P] bool: the pair touched at least once in the period
+    min_dist: np.ndarray  # [T, K, P] deepest contact distance in the period (m), +inf if none
+    poses: np.ndarray  # [T, K, N, 5] every robot's pose at each period's end; NaN after an early stop
+    left_plate: np.ndarray  # [T, N] first period ending with the robot off the plate; 0: never
+    trial: np.ndarray  # [T] trial indices
+    settings: dict  # the first store's relax settings (RelaxConfig's JSON)
+    periods: int  # K
+    period_s: float
+    model: str
+    overrides: dict
+    body_length: float  # m
+    body_thickness: float  # m
+    paths: tuple[str, ...]
+
+    @property
+    def usable(self) -> np.ndarray:
+        """[T] bool: valid and not flagged by the engine (the trials every measure counts)."""
+        return np.asarray(self.valid, bool) & ((np.asarray(self.status) & BAD_STATUS) == 0)
+
+
+def read_relax(paths) -> RelaxRecord:
+    """Rows of one or several relaxation stores (stages of one study; ``smx
+    relax``), trials concatenated in trial order (:class:`RelaxRecord`); StoreError for stores
+    that are not stages of one study or hold a trial twice."""
     paths = [paths] if not isinstance(paths, (list, tuple)) else list(paths)
     if not paths:
         raise StoreError("no relaxation store given")
@@ -564,12 +589,11 @@ def read_relax(paths) -> dict:
     order = np.argsort(out["trial"], kind="stable")
     out = {k: v[order] for k, v in out.items()}
     st0 = stores[0]
-    out.update(settings=dict(st0.config["relax"]), periods=int(st0.config["relax"]["periods"]),
-               period_s=float(st0.run_attrs["trials"]["period_s"]), model=st0.model,
-               overrides=st0.overrides,
-               body_length=float(st0.config["scene"]["robot"]["body_length"]),
-               body_thickness=float(st0.config["scene"]["robot"]["body_thickness"]), paths=[str(p) for p in paths])
-    return out
+    relax, robot = st0.config["relax"], st0.config["scene"]["robot"]
+    return RelaxRecord(**out, settings=dict(relax), periods=int(relax["periods"]),
+                       period_s=float(st0.run_attrs["trials"]["period_s"]), model=st0.model,
+                       overrides=st0.overrides, body_length=float(robot["body_length"]),
+                       body_thickness=float(robot["body_thickness"]), paths=tuple(str(p) for p in paths))
 
 
 def is_scan_store(path) -> bool:

@@ -12,7 +12,7 @@ from smarticle_mjx.validate import inputs as I
 
 
 def verdict(key, ev):
-    return K.get(key).row(ev)["verdict"]
+    return K.get(key).row(ev).verdict
 
 
 def test_the_registry_lists_the_thirteen_claims_in_page_order_once():
@@ -24,7 +24,7 @@ def test_the_registry_lists_the_thirteen_claims_in_page_order_once():
 
 def test_a_missing_study_names_itself_and_is_not_measurable():
     row = K.get("mirror").row(None, stores={"cw_90": "x.h5"})
-    assert row["verdict"] == "not measurable" and "random_90" in row["measured"] and row["test"] == "–"
+    assert row.verdict == "not measurable" and "random_90" in row.measured and row.test == "–"
 
 
 @pytest.mark.parametrize("net, holds", [(1.5e-3, True), (6e-4, True), (4e-3, True),
@@ -196,9 +196,9 @@ def test_relaxation_emergence_agrees_with_the_lab_by_fisher_once_the_interval_is
     assert verdict("relax_emergence", relax_ev(7, 100)) == "does not hold"  # the model's 0.07
     assert verdict("relax_emergence", relax_ev(1, 4)) == "not measurable"  # interval wider than 0.3
     # trials the engine flagged are left out, and the row says how many
-    note = K.get("relax_emergence").row(relax_ev(11, 57, trials=100))["note"]
+    note = K.get("relax_emergence").row(relax_ev(11, 57, trials=100)).note
     assert "43 of 100 trials were flagged" in note
-    assert "flagged" not in K.get("relax_emergence").row(relax_ev(7, 100, trials=100))["note"]
+    assert "flagged" not in K.get("relax_emergence").row(relax_ev(7, 100, trials=100)).note
 
 
 def test_the_glider_travels_about_2_9_widths():

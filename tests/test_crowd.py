@@ -150,10 +150,10 @@ def test_crowd_reads_a_relaxation_store_layout_and_skips_flagged_trials():
     # the crowd expands: centres spread by 2 % per period for 12 periods, then stop
     grow = np.r_[1.02 ** np.arange(1, 13), np.full(k - 12, 1.02 ** 12)]
     poses[:, :, :2] *= grow[:, None, None]
-    data = {"body_length": W, "body_thickness": D, "valid": np.array([True, True]),
-            "status": np.array([0, 4]), "poses": np.stack([poses, poses]), "touched": np.stack([touched, touched]),
-            "start_poses": np.stack([start, start]), "left_plate": np.zeros((2, n), int),
-            "periods_run": np.array([k, k])}
+    data = _record(body_length=W, body_thickness=D, valid=np.array([True, True]),
+                   status=np.array([0, 4]), poses=np.stack([poses, poses]), touched=np.stack([touched, touched]),
+                   start_poses=np.stack([start, start]), left_plate=np.zeros((2, n), int),
+                   periods_run=np.array([k, k]), periods=k)
     s, trials = RX.crowd(data)
     assert s.trials == 1 and len(trials) == 1  # the flagged trial (penetration) is out
     assert s.contact_relaxation.median == 12 and s.chain_lifetime.median == 12
@@ -206,3 +206,12 @@ def test_a_pair_run_is_broken_by_a_third_touch_and_ends_censored_unbound_or_off_
     assert (s.trials, s.runs, s.trials_with_run) == (2, 2, 1)
     assert s.ended_by == {"third": 1, "unbound": 0, "plate": 0, "end": 1} and s.length.censored == 1
     assert s.length.mean == pytest.approx((15 + 44) / 2)
+
+
+def _record(**kw):
+    """A relaxation store's record (store.RelaxRecord) built from arrays, metadata filled in."""
+    from smarticle_mjx.store import RelaxRecord
+    t = len(kw["valid"])
+    base = dict(min_dist=np.full(np.shape(kw["touched"]), np.inf), trial=np.arange(t), settings={}, periods=150,
+                period_s=1.6, model="built", overrides={}, body_thickness=0.021, paths=())
+    return RelaxRecord(**{**base, **kw})

@@ -53,7 +53,8 @@ def _claims() -> list[tuple[str, str]]:
     result = json.loads((ROOT / "docs" / "validation" / "validation.json").read_text())
     total = len(result["rows"])
     held = sum(r["verdict"] == "holds" for r in result["rows"])
-    check = V.step_check(result, result["model"], {0.5})[0]
+    from smarticle_mjx.validate.claims import Validation
+    check = V.step_check(Validation.from_json(result), result["model"], {0.5})[0]
     held_ref = int(re.search(r"\*\*(\d+) of \d+ claims hold\*\*", check).group(1))
     return [("docs/validation.md", f"**{held} of {total} claims hold** at this step"),
             ("docs/validation.md", check),

@@ -265,10 +265,10 @@ def test_per_cycle_retrigger_draws_fresh_delays_and_survives_chunking(tmp_path):
         run_relax(RelaxConfig(n_robots=3, trials=1, periods=8, retrigger_sd=0.03, chunk_periods=chunk,
                               quiet_periods=0), out)
         stores[chunk] = read_relax(out)
-    assert np.array_equal(stores[2]["poses"], stores[8]["poses"])
+    assert np.array_equal(stores[2].poses, stores[8].poses)
     plain = tmp_path / "plain.h5"
     assert run.invoke(app, ["relax", "--robots", "3", "--trials", "1", "--periods", "8", "--quiet-periods", "0",
                             "--out", str(plain), "--quiet"]).exit_code == 0
-    assert not np.array_equal(read_relax(plain)["poses"], stores[8]["poses"])  # the retrigger acts
+    assert not np.array_equal(read_relax(plain).poses, stores[8].poses)  # the retrigger acts
     t, track, res, params, gait, rows = resimulate_trial(tmp_path / "r2.h5", 0, frame_interval=0.2)
     assert np.array_equal(res.poses[1:].astype(np.float32), rows["poses"])

@@ -346,6 +346,25 @@ def test_the_typed_parts_carry_the_constructed_answers_unrounded(synthetic_store
         None if x is None or not np.isfinite(x) else round(float(x), nd)))
 
 
+def test_the_amplitude_figures_draw_the_unrounded_numbers(synthetic_store):
+    """P_b vs amplitude and the beta / V_com / |r| panels take the typed values, not the report's rows
+    rounded to 4 decimals: 10/35 = 0.285714... is drawn as that, not as 0.2857."""
+    from smarticle_mjx.report import amplitude_panels, analyse_store_run, pb_rows
+    st = Store(synthetic_store)
+    runs = [analyse_store_run(st, r) for r in st.runs]
+    end, through = pb_rows(runs)
+    assert end[1][0] == 10 / 35 and end[1][0] != round(10 / 35, 4)
+    assert end[1][1] < 10 / 35 < end[1][2] and through[1][0] == runs[1].binding.throughout.value
+    panels = amplitude_panels(runs)
+    (beta, beta_err), (v, v_err), (r, r_sd) = panels.values()
+    assert beta[1] == runs[1].transport.beta.beta and beta_err[1] == runs[1].transport.beta.err
+    ns = runs[1].transport.net_speed
+    assert v[1] == ns.value and v_err[1] == (ns.value - ns.lo, ns.hi - ns.value)
+    assert r[1] == runs[1].separation.mean and r_sd[1] == runs[1].separation.std
+    for a, b_, e in zip(runs, beta, beta_err):  # a run without gliders is a gap (NaN), not a zero
+        assert (a.transport is None) == bool(np.isnan(b_))
+
+
 def test_smx_report_writes_every_figure_and_the_table(synthetic_store, tmp_path):
     out = tmp_path / "rep"
     r = CliRunner().invoke(app, ["report", str(synthetic_store), "--out", str(out)])

@@ -104,11 +104,12 @@ def test_relaxation_time_and_fit_by_brute_force():
 def test_analyse_counts_gliders_with_exact_interval():
     poses, touched, start, _ = _synthetic()
     t = 10
-    data = {"poses": np.repeat(poses[None], t, 0), "touched": np.repeat(touched[None], t, 0),
-            "start_poses": np.repeat(start[None], t, 0), "left_plate": np.zeros((t, 4), np.int32),
-            "periods_run": np.full(t, 150), "valid": np.ones(t, bool), "status": np.zeros(t, np.int32),
-            "trial": np.arange(t), "body_length": W, "periods": 150}
-    data["touched"][7:, :, 0] = False  # three trials without the glider
+    touched = np.repeat(touched[None], t, 0)
+    touched[7:, :, 0] = False  # three trials without the glider
+    data = _record(poses=np.repeat(poses[None], t, 0), touched=touched,
+                   start_poses=np.repeat(start[None], t, 0), left_plate=np.zeros((t, 4), np.int32),
+                   periods_run=np.full(t, 150), valid=np.ones(t, bool), status=np.zeros(t, np.int32),
+                   trial=np.arange(t), body_length=W, periods=150)
     a = RX.analyse(data)
     assert (a.emerged, a.valid) == (7, 10)
     from scipy.stats import binomtest
@@ -265,14 +266,14 @@ def test_relax_resumes_after_a_kill_and_stages_pool(tmp_path):
     run_relax(cfg, cut, mode="resume")
     a, b = read_relax(whole), read_relax(cut)
     for k in ("poses", "touched", "start_poses", "left_plate", "periods_run"):
-        assert np.array_equal(a[k], b[k]), k
+        assert np.array_equal(getattr(a, k), getattr(b, k)), k
     s0, s1 = tmp_path / "s0.h5", tmp_path / "s1.h5"
     run_relax(RelaxConfig(n_robots=3, trials=1, periods=3, batch_size=1), s0)
     run_relax(RelaxConfig(n_robots=3, trials=2, first_trial=1, periods=3, batch_size=1), s1)
     c = read_relax([s1, s0])
-    assert np.array_equal(c["trial"], [0, 1, 2])
+    assert np.array_equal(c.trial, [0, 1, 2])
     for k in ("poses", "touched", "start_poses"):
-        assert np.array_equal(a[k], c[k]), k
+        assert np.array_equal(getattr(a, k), getattr(c, k)), k
     other = tmp_path / "other.h5"
     run_relax(RelaxConfig(n_robots=3, trials=1, periods=3, seed=5), other)
     from smarticle_mjx.store import StoreError
@@ -293,9 +294,9 @@ def test_robots_leaving_a_small_plate_are_recorded(tmp_path):
     big, small = tmp_path / "big.h5", tmp_path / "small.h5"
     run_relax(RelaxConfig(trials=1, periods=6), big)
     ref = read_relax(big)
-    assert (ref["left_plate"] == 0).all()
-    start = np.abs(ref["start_poses"][0][:, :2]).max(-1)  # [N] distance from the centre along the worse axis
-    dist = np.abs(ref["poses"][0][:, :, :2]).max(-1)  # [K, N] the same at each period end
+    assert (ref.left_plate == 0).all()
+    start = np.abs(ref.start_poses[0][:, :2]).max(-1)  # [N] distance from the centre along the worse axis
+    dist = np.abs(ref.poses[0][:, :, :2]).max(-1)  # [K, N] the same at each period end
     edges = np.sort(dist[1:].ravel())
     half = next(h for h in (edges[:-1] + edges[1:]) / 2
                 if np.abs(dist - h).min() > 1e-3 and (start < h).all()
@@ -304,8 +305,8 @@ def test_robots_leaving_a_small_plate_are_recorded(tmp_path):
     assert (want >= 2).any() and (want == 0).any()
     run_relax(RelaxConfig(trials=1, periods=6, plate_m=float(2 * half)), small)
     got = read_relax(small)
-    np.testing.assert_array_equal(got["poses"], ref["poses"])
-    np.testing.assert_array_equal(got["left_plate"][0], want)
+    np.testing.assert_array_equal(got.poses, ref.poses)
+    np.testing.assert_array_equal(got.left_plate[0], want)
 
 
 def test_run_study_runs_a_scan_or_a_relaxation_and_refuses_a_staged_study(tmp_path):
@@ -326,3 +327,12 @@ def test_run_study_runs_a_scan_or_a_relaxation_and_refuses_a_staged_study(tmp_pa
     assert_same_store(tmp_path / "c.h5", tmp_path / "d.h5")
     with pytest.raises(ValueError, match="staged study"):
         run_study(RelaxStudy(stages=2, trials=1), tmp_path / "e.h5")
+
+
+def _record(**kw):
+    """A relaxation store's record (store.RelaxRecord) built from arrays, metadata filled in."""
+    from smarticle_mjx.store import RelaxRecord
+    t = len(kw["valid"])
+    base = dict(min_dist=np.full(np.shape(kw["touched"]), np.inf), trial=np.arange(t), settings={}, periods=150,
+                period_s=1.6, model="built", overrides={}, body_thickness=0.021, paths=())
+    return RelaxRecord(**{**base, **kw})

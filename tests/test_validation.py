@@ -136,12 +136,14 @@ def test_the_page_writes_its_time_step_check_itself(tmp_path):
     from smarticle_mjx.validate.claims import beta_holds
     from smarticle_mjx.validate.page import step_check
     assert beta_holds(1.54) and not beta_holds(1.35) and not beta_holds(2.2) and beta_holds(float("nan")) is None
-    result = {"rows": [{"verdict": "holds"}] * 5 + [{"verdict": "does not hold"}] * 8,
-              "extra": {"random_90": {"beta": {"value": 1.5401}}}}
+    from smarticle_mjx.validate.claims import ClaimRow, Validation
+    row = lambda v: ClaimRow("a claim", "", "", "", v, "")  # noqa: E731
+    result = Validation((row("holds"),) * 5 + (row("does not hold"),) * 8, {"random_90": {"beta": {"value": 1.5401}}})
+    assert result.held == 5
     text = step_check(result, "lab-lag", {0.5}, _check_file(tmp_path, 1.54, 1.35))[0]
     assert "**does not hold** at the reference, so that row's verdict is the step's" in text
     assert "**4 of 13 claims hold**" in text and "β 1.35 [1.25, 1.45]" in text and "at 0.0625 ms" in text
-    result["extra"]["random_90"]["beta"]["value"] = 1.6
+    result.extra["random_90"]["beta"]["value"] = 1.6
     text = step_check(result, "lab-lag", {0.5}, _check_file(tmp_path, 1.6, 1.7))[0]
     assert "holds here, the same" in text and "**5 of 13 claims hold**" in text
     assert "not made on this page's" in step_check(result, "lab-lag", {0.5}, _check_file(tmp_path, 1.3, 1.7))[0]

@@ -427,31 +427,3 @@ def glide_summary(com, rel, touched, burn_in: int) -> GlideSummary:
         C1_gliders=int(c1.sum()),
         steady_r_W=float(np.nanmean(g_rel[..., 0])),
         **c1_parts)
-    ns = _transport.net_speed(g_com)
-    beta = _transport.msd_exponent(g_com, lag_range=(5, min(15, periods - burn_in - 2)), centered=True)
-    sp = sign_persistence(g_rel, hold=min(50, periods - burn_in))
-    aligned = np.cos(g_rel[..., 2]) > 0
-    c1 = ~aligned.any(1)
-    _, ns_lo, ns_hi, _ = _transport.bootstrap_interval(ns)
-    out.update({
-        "net_speed_W_per_period": float(np.nanmean(ns)),
-        "net_speed_interval": [float(ns_lo), float(ns_hi)],  # 95 % bootstrap over gliders (NaN below 3)
-        "mean_step_W_per_period": float(np.nanmean(_transport.step_lengths(g_com))),
-        "persistence": _transport.direction_persistence(g_com),
-        "median_turn_deg": float(np.degrees(_transport.median_direction_change(g_com))),
-        "straightness20": _transport.straightness(g_com, 20),
-        "beta": beta.beta, "beta_err": beta.err, "beta_lags": list(beta.lag_range),
-        "sign_flips_per_period": sp.flips_per_period, "sign_mean_run": sp.mean_run,
-        "sign_held_frac": sp.held, "sign_hold_periods": min(50, periods - burn_in),
-        "repeat": dataclasses.asdict(repeatability(g_rel)),
-        "C2_fraction": float(aligned.mean()),
-        "C1_gliders": int(c1.sum()),
-        "steady_r_W": float(np.nanmean(g_rel[..., 0])),
-    })
-    if c1.any():
-        dev = np.degrees(np.abs(np.angle(np.exp(1j * (g_rel[c1, :, 2] - np.pi)))))
-        out["C1_phi_dev_deg"] = float(np.median(dev))  # symmetry breaking: 0 for a symmetric C1
-        spc = sign_persistence(g_rel[c1], hold=min(50, periods - burn_in))
-        out["C1_sign_held_frac"] = spc.held
-        out["C1_straightness20"] = _transport.straightness(g_com[c1], 20)
-    return out

@@ -34,12 +34,15 @@ Definitions (stated before any number is known):
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .. import configs as C
-from ..labels import BAD_STATUS
 from . import binding
+
+if TYPE_CHECKING:  # the record's type only; reducers take its arrays, never the store
+    from ..store import RelaxRecord
 
 C1, C2 = "C1", "C2"
 
@@ -181,7 +184,7 @@ def relaxation_time(touched, periods_run=None) -> tuple[int, bool]:
     return last, last == k
 
 
-def analyse(data: dict, min_periods: int = 100, apart_W: float = 2.0, min_episode: int = 2,
+def analyse(data: "RelaxRecord", min_periods: int = 100, apart_W: float = 2.0, min_episode: int = 2,
             level: float = 0.95) -> "RelaxAnalysis":
     """The relaxation study's numbers (:class:`RelaxAnalysis`) from :func:`smarticle_mjx.store.read_relax` output.
 
@@ -198,19 +201,18 @@ def analyse(data: dict, min_periods: int = 100, apart_W: float = 2.0, min_episod
     """
     if min_periods < 1 or min_episode < 1 or not apart_W > 0:
         raise ValueError("min_periods and min_episode must be >= 1 and apart_W > 0")
-    W = float(data["body_length"])
-    periods = int(data["periods"])
-    ok_status = (np.asarray(data["status"]) & int(BAD_STATUS)) == 0
-    valid = np.asarray(data["valid"], bool) & ok_status
+    W = float(data.body_length)
+    periods = int(data.periods)
+    valid = data.usable
     episodes, per_trial, relax_t = [], [], []
     for t in np.flatnonzero(valid):
-        eps = trial_episodes(data["poses"][t], data["touched"][t], data["start_poses"][t], data["left_plate"][t],
-                             data["periods_run"][t], W, apart_W, trial=int(data["trial"][t]))
+        eps = trial_episodes(data.poses[t], data.touched[t], data.start_poses[t], data.left_plate[t],
+                             data.periods_run[t], W, apart_W, trial=int(data.trial[t]))
         episodes += [e for e in eps if e.lifetime >= min_episode]
         gl = [e for e in eps if e.lifetime >= min_periods]
         best = max(gl, key=lambda e: e.lifetime) if gl else None
-        rt, crowded = relaxation_time(data["touched"][t], data["periods_run"][t])
-        per_trial.append(TrialRow(int(data["trial"][t]), len(gl), best, rt, crowded, int(data["periods_run"][t])))
+        rt, crowded = relaxation_time(data.touched[t], data.periods_run[t])
+        per_trial.append(TrialRow(int(data.trial[t]), len(gl), best, rt, crowded, int(data.periods_run[t])))
         relax_t.append(rt)
     n = int(valid.sum())
     k = sum(1 for r in per_trial if r.glider is not None)
@@ -218,9 +220,9 @@ def analyse(data: dict, min_periods: int = 100, apart_W: float = 2.0, min_episod
     gl = [r.glider for r in per_trial if r.glider is not None]
     rt = np.array(relax_t, float)
     nan = float("nan")
-    lp = np.asarray(data["left_plate"])[valid]
+    lp = np.asarray(data.left_plate)[valid]
     return RelaxAnalysis(
-        trials=int(len(data["valid"])), valid=n, emerged=k, fraction=k / n if n else nan,
+        trials=int(len(data.valid)), valid=n, emerged=k, fraction=k / n if n else nan,
         interval=(float(lo), float(hi)), min_periods=min_periods, apart_W=apart_W, periods=periods,
         per_trial=per_trial, episodes=episodes,
         distance=mean_sem(np.array([g.distance_W for g in gl])),
@@ -234,7 +236,7 @@ def analyse(data: dict, min_periods: int = 100, apart_W: float = 2.0, min_episod
                                            float(np.percentile(rt, 75)) if len(rt) else nan,
                                            int(sum(r.crowded_at_end for r in per_trial))),
         left_plate=LeftPlate(int((lp > 0).sum()), int((lp > 0).any(1).sum())),
-        stopped_early=int((np.asarray(data["periods_run"])[valid] < periods).sum()))
+        stopped_early=int((np.asarray(data.periods_run)[valid] < periods).sum()))
 
 
 def _json(obj):
@@ -868,21 +870,19 @@ def pair_run_summary(per_trial: list[tuple[PairRun, ...]]) -> PairRunSummary:
                           Spread.of(esc), causes)
 
 
-def crowd_pairs(data: dict, min_periods: int = PAIR_RUN_MIN) -> tuple[PairRunSummary, list[tuple[PairRun, ...]]]:
+def crowd_pairs(data: "RelaxRecord", min_periods: int = PAIR_RUN_MIN) -> tuple[PairRunSummary, list[tuple[PairRun, ...]]]:
     """:func:`pair_runs` of every usable trial of :func:`smarticle_mjx.store.read_relax` output (the trials
     :func:`crowd` measures), and their summary."""
-    W = float(data["body_length"])
-    ok = np.asarray(data["valid"], bool) & ((np.asarray(data["status"]) & int(BAD_STATUS)) == 0)
-    per = [pair_runs(data["poses"][t], data["touched"][t], data["start_poses"][t], W, data["left_plate"][t],
-                     data["periods_run"][t], min_periods) for t in np.flatnonzero(ok)]
+    W = float(data.body_length)
+    per = [pair_runs(data.poses[t], data.touched[t], data.start_poses[t], W, data.left_plate[t],
+                     data.periods_run[t], min_periods) for t in np.flatnonzero(data.usable)]
     return pair_run_summary(per), per
 
 
-def crowd(data: dict) -> tuple[CrowdSummary, list[CrowdTrial]]:
+def crowd(data: "RelaxRecord") -> tuple[CrowdSummary, list[CrowdTrial]]:
     """The crowd measures of every usable trial of :func:`smarticle_mjx.store.read_relax` output
     (the trials :func:`analyse` counts: valid, no bad status)."""
-    W, D = float(data["body_length"]), float(data["body_thickness"])
-    ok = np.asarray(data["valid"], bool) & ((np.asarray(data["status"]) & int(BAD_STATUS)) == 0)
-    trials = [crowd_trial(data["poses"][t], data["touched"][t], data["start_poses"][t], W, D,
-                          data["left_plate"][t], data["periods_run"][t]) for t in np.flatnonzero(ok)]
+    W, D = float(data.body_length), float(data.body_thickness)
+    trials = [crowd_trial(data.poses[t], data.touched[t], data.start_poses[t], W, D,
+                          data.left_plate[t], data.periods_run[t]) for t in np.flatnonzero(data.usable)]
     return crowd_summary(trials), trials

@@ -21,7 +21,8 @@ from ..studyfile import read_study
 from ..suite import STUDIES, SWEEPS
 from ..studies import ensure
 from . import evidence, page
-from .claims import CLAIMS
+from .claims import CLAIMS, Validation
+from .inputs import LoneTracks
 
 SINGLE_AMPLITUDES = (10, 20, 30, 40, 50, 60, 70, 80, 90)
 SINGLE_PERIODS = 75
@@ -33,8 +34,8 @@ LONE_ROBOTS_DRAWN = 8  # lone robots per amplitude when the robots have imperfec
 
 
 def single_robots(params: SceneParams, amplitudes=SINGLE_AMPLITUDES, periods: int = SINGLE_PERIODS,
-                  imperfections: str = "none", seed: int = 0) -> dict:
-    """Lone robots, one per amplitude: per-period positions (W) and headings. With ``imperfections``,
+                  imperfections: str = "none", seed: int = 0) -> dict[float, LoneTracks]:
+    """Lone robots, one per amplitude (:class:`.inputs.LoneTracks`): per-period positions (W) and headings. With ``imperfections``,
     :data:`LONE_ROBOTS_DRAWN` robots drawn from that set (``seed``) per amplitude, each alone on the
     plate: ``xy`` [R, T+1, 2] and ``heading`` [R, T+1]."""
     from .. import imperfections as imp
@@ -54,19 +55,18 @@ def single_robots(params: SceneParams, amplitudes=SINGLE_AMPLITUDES, periods: in
             res = simulate(p, [[0.0, 0.0, 0.0, float(a0[0]), float(a0[1])]], g, periods, imperfections=robot)
             xy.append(res.poses[:, 0, :2] / params.robot.body_length)
             heading.append(res.poses[:, 0, 2])
-        out[float(a)] = {"xy": xy[0] if ideal else np.stack(xy), "heading": heading[0] if ideal else np.stack(heading),
-                         "period_s": res.period}
+        out[float(a)] = LoneTracks(xy[0] if ideal else np.stack(xy), heading[0] if ideal else np.stack(heading),
+                                   res.period)
     return out
 
 
-def evaluate(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None = None) -> dict:
-    """Every claim's row from the stores there are (figures drawn into ``figures``).
-
-    Returns:
-      {"rows": one per claim, "extra": numbers behind them, "figures": names}.
-    """
-    ev, extra, made = evidence.gather(stores, singles, figures, specs)
-    return {"rows": [c.row(ev.get(c.key), stores) for c in CLAIMS], "extra": extra, "figures": made}
+def evaluate(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None = None,
+             extra: dict | None = None) -> Validation:
+    """Every claim's row from the stores there are (figures drawn into ``figures``); ``extra``: entries added
+    to the numbers behind the rows (notes, the robots' set)."""
+    ev, numbers, made = evidence.gather(stores, singles, figures, specs)
+    return Validation(tuple(c.row(ev.get(c.key), stores) for c in CLAIMS), {**numbers, **(extra or {})},
+                      tuple(made))
 
 
 def parse_studies(text: str | None) -> list[str] | None:
@@ -99,7 +99,7 @@ def check_inputs(data, out_md, sweeps, single_periods: int, studies=None) -> Non
 def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Path = SWEEPS,
                    model: str = presets.DEFAULT, on_progress=None, command: str | None = None,
                    single_periods: int = SINGLE_PERIODS, studies: list[str] | None = None,
-                   imperfections: str = "none", overrides=()) -> dict:
+                   imperfections: str = "none", overrides=()) -> Validation:
     """Run or reuse the studies (all, or those named in ``studies``) with model preset ``model`` in
     ``data/<model>/``, measure every claim from the complete stores there are, write the page.
 
@@ -128,10 +128,9 @@ def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Pat
             stores[name] = got[0] if isinstance(spec, ScanConfig) else got
     singles = single_robots(params, periods=single_periods, imperfections=imperfections)
     figures = out_md.parent / out_md.stem
-    result = evaluate(stores, singles, figures, specs)
-    result["extra"]["notes"] = notes
-    if not ideal:
-        result["extra"]["imperfections"] = {"set": imperfections, "lone_robots_per_amplitude": LONE_ROBOTS_DRAWN}
+    result = evaluate(stores, singles, figures, specs,
+                      {"notes": notes, **({} if ideal else {"imperfections": {
+                          "set": imperfections, "lone_robots_per_amplitude": LONE_ROBOTS_DRAWN}})})
     page.write_page(result, stores, out_md, figures,
                     command or page.relative_command(pathlib.Path(data).parent, out_md, model, imperfections=imperfections,
                                                      overrides=overrides),

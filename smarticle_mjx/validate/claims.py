@@ -78,16 +78,60 @@ class Claim:
     def outcome(self, evidence) -> Outcome:
         return self.measure(evidence)
 
-    def row(self, evidence, stores=()) -> dict:
+    def row(self, evidence, stores=()) -> "ClaimRow":
         """The page's row; ``evidence`` None: a study is missing (``stores``: the studies there are)."""
         if evidence is None:
             study = next((s for s in self.studies if s not in stores), self.studies[0])
-            return {"claim": self.text, "paper": self.paper, "measured": f"study {study} not run yet", "test": "–",
-                    "verdict": VERDICTS[None], "note": f"Run `smx validate --studies {study}` (the page is written "
-                                                      "from the complete stores there are)."}
+            return ClaimRow(self.text, self.paper, f"study {study} not run yet", "–", VERDICTS[None],
+                            f"Run `smx validate --studies {study}` (the page is written from the complete stores "
+                            "there are).")
         o = self.measure(evidence)
-        return {"claim": self.text, "paper": self.paper, "measured": o.measured,
-                "test": self.test if o.test is None else o.test, "verdict": VERDICTS[o.holds], "note": o.note}
+        return ClaimRow(self.text, self.paper, o.measured, self.test if o.test is None else o.test, VERDICTS[o.holds],
+                        o.note)
+
+
+@dataclasses.dataclass(frozen=True)
+class ClaimRow:
+    """One claim's row as the page prints it: the claim, the paper's value, what was measured, the test, the
+    verdict (one of :data:`VERDICTS`' words) and the note."""
+
+    claim: str
+    paper: str
+    measured: str
+    test: str
+    verdict: str
+    note: str
+
+    @property
+    def holds(self) -> bool | None:
+        return {w: h for h, w in VERDICTS.items()}[self.verdict]
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class Validation:
+    """The claims' rows in the page's order, the numbers behind them (``extra``: their JSON form, which
+    ``validation.json`` stores) and the figures drawn."""
+
+    rows: tuple[ClaimRow, ...]
+    extra: dict
+    figures: tuple[str, ...] = ()
+
+    @property
+    def held(self) -> int:
+        """How many claims hold."""
+        return sum(r.holds is True for r in self.rows)
+
+    def as_json(self, model: str) -> dict:
+        """``validation.json``'s form."""
+        return {"model": model, "rows": [r.as_dict() for r in self.rows], "extra": self.extra}
+
+    @staticmethod
+    def from_json(d: dict) -> "Validation":
+        """Back from ``validation.json`` (figures are not stored there)."""
+        return Validation(tuple(ClaimRow(**r) for r in d["rows"]), d["extra"])
 
 
 CLAIMS: list[Claim] = []

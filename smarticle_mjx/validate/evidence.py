@@ -18,28 +18,28 @@ from .. import plots
 from ..configs import TWO_PI
 from ..reduce import binding, gliders as GL, transport
 from ..reduce import analysis
-from ..report import amplitude_panels, analyse_store_run, round_for_report
+from ..report import amplitude_panels, analyse_store_run, pb_rows
 from ..store import Store
 from .claims import CLAIMS, pb_groups
-from .inputs import (BindingVsAmplitude, Descent, Diagonal, LoneDrift, Mirror, Polar, Pooled, Relaxation, SteadyR,
-                     Turn)
+from .inputs import (BindingVsAmplitude, Descent, Diagonal, LoneDrift, LoneTracks, Mirror, Polar, Pooled, Relaxation,
+                     SteadyR, Turn)
 
 
 def circ_mean_deg(a) -> float:
     return float(np.degrees(GL.circular_mean(a)) % 360)
 
 
-def lone_robots(singles: dict) -> dict[float, LoneDrift]:
+def lone_robots(singles: dict[float, LoneTracks]) -> dict[float, LoneDrift]:
     """Per amplitude: :func:`smarticle_mjx.reduce.transport.lone_robot` of its track; of several
     robots' tracks ([R, T+1, 2]: robots drawn with imperfections), each quantity's mean over robots."""
     out = {}
     for a, d in singles.items():
-        xy, heading = np.asarray(d["xy"]), np.asarray(d["heading"])
+        xy, heading = np.asarray(d.xy), np.asarray(d.heading)
         cycles = xy.shape[-2] - 1
         if xy.ndim == 2:
-            out[a] = LoneDrift(transport.lone_robot(xy, heading, d["period_s"]), 1, cycles)
+            out[a] = LoneDrift(transport.lone_robot(xy, heading, d.period_s), 1, cycles)
             continue
-        each = [transport.lone_robot(x, h, d["period_s"]) for x, h in zip(xy, heading)]
+        each = [transport.lone_robot(x, h, d.period_s) for x, h in zip(xy, heading)]
         mean = {k: float(np.mean([getattr(e, k) for e in each])) for k in each[0].as_json()}
         out[a] = LoneDrift(transport.LoneRobot(**mean), len(each), cycles)
     return out
@@ -135,7 +135,7 @@ def relax(paths: list, figures: pathlib.Path, made: list) -> tuple[Relaxation, d
     p_fisher = float(fisher_exact([[k, n - k], [lab_k, lab_n - lab_k]])[1]) if n else float("nan")
     a = {**a, "p_fisher": p_fisher}
     fraction, interval = lab_relax_fraction()
-    return Relaxation(ra, crowd, relax_config_from_json(data["settings"]), fraction, interval, p_fisher,
+    return Relaxation(ra, crowd, relax_config_from_json(data.settings), fraction, interval, p_fisher,
                       len(paths)), a
 
 
@@ -290,10 +290,9 @@ def _amplitude(ctx: Context) -> BindingVsAmplitude:
     ctx.extra["amplitude"] = [a.summary() for a in runs]
     ev = pb(runs)
     ctx.extra["pb_pooled"] = ev.pooled_json()
-    sums = [a.summary(round_for_report) for a in runs]
-    amps = [a.amplitude_deg for a in runs]
-    ctx.draw(plots.pb_curve(amps, [s_["pb_end"] for s_ in sums], [s_["pb_throughout"] for s_ in sums], ctx.figures))
-    ctx.draw(plots.versus_amplitude(amps, amplitude_panels(sums), ctx.figures, "vs_amplitude"))
+    amps = [a.amplitude_deg for a in runs]  # figures from the unrounded numbers (until November 2026: the rounded rows)
+    ctx.draw(plots.pb_curve(amps, *pb_rows(runs), ctx.figures))
+    ctx.draw(plots.versus_amplitude(amps, amplitude_panels(runs), ctx.figures, "vs_amplitude"))
     return ev
 
 

@@ -15,6 +15,17 @@ from ..specs import RelaxConfig
 
 
 @dataclasses.dataclass(frozen=True)
+class LoneTracks:
+    """A lone robot's per-period track at one amplitude: positions ``xy`` (W) and ``heading`` (rad),
+    [T+1, 2] and [T+1] for one robot, [R, T+1, 2] and [R, T+1] for R robots drawn with imperfections;
+    its gait period ``period_s`` (s)."""
+
+    xy: np.ndarray
+    heading: np.ndarray
+    period_s: float
+
+
+@dataclasses.dataclass(frozen=True)
 class LoneDrift:
     """A lone robot at one amplitude (``reduce.transport.lone_robot``; with drawn imperfections each
     quantity's mean over ``robots`` robots, each alone) and the cycles it ran."""

@@ -12,7 +12,7 @@ import pathlib
 from ..report import describe_configs, json_default
 from ..store import Store
 from ..suite import STUDIES, SWEEPS
-from .claims import BETA_PAPER, BETA_TOLERANCE, VERDICTS, beta_holds, f, finite
+from .claims import BETA_PAPER, BETA_TOLERANCE, VERDICTS, Validation, beta_holds, f, finite
 
 REPO = SWEEPS.parent
 # the 90-degree random study re-run at a reference time step (benchmarks/validation_step.py)
@@ -83,7 +83,7 @@ def provenance(made: dict[str, set]) -> str:
             f"({join(made['integrators'])}); every store says so in its attributes.")
 
 
-def step_check(result: dict, model: str, step_ms: set, check: pathlib.Path = STEP_CHECK) -> list[str]:
+def step_check(result: Validation, model: str, step_ms: set, check: pathlib.Path = STEP_CHECK) -> list[str]:
     """The page's paragraph on its time step, written from the step check's
     JSON (``benchmarks/validation_step.py``): the 90-degree random study's beta
     and net gliding speed at the reference step beside this page's, the beta
@@ -93,8 +93,8 @@ def step_check(result: dict, model: str, step_ms: set, check: pathlib.Path = STE
         got = json.loads(pathlib.Path(check).read_text())
     except (OSError, ValueError):
         return ["No reference-step check of this page's glider rows exists (`benchmarks/validation_step.py`)."]
-    rows = result["rows"]
-    beta = ((result["extra"].get("random_90") or {}).get("beta") or {}).get("value")
+    rows = result.rows
+    beta = ((result.extra.get("random_90") or {}).get("beta") or {}).get("value")
     if got.get("model") != model or len(step_ms) != 1 or not finite(beta):
         return [f"The reference-step check (`benchmarks/results/{check.name}`) is of model `{got.get('model')}`, not "
                 "of this page's stores."]
@@ -109,7 +109,7 @@ def step_check(result: dict, model: str, step_ms: set, check: pathlib.Path = STE
     fmt = lambda r: (f"β {r['beta'][0]:.2f} [{r['beta'][1]:.2f}, {r['beta'][2]:.2f}], net gliding speed "  # noqa: E731
                      f"{r['v_com_W_per_period'][0]:.4f} W/period ({r['gliders']} gliders)")
     at_ref, at_here = beta_holds(ref["beta"][0]), beta_holds(h["beta"][0])
-    held = sum(r["verdict"] == "holds" for r in rows)
+    held = result.held
     held_ref = held - int(bool(at_here)) + int(bool(at_ref))
     verdict = "the same" if at_ref == at_here else f"**{VERDICTS[at_ref]}** at the reference, so that row's verdict is the step's"
     return [f"The time step is checked on the glider row against a reference step "
@@ -119,11 +119,11 @@ def step_check(result: dict, model: str, step_ms: set, check: pathlib.Path = STE
             f"With the reference's verdict, **{held_ref} of {len(rows)} claims hold**."]
 
 
-def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathlib.Path, command: str,
+def write_page(result: Validation, stores: dict, out_md: pathlib.Path, figures: pathlib.Path, command: str,
                model: str, check: pathlib.Path = STEP_CHECK, imperfections: str = "none", overrides=()) -> None:
     rel = pathlib.Path(figures).name
     every = [q for v in stores.values() for q in (v if isinstance(v, list) else [v])]
-    held = sum(r["verdict"] == "holds" for r in result["rows"])
+    held = result.held
     made = made_with(every)
     lines = ["# Validation against the paper", "",
              f"Model `{model}` (docs/model.md){overrides_line(overrides)}{robots_line(imperfections)}. {provenance(made)} Regenerate with `{command}`: it reuses complete stores made by the "
@@ -131,32 +131,32 @@ def write_page(result: dict, stores: dict, out_md: pathlib.Path, figures: pathli
              f"(these took {wall_minutes(every):.0f} minutes of wall time on 2 cores). "
              "`--studies NAME,...` runs a subset; the page is written from the complete stores there are.", "",
              "Every row states its test before the number. A claim that does not hold is reported as such; the "
-             f"model was not tuned to any row. **{held} of {len(result['rows'])} claims hold** at this step.", "",
+             f"model was not tuned to any row. **{held} of {len(result.rows)} claims hold** at this step.", "",
              *step_check(result, model, made["steps_ms"], check), "",
              "| claim | paper | measured | test | verdict | how measured, what was tried |", "|---|---|---|---|---|---|"]
     cell = lambda x: str(x).replace("|", "\\|").replace("\\\\|", "\\|")  # noqa: E731
-    for r in result["rows"]:
-        lines.append(f"| {cell(r['claim'])} | {cell(r['paper'])} | {cell(r['measured'])} | {cell(r['test'])} | "
-                     f"**{r['verdict']}** | {r['note']} |")
+    for r in result.rows:
+        lines.append(f"| {cell(r.claim)} | {cell(r.paper)} | {cell(r.measured)} | {cell(r.test)} | "
+                     f"**{r.verdict}** | {r.note} |")
     lines += ["", "## Studies", "", "| study | file | store |", "|---|---|---|"]
     for name, paths in stores.items():
         lines.append(study_line(name, paths))
-    lines += [f"| single robots | built in | α [{', '.join(f'{a:g}' for a in result['extra']['single'])}], {result['extra']['single_periods']} "
+    lines += [f"| single robots | built in | α [{', '.join(f'{a:g}' for a in result.extra['single'])}], {result.extra['single_periods']} "
               "periods each | |", "",
               "## Lone robots", "",
               "| α_max | net drift (W/cycle) | mean step (W/cycle) | speed (W/s) | β_single | heading drift (°/cycle) |",
               "|---|---|---|---|---|---|"]
-    for a, s_ in result["extra"]["single"].items():
+    for a, s_ in result.extra["single"].items():
         lines.append(f"| {a:g}° | {f(s_['net_W_per_cycle'], '.2e')} | {f(s_['step_W_per_cycle'], '.2e')} | "
                      f"{f(s_['speed_W_per_s'], '.2e')} | {f(s_['beta'])} ± {f(s_['beta_err'])} | "
                      f"{f(s_['heading_deg_per_cycle'], '.3f')} |")
-    if result["extra"].get("notes"):
-        lines += ["", "## Stores replaced in this run", ""] + [f"- {n}" for n in result["extra"]["notes"]]
+    if result.extra.get("notes"):
+        lines += ["", "## Stores replaced in this run", ""] + [f"- {n}" for n in result.extra["notes"]]
     lines += ["", "## Figures", ""]
-    lines += [f"![{n}]({rel}/{n})" for n in result["figures"]]
+    lines += [f"![{n}]({rel}/{n})" for n in result.figures]
     out_md.write_text("\n".join(lines) + "\n")
     (figures / "validation.json").write_text(json.dumps(
-        {"model": model, "rows": result["rows"], "extra": result["extra"]}, indent=1, default=json_default))
+        result.as_json(model), indent=1, default=json_default))
 
 
 def overrides_line(overrides) -> str:
