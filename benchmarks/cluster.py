@@ -80,10 +80,10 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
         wall, s = timed(cfg, tmp / "local.h5")
-        rows.append(dict(executor="local", workers=1, threads=cores, wall_s=wall, steps=s["steps"]))
-        print(f"local, {cores} threads: {wall:.1f} s ({s['steps']:,} steps)", flush=True)
+        rows.append(dict(executor="local", workers=1, threads=cores, wall_s=wall, steps=s.steps))
+        print(f"local, {cores} threads: {wall:.1f} s ({s.steps:,} steps)", flush=True)
         wall1, s = timed(cfg, tmp / "local1.h5", executor=LocalExecutor(nthread=1))
-        rows.append(dict(executor="local", workers=1, threads=1, wall_s=wall1, steps=s["steps"]))
+        rows.append(dict(executor="local", workers=1, threads=1, wall_s=wall1, steps=s.steps))
         print(f"local, 1 thread: {wall1:.1f} s", flush=True)
         for w in (1, 2):
             wall_w, s, stream = timed_dask(cfg, tmp / f"dask{w}.h5", DaskExecutor(workers=w, shard_size=args.shard_size))
@@ -92,7 +92,7 @@ def main():
             stream["overhead_per_shard_s"] = idle / stream["shards"]
             # cluster start-up, first contact, and the merge of the store after the last shard
             stream["outside_shards_s"] = wall_w - stream["first_start_to_last_stop_s"]
-            rows.append(dict(executor="dask", workers=w, threads=1, wall_s=wall_w, steps=s["steps"],
+            rows.append(dict(executor="dask", workers=w, threads=1, wall_s=wall_w, steps=s.steps,
                              task_stream=stream))
             print(f"dask LocalCluster, {w} worker(s) x 1 thread: {wall_w:.1f} s; shards busy {stream['compute_s']:.1f} "
                   f"worker-s, {stream['overhead_per_shard_s']:.3f} s idle per shard, {stream['outside_shards_s']:.1f} s "

@@ -44,15 +44,15 @@ def main():
     usage = resource.getrusage(resource.RUSAGE_SELF)
     rss = usage.ru_maxrss / 1024
     cpu = usage.ru_utime + usage.ru_stime
-    run = next(iter(s["runs"].values()))
+    run = next(iter(s.runs.values()))
     out = dict(n=args.n, periods=args.periods, backend=args.backend, batch_size=args.batch_size,
-               model=cfg.model, device=_device(args.backend), wall_s=wall, steps=s["steps"],
-               steps_per_s=s["steps_per_s"], valid=run["valid"], bound_end_fraction=run["bound_end_fraction"],
+               model=cfg.model, device=_device(args.backend), wall_s=wall, steps=s.steps,
+               steps_per_s=s.steps_per_s, valid=run.valid, bound_end_fraction=run.bound_end_fraction,
                peak_rss_mib=rss, store_mib=size / 2 ** 20, cpu_s=cpu, cpu_per_wall=cpu / wall,
-               backend_s=s.get("backend_s"), tail=_tail(timeline, args.n, args.batch_size, wall),
+               backend_s=s.backend_s, tail=_tail(timeline, args.n, args.batch_size, wall),
                **outcome)
-    print(f"{args.n} configurations ({run['valid']} valid) x {args.periods} periods, {args.backend}: "
-          f"{wall:.0f} s wall, {s['steps']:,} steps ({s['steps_per_s']:,.0f}/s), peak RSS {rss:.0f} MiB, "
+    print(f"{args.n} configurations ({run.valid} valid) x {args.periods} periods, {args.backend}: "
+          f"{wall:.0f} s wall, {s.steps:,} steps ({s.steps_per_s:,.0f}/s), peak RSS {rss:.0f} MiB, "
           f"store {size / 2 ** 20:.1f} MiB, bound at end {run['bound_end_fraction']:.1%}, "
           f"CPU {cpu:.0f} s ({cpu / wall:.2f} cores busy on average)")
     ee = pathlib.Path(__file__).parent / "results" / "early_exit.json"

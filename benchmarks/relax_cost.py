@@ -39,7 +39,7 @@ def timed(trials: int, periods: int, model: str) -> dict:
         wall = time.perf_counter() - t
     per = wall / (trials * periods)
     return {"trials": trials, "periods": periods, "cores": os.cpu_count(), "wall_s": wall,
-            "s_per_trial_period": per, "steps_per_s": s["steps"] / wall,
+            "s_per_trial_period": per, "steps_per_s": s.steps / wall,
             "trial_300_periods_s": 300 * per, "study_100x300_min": 100 * 300 * per / 60}
 
 

@@ -108,7 +108,7 @@ def scan_store(engine: str, name: str, starts: np.ndarray, amplitude: float, per
     summary = run_scan(cfg, out, mode="resume" if out.exists() else "new", executor=executor, params=params,
                        on_progress=lambda p: print(f"  {out.name}: {p['done']}/{p['total']} "
                                                    f"({time.perf_counter() - t:.0f} s)", flush=True))
-    print(f"{out.name}: {summary.get('wall_s', 0):.0f} s", flush=True)
+    print(f"{out.name}: {summary.wall_s:.0f} s", flush=True)
     return out
 
 

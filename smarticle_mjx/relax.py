@@ -46,7 +46,7 @@ from .engine.batch import RetireRule, run_lanes
 from .scene import RobotParams, SceneParams
 from .specs import RelaxConfig
 from .executors import LocalExecutor
-from .runner import prepare, run_attrs, write_rows
+from .runner import RelaxSummary, prepare, run_attrs, write_rows
 from .store import RELAX_FIELDS, Store
 
 RUN = "trials"  # the one run group of a relaxation store
@@ -216,7 +216,7 @@ class RelaxJob:
 
 def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams | None = None,
               on_progress: Callable[[dict], None] | None = None, nthread: int | None = None,
-              executor=None) -> dict:
+              executor=None) -> RelaxSummary:
     """Run the relaxation trials into the store ``out`` (resumable: a resumed
     store simulates only the trials its journal lacks).
 
@@ -224,7 +224,7 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
     ``DaskExecutor`` runs shards of trials elsewhere, this process stays the only writer.
 
     Returns:
-      summary: trials, trials stopped early, steps, wall time.
+      :class:`runner.RelaxSummary`: trials, trials stopped early, steps, wall time.
     """
     prep = prepare(config, "relax", params, executor)
     starts, phase = start_poses(config, prep.params)
@@ -232,10 +232,10 @@ def run_relax(config: RelaxConfig, out, mode: str = "new", params: SceneParams |
                            n_robots=config.n_robots, rows="trials")}
     job = RelaxJob(config, prep.params, starts, phase)
     local = LocalExecutor(flush_rows=None, nthread=nthread)
-    summary = {"trials": config.trials, "quiet_periods": config.quiet_periods,
-               **write_rows(job, out, prep, runs, config.trials, mode, executor, local, on_progress,
-                            fields=RELAX_FIELDS)}
+    timing = write_rows(job, out, prep, runs, config.trials, mode, executor, local, on_progress,
+                        fields=RELAX_FIELDS)
     st = Store(out)  # every trial, including those a resumed run found in the journal
-    summary["stopped_early"] = int((st.run(RUN, fields=("periods_run",))["periods_run"] < config.periods).sum())
-    return summary
+    early = int((st.run(RUN, fields=("periods_run",))["periods_run"] < config.periods).sum())
+    return RelaxSummary(**dataclasses.asdict(timing), trials=config.trials, quiet_periods=config.quiet_periods,
+                        stopped_early=early)
 

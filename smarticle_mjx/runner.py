@@ -29,6 +29,44 @@ from .store import ROW_FIELDS, Writer
 
 
 @dataclasses.dataclass(frozen=True)
+class Timing:
+    """What simulating a store's missing rows cost: steps simulated (this call), wall time (s), steps per
+    second, and the seconds inside the engine (``backend_s``; None where the executor does not measure it)."""
+
+    steps: int
+    wall_s: float
+    steps_per_s: float
+    backend_s: float | None
+
+
+@dataclasses.dataclass(frozen=True)
+class RunCount:
+    """One run of a scan store: valid starts and the fraction of them bound at the end."""
+
+    valid: int
+    bound_end_fraction: float
+
+
+@dataclasses.dataclass(frozen=True)
+class ScanSummary(Timing):
+    """What ``scan.run_scan`` returns: its :class:`Timing`, the configurations per run and each run's
+    :class:`RunCount` (by run name)."""
+
+    configs: int
+    runs: dict[str, RunCount]
+
+
+@dataclasses.dataclass(frozen=True)
+class RelaxSummary(Timing):
+    """What ``relax.run_relax`` returns: its :class:`Timing`, the trials, the early-stop rule's quiet
+    periods and how many trials it stopped early (every trial of the store, resumed ones included)."""
+
+    trials: int
+    quiet_periods: int
+    stopped_early: int
+
+
+@dataclasses.dataclass(frozen=True)
 class Prepared:
     """A spec's resolved scene: model name, parameters (drawn robots included), engine step, header."""
 
@@ -75,12 +113,12 @@ def run_attrs(gait: GaitSpec, dt: float, periods: int, n_configs: int, **extra) 
 
 def write_rows(job: RowJob, out, prep: Prepared, runs: dict[str, dict], rows: int, mode: str,
                executor: Executor | None, local: LocalExecutor,
-               on_progress: Callable[[dict], None] | None = None, fields=ROW_FIELDS) -> dict:
+               on_progress: Callable[[dict], None] | None = None, fields=ROW_FIELDS) -> Timing:
     """Simulate every row of ``runs`` (run name -> attributes, each with ``period_s``; ``rows`` rows
     each) that the store ``out`` lacks, on ``executor`` (None: ``local``), and journal them.
 
-    Returns steps simulated (this call), wall time, steps per second and, from a local executor,
-    the seconds spent inside the engine (``backend_s``).
+    Returns the :class:`Timing`: steps simulated (this call), wall time, steps per second and, from a
+    local executor, the seconds spent inside the engine (``backend_s``).
     """
     nsteps = {name: int(round(a["period_s"] / prep.dt)) for name, a in runs.items()}
     t0 = time.perf_counter()
@@ -103,9 +141,6 @@ def write_rows(job: RowJob, out, prep: Prepared, runs: dict[str, dict], rows: in
         for name in runs:
             progress(name)
         ran = (executor or local).run(job, todo, on_rows)
-        if "backend_s" in ran:
-            summary["backend_s"] = ran["backend_s"]
         w.finalize()
-    summary["wall_s"] = time.perf_counter() - t0
-    summary["steps_per_s"] = summary["steps"] / max(summary["wall_s"], 1e-9)
-    return summary
+    wall = time.perf_counter() - t0
+    return Timing(summary["steps"], wall, summary["steps"] / max(wall, 1e-9), ran.get("backend_s"))

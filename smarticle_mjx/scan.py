@@ -14,7 +14,7 @@ from .engine.core import Record
 from .executors import LocalExecutor
 from .gait import GaitSpec
 from .scene import SceneParams
-from .runner import prepare, run_attrs, write_rows
+from .runner import RunCount, ScanSummary, prepare, run_attrs, write_rows
 from .specs import ScanConfig, run_name
 from .reduce.binding import longest_run
 from .store import Store
@@ -96,7 +96,7 @@ class ScanJob:
 
 
 def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | None = None,
-             flush_rows: int = 64, on_progress: Callable[[dict], None] | None = None, executor=None) -> dict:
+             flush_rows: int = 64, on_progress: Callable[[dict], None] | None = None, executor=None) -> ScanSummary:
     """Run a scan or sweep into the store ``out`` (``runner``: the path every study takes).
 
     Args:
@@ -114,19 +114,19 @@ def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | N
         the only writer.
 
     Returns:
-      Summary: configurations, valid, bound-at-end fraction per run, wall
-      time, simulated steps and steps per second; with the local executor
-      also ``backend_s``, the seconds spent inside the engine's advance.
+      :class:`runner.ScanSummary`: configurations, valid starts and bound-at-end fraction per run,
+      wall time, simulated steps and steps per second; with the local executor also
+      ``backend_s``, the seconds spent inside the engine's advance (else None).
     """
     prep = prepare(config, "scan", params, executor)
     n = len(config.initial_configs())
     runs = {run_name(a): run_attrs(config.gait_spec(a), prep.dt, config.periods, n) for a in config.amplitudes_deg}
     job = ScanJob(config, prep.params, {name: a["amplitude_deg"] for name, a in runs.items()})
-    summary = {"configs": n, "runs": {},
-               **write_rows(job, out, prep, runs, n, mode, executor, LocalExecutor(flush_rows), on_progress)}
+    timing = write_rows(job, out, prep, runs, n, mode, executor, LocalExecutor(flush_rows), on_progress)
     st = Store(out)
+    counts = {}
     for name in st.runs:
-        v, touched = (st.run(name, fields=("valid", "touched"))[k] for k in ("valid", "touched"))
-        summary["runs"][name] = {"valid": int(v.sum()),
-                                 "bound_end_fraction": float(touched[v, -1, 0].mean()) if v.any() else 0.0}
-    return summary
+        d = st.run(name, fields=("valid", "touched"))
+        v, touched = d["valid"], d["touched"]
+        counts[name] = RunCount(int(v.sum()), float(touched[v, -1, 0].mean()) if v.any() else 0.0)
+    return ScanSummary(**dataclasses.asdict(timing), configs=n, runs=counts)

@@ -26,7 +26,7 @@ from typing import Callable
 import numpy as np
 
 from .reduce import analysis, gliders as GL
-from .runner import store_header
+from .runner import RelaxSummary, ScanSummary, store_header
 from .scan import run_scan
 from .scene import params_json
 from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, with_overrides
@@ -233,7 +233,7 @@ def ensure(spec: ScanConfig | BoundStudy | RelaxStudy, data: pathlib.Path, stem:
 
 
 def run_study(spec: ScanConfig | RelaxConfig, out, mode: str = "new", executor=None,
-              on_progress: Callable[[dict], None] | None = None, **options) -> dict:
+              on_progress: Callable[[dict], None] | None = None, **options) -> ScanSummary | RelaxSummary:
     """Run one study spec into the store ``out`` through its runner and ``executor`` (None: this
     machine): a scan or sweep (``scan.run_scan``; ``options``: ``flush_rows``, ``params``) or a
     relaxation (``relax.run_relax``; ``options``: ``params``, ``nthread``). Staged studies
@@ -257,12 +257,12 @@ def store_mode(resume: bool, overwrite: bool) -> str:
     return "resume" if resume else "overwrite" if overwrite else "new"
 
 
-def summary_lines(summary: dict, out) -> list[str]:
+def summary_lines(summary: ScanSummary | RelaxSummary, out) -> list[str]:
     """What a study's run reports: bound fractions per run (scans) or early stops (relaxations), and speed."""
-    speed = (f"wall {summary['wall_s']:.1f} s, {summary['steps']:,} steps simulated "
-             f"({summary['steps_per_s']:,.0f} steps/s); wrote {out}")
-    if "trials" in summary:
-        return [f"{summary['trials']} trials, {summary['stopped_early']} stopped early (no contact for "
-                f"{summary['quiet_periods']} periods); " + speed]
-    return [f"{name}: {r['valid']}/{summary['configs']} valid configurations, "
-            f"bound at the end: {r['bound_end_fraction']:.1%}" for name, r in summary["runs"].items()] + [speed]
+    speed = (f"wall {summary.wall_s:.1f} s, {summary.steps:,} steps simulated "
+             f"({summary.steps_per_s:,.0f} steps/s); wrote {out}")
+    if isinstance(summary, RelaxSummary):
+        return [f"{summary.trials} trials, {summary.stopped_early} stopped early (no contact for "
+                f"{summary.quiet_periods} periods); " + speed]
+    return [f"{name}: {r.valid}/{summary.configs} valid configurations, "
+            f"bound at the end: {r.bound_end_fraction:.1%}" for name, r in summary.runs.items()] + [speed]

@@ -236,8 +236,8 @@ def test_a_dart_scan_on_dask_writes_the_local_store(tmp_path):
     dask = run_scan(cfg, tmp_path / "dask.h5", executor=DaskExecutor(workers=1, shard_size=2))
     assert_same_store(tmp_path / "local.h5", tmp_path / "dask.h5")
     # steps are DART's: a 0.8 s period is 8000 steps of 0.1 ms (1600 of the scene's 0.5 ms)
-    valid = sum(r["valid"] for r in local["runs"].values())
-    assert local["steps"] == dask["steps"] == valid * 8000
+    valid = sum(r.valid for r in local.runs.values())
+    assert local.steps == dask.steps == valid * 8000
 
 
 def _head_on(v: float = 0.1):
