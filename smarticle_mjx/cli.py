@@ -184,8 +184,8 @@ def simulate(
     from .replay import simulate_track
     r = simulate_track(out, scene, config, gait_spec, periods, track_stride, backend, overwrite, model,
                        overrides=_sets(set_))
-    typer.echo(f"{r['robots']} robots, {periods} periods of {r['period_s']:.3g} s; pairs touched in "
-               f"{r['touched_periods']}/{periods} periods; wrote {', '.join(map(str, r['written']))}")
+    typer.echo(f"{r.robots} robots, {periods} periods of {r.period_s:.3g} s; pairs touched in "
+               f"{r.touched_periods}/{periods} periods; wrote {', '.join(map(str, r.written))}")
 
 
 @_command()
@@ -412,8 +412,8 @@ def movie(
         typer.echo("warning: the re-simulation differs from the stored records "
                    "(another package or MuJoCo version made the store)", err=True)
     info = render(t, poses, robot, period, out, opts, title=title)
-    typer.echo(f"wrote {info['path']} ({info['format']}, {info['frames']} frames at {info['fps']:g} fps, "
-               f"{info['size'][0]}x{info['size'][1]})")
+    typer.echo(f"wrote {info.path} ({info.format}, {info.frames} frames at {info.fps:g} fps, "
+               f"{info.size[0]}x{info.size[1]})")
 
 
 @_command("synth")

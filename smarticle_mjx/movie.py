@@ -26,6 +26,17 @@ COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e
 
 
 @dataclasses.dataclass(frozen=True)
+class Movie:
+    """A rendered movie: its path, format ("mp4" or "gif"), frames, frame rate and size (pixels)."""
+
+    path: pathlib.Path
+    format: str
+    frames: int
+    fps: float
+    size: tuple[int, int]
+
+
+@dataclasses.dataclass(frozen=True)
 class MovieOptions:
     """How time maps to frames.
 
@@ -211,5 +222,4 @@ def render(t, poses, robot: RobotParams, period_s: float, out, opts: MovieOption
         plt.close(fig)
         if tmp.exists():
             tmp.unlink()
-    return {"path": out, "format": fmt, "frames": len(times), "size": (opts.size_px, opts.size_px),
-            "fps": opts.fps}
+    return Movie(out, fmt, len(times), opts.fps, (opts.size_px, opts.size_px))

@@ -52,13 +52,25 @@ def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 
     return t, track, res, params, inputs.gait, rows
 
 
+@dataclasses.dataclass(frozen=True)
+class SimulatedTrack:
+    """What ``smx simulate`` wrote: robots, periods, the gait period (s), the files, and in how many periods
+    some pair touched."""
+
+    robots: int
+    periods: int
+    period_s: float
+    written: tuple
+    touched_periods: int
+
+
 def simulate_track(out, scene: str = "pair", config: str | None = None, gait=None, periods: int = 10,
                    track_stride: int = 20, backend: str = "native", overwrite: bool = False,
                    model: str | None = None, overrides=()) -> dict:
     """Simulate one scene (a standard scene, or a pair started at ``config`` = '|r|,theta,phi' in W and
     degrees) and write its track to ``out`` (.csv with a .json sidecar, or .h5). Every input is checked
     before anything is simulated. ``overrides``: single fields of the preset changed (``--set``), recorded
-    in the sidecar. Returns robots, periods, the period, touched periods, files written."""
+    in the sidecar. Returns the :class:`SimulatedTrack`."""
     from . import configs, presets, scene as scene_mod, tracks
     from .engine import StudyEngine
     from .engine.simulate import simulate
@@ -89,8 +101,8 @@ def simulate_track(out, scene: str = "pair", config: str | None = None, gait=Non
                           overrides=overrides)
     written = tracks.write_track(out, [0.0, *res.track_t], [res.poses[0], *res.track], meta,
                                  records={"touched": res.touched, "poses": res.poses, "min_dist": res.min_dist})
-    return {"robots": len(poses), "periods": periods, "period_s": res.period, "written": written,
-            "touched_periods": int(res.touched.any(1).sum()) if res.touched.size else 0}
+    return SimulatedTrack(len(poses), periods, res.period, tuple(written),
+                          int(res.touched.any(1).sum()) if res.touched.size else 0)
 
 
 def lane_track(store_path, run: str | None, lane: int | None, frame_interval: float) -> tuple:

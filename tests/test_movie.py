@@ -24,10 +24,10 @@ def test_frame_count_and_size_follow_the_options(tmp_path):
     opts = MovieOptions(fps=10, speed=4, size_px=200)
     assert len(frame_times(t, opts)) == 9
     info = render(t, poses, ROBOT, 1.6, tmp_path / "m.gif", opts)
-    im = Image.open(info["path"])
-    assert info["frames"] == 9 and im.n_frames == 9 and im.size == (200, 200)
+    im = Image.open(info.path)
+    assert info.frames == 9 and im.n_frames == 9 and im.size == (200, 200)
     short = render(t, poses, ROBOT, 1.6, tmp_path / "s.gif", MovieOptions(fps=10, speed=4, size_px=200, duration=0.4))
-    assert short["frames"] == 5
+    assert short.frames == 5
 
 
 def test_mp4_through_the_packaged_ffmpeg(tmp_path):
@@ -36,7 +36,7 @@ def test_mp4_through_the_packaged_ffmpeg(tmp_path):
     poses = np.zeros((81, 1, 5))
     poses[:, 0, 2] = t
     info = render(t, poses, ROBOT, 1.6, tmp_path / "m.mp4", MovieOptions(fps=10, speed=2, size_px=128))
-    assert info["format"] == "mp4" and (tmp_path / "m.mp4").read_bytes()[4:8] == b"ftyp"
+    assert info.format == "mp4" and (tmp_path / "m.mp4").read_bytes()[4:8] == b"ftyp"
 
 
 @pytest.fixture(scope="module")
