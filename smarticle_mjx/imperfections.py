@@ -103,11 +103,20 @@ _CLOCK = ("gait period per robot x (1 + e), e ~ U(-0.5 %, 0.5 %)",
 _PHASE = ("gait start per robot and trial ~ N(0, 0.02) periods (32 ms at 90 deg)",
           "chosen: robots started by one command within a 20 ms servo frame or two")
 
+_RESYNC = ("no clock drift between cycles: every robot is re-started each gait cycle and keeps its start offset",
+           "the lab firmware re-triggers every robot each gait cycle on an external (microphone) interrupt "
+           "(wsavoie/ArduinoSmarticle, regularStates/interruptPhaseLocking); a clock 0.5 % off then moves its "
+           "last corner at most 8 ms (0.005 period) early or late within the cycle, which this set leaves out")
+
 SETS: dict[str, ImperfectionSet] = {s.name: s for s in (
     ImperfectionSet("none", "ideal robots with one clock (the paper's simulation added no noise)"),
     ImperfectionSet("lab", "every imperfection below, at its stated prior: the lab's robots as public sources "
                     "bound them", speed_sd=0.05, backlash_deg=(1.0, 2.0), com_sd_m=1e-3, clock_halfwidth=5e-3,
                     phase_sd=0.02, sources=(_SPEED, _BACKLASH, _COM, _CLOCK, _PHASE)),
+    ImperfectionSet("lab-resync", "the lab set with the firmware's per-cycle re-synchronisation: the same robots "
+                    "(servos, gears, centres of mass) and start offsets, clocks that do not walk apart",
+                    speed_sd=0.05, backlash_deg=(1.0, 2.0), com_sd_m=1e-3, phase_sd=0.02,
+                    sources=(_SPEED, _BACKLASH, _COM, _PHASE, _RESYNC)),
     ImperfectionSet("drivetrain", "each robot's own servos and gears (speed per arm and backlash), with one "
                     "shared clock and start: what the robot is, without how it is run", speed_sd=0.05,
                     backlash_deg=(1.0, 2.0), sources=(_SPEED, _BACKLASH)),

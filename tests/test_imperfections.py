@@ -272,3 +272,16 @@ def test_per_cycle_retrigger_draws_fresh_delays_and_survives_chunking(tmp_path):
     assert not np.array_equal(read_relax(plain).poses, stores[8].poses)  # the retrigger acts
     t, track, res, params, gait, rows = resimulate_trial(tmp_path / "r2.h5", 0, frame_interval=0.2)
     assert np.array_equal(res.poses[1:].astype(np.float32), rows["poses"])
+
+
+def test_lab_resync_is_the_lab_robots_without_drifting_clocks():
+    """The firmware's per-cycle re-synchronisation as a set: the same robots (servo speeds, gear play,
+    centres of mass) and the same per-trial start offsets as `lab` for a seed, every clock at the nominal
+    period, so a lab-resync run pairs with its lab run robot by robot and trial by trial."""
+    lab, resync = I.draw("lab", 7, 3), I.draw("lab-resync", 7, 3)
+    np.testing.assert_array_equal(resync.arm_speed, lab.arm_speed)
+    assert resync.quirks == lab.quirks and any(q.backlash_deg for q in lab.quirks)
+    assert (resync.clock == 1.0).all() and not (lab.clock == 1.0).all()
+    rows = np.arange(4)
+    np.testing.assert_array_equal(resync.lane_phase(rows), lab.lane_phase(rows))
+    assert np.std(lab.lane_phase(rows)) > 0.005
