@@ -38,7 +38,6 @@ NaN, the canonical quiet NaN (:func:`canonical`), whoever computed them::
 
 from __future__ import annotations
 
-import dataclasses
 import datetime
 import fcntl
 import json
@@ -52,6 +51,7 @@ import numpy as np
 from . import __version__
 from .labels import BAD_STATUS as _BAD_STATUS
 from .labels import CONTACT_KINDS, STATUS_MEANINGS
+from .records import RelaxRecord  # noqa: F401 (read_relax's result; defined where reducers may import it)
 
 # Status bits (engine.Status) that make a lane's records untrustworthy: non-finite
 # state, penetration, buffer overflow. Readers count them without importing the engine.
@@ -530,35 +530,6 @@ class Store:
 # stage-independent settings of a relaxation store: two stores with the same
 # values of everything else are stages of one study
 _STAGE_KEYS = ("trials", "first_trial", "batch_size", "backend")
-
-
-@dataclasses.dataclass(frozen=True)
-class RelaxRecord:
-    """What a relaxation study's stores hold (:func:`read_relax`), trials concatenated in trial order.
-    T trials, K periods, N robots, P = N (N - 1) / 2 pairs; lengths in m, angles in rad (docs/store.md)."""
-
-    start_poses: np.ndarray  # [T, N, 5] the perturbed compressed start (x, y, heading, alpha1, alpha2)
-    valid: np.ndarray  # [T] bool
-    status: np.ndarray  # [T] engine status bits (labels.BAD_STATUS: flagged)
-    periods_run: np.ndarray  # [T] periods simulated (< K when stopped early)
-    touched: np.ndarray  # [T, K, P] bool: the pair touched at least once in the period
-    min_dist: np.ndarray  # [T, K, P] deepest contact distance in the period (m), +inf if none
-    poses: np.ndarray  # [T, K, N, 5] every robot's pose at each period's end; NaN after an early stop
-    left_plate: np.ndarray  # [T, N] first period ending with the robot off the plate; 0: never
-    trial: np.ndarray  # [T] trial indices
-    settings: dict  # the first store's relax settings (RelaxConfig's JSON)
-    periods: int  # K
-    period_s: float
-    model: str
-    overrides: dict
-    body_length: float  # m
-    body_thickness: float  # m
-    paths: tuple[str, ...]
-
-    @property
-    def usable(self) -> np.ndarray:
-        """[T] bool: valid and not flagged by the engine (the trials every measure counts)."""
-        return np.asarray(self.valid, bool) & ((np.asarray(self.status) & BAD_STATUS) == 0)
 
 
 def read_relax(paths) -> RelaxRecord:

@@ -150,13 +150,13 @@ def pb_ev(p):
     n = np.full(len(amps), 200)
     pe = [(p[a], max(p[a] - 0.05, 0), p[a] + 0.05) for a in amps]
     from smarticle_mjx.reduce import binding
-    pooled = {}
-    for g, sel in K.pb_groups(amps).items():
+    pooled = []
+    for sel in K.pb_groups(amps):
         k = int(sum(round(p[a] * 200) for a in amps[sel]))
         lo, hi = binding.binomial_interval(k, 200 * int(sel.sum()))
         nn = 200 * int(sel.sum())
-        pooled[g] = I.Pooled(k / nn if nn else np.nan, lo, hi, nn)
-    return I.BindingVsAmplitude(amps, np.asarray(pe, float), n, pooled, periods=30)
+        pooled.append(I.Pooled(k / nn if nn else np.nan, lo, hi, nn))
+    return I.BindingVsAmplitude(amps, np.asarray(pe, float), n, I.PbBands(*pooled), periods=30)
 
 
 def test_the_binding_probability_dips_at_intermediate_amplitudes():

@@ -34,15 +34,12 @@ Definitions (stated before any number is known):
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .. import configs as C
+from ..records import RelaxRecord
 from . import binding
-
-if TYPE_CHECKING:  # the record's type only; reducers take its arrays, never the store
-    from ..store import RelaxRecord
 
 C1, C2 = "C1", "C2"
 
@@ -184,7 +181,7 @@ def relaxation_time(touched, periods_run=None) -> tuple[int, bool]:
     return last, last == k
 
 
-def analyse(data: "RelaxRecord", min_periods: int = 100, apart_W: float = 2.0, min_episode: int = 2,
+def analyse(data: RelaxRecord, min_periods: int = 100, apart_W: float = 2.0, min_episode: int = 2,
             level: float = 0.95) -> "RelaxAnalysis":
     """The relaxation study's numbers (:class:`RelaxAnalysis`) from :func:`smarticle_mjx.store.read_relax` output.
 
@@ -870,7 +867,7 @@ def pair_run_summary(per_trial: list[tuple[PairRun, ...]]) -> PairRunSummary:
                           Spread.of(esc), causes)
 
 
-def crowd_pairs(data: "RelaxRecord", min_periods: int = PAIR_RUN_MIN) -> tuple[PairRunSummary, list[tuple[PairRun, ...]]]:
+def crowd_pairs(data: RelaxRecord, min_periods: int = PAIR_RUN_MIN) -> tuple[PairRunSummary, list[tuple[PairRun, ...]]]:
     """:func:`pair_runs` of every usable trial of :func:`smarticle_mjx.store.read_relax` output (the trials
     :func:`crowd` measures), and their summary."""
     W = float(data.body_length)
@@ -879,7 +876,7 @@ def crowd_pairs(data: "RelaxRecord", min_periods: int = PAIR_RUN_MIN) -> tuple[P
     return pair_run_summary(per), per
 
 
-def crowd(data: "RelaxRecord") -> tuple[CrowdSummary, list[CrowdTrial]]:
+def crowd(data: RelaxRecord) -> tuple[CrowdSummary, list[CrowdTrial]]:
     """The crowd measures of every usable trial of :func:`smarticle_mjx.store.read_relax` output
     (the trials :func:`analyse` counts: valid, no bad status)."""
     W, D = float(data.body_length), float(data.body_thickness)

@@ -19,7 +19,7 @@ import numpy as np
 from .. import formatting
 from ..reduce import binding, gliders as GL
 from ..reduce.relaxation import CrowdSummary
-from .inputs import BindingVsAmplitude, Descent, Diagonal, LoneDrift, Mirror, Polar, Relaxation
+from .inputs import PB_BANDS, BindingVsAmplitude, Descent, Diagonal, LoneDrift, Mirror, Polar, Relaxation
 
 VERDICTS = {True: "holds", False: "does not hold", None: "not measurable"}
 
@@ -364,11 +364,10 @@ def descent(ev: Descent) -> Outcome:
 
 # ----------------------------------------------------------- P_b vs amplitude
 
-PB_GROUPS = {"10–30°": (0, 30), "40–60°": (40, 60), "70–90°": (70, 180)}
-
-
-def pb_groups(amps: np.ndarray) -> dict[str, np.ndarray]:
-    return {g: (amps >= lo) & (amps <= hi) for g, (lo, hi) in PB_GROUPS.items()}
+def pb_groups(amps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Masks of ``amps`` in the low, intermediate and high bands (:data:`.inputs.PB_BANDS`)."""
+    amps = np.asarray(amps)
+    return tuple((amps >= lo) & (amps <= hi) for _, lo, hi in PB_BANDS)
 
 
 @claim("pb_dip", "P_b(α_max) is lower at intermediate amplitudes (40–60°)", "Fig. 3B",
@@ -379,12 +378,11 @@ def pb_dip(ev: BindingVsAmplitude) -> Outcome:
     pooled (:class:`.inputs.BindingVsAmplitude`)."""
     amps, pe, n, pooled = np.asarray(ev.amplitudes_deg), np.asarray(ev.pb_end, float), np.asarray(ev.valid), \
         ev.pooled
-    groups = pb_groups(amps)
+    low, mid, high = pb_groups(amps)
     ok = None
-    if all(sel.any() for sel in groups.values()):
-        mid, low, high = groups["40–60°"], groups["10–30°"], groups["70–90°"]
+    if low.any() and mid.any() and high.any():
         below_means = bool(pe[mid, 0].max() < pe[low, 0].mean() and pe[mid, 0].max() < pe[high, 0].mean())
-        separated = pooled["40–60°"].hi < min(pooled["10–30°"].lo, pooled["70–90°"].lo)
+        separated = pooled.mid.hi < min(pooled.low.lo, pooled.high.lo)
         ok = bool(below_means and separated)
     half = np.nanmax((pe[:, 2] - pe[:, 1]) / 2) if len(pe) else np.nan
     return Outcome(ok,

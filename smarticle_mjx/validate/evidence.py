@@ -21,8 +21,8 @@ from ..reduce import analysis
 from ..report import amplitude_panels, analyse_store_run, pb_rows
 from ..store import Store
 from .claims import CLAIMS, pb_groups
-from .inputs import (BindingVsAmplitude, Descent, Diagonal, LoneDrift, LoneTracks, Mirror, Polar, Pooled, Relaxation,
-                     SteadyR, Turn)
+from .inputs import (BindingVsAmplitude, Descent, Diagonal, LoneDrift, LoneTracks, Mirror, PbBands, Polar, Pooled,
+                     Relaxation, SteadyR, Turn)
 
 
 def circ_mean_deg(a) -> float:
@@ -107,13 +107,13 @@ def pb(runs: list[analysis.RunAnalysis]) -> BindingVsAmplitude:
     amps = np.array([a.amplitude_deg for a in runs])
     n = np.array([a.binding.end.n for a in runs])
     k = np.array([int(round(a.binding.end.value * a.binding.end.n)) if a.binding.end.n else 0 for a in runs])
-    pooled = {}
-    for g, sel in pb_groups(amps).items():
+    pooled = []
+    for sel in pb_groups(amps):
         kk, nn = int(k[sel].sum()), int(n[sel].sum())
         lo, hi = binding.binomial_interval(kk, nn)
-        pooled[g] = Pooled(kk / nn if nn else np.nan, float(lo), float(hi), nn)
+        pooled.append(Pooled(kk / nn if nn else np.nan, float(lo), float(hi), nn))
     return BindingVsAmplitude(amps, np.array([[a.binding.end.value, a.binding.end.lo, a.binding.end.hi]
-                                              for a in runs], float), n, pooled, runs[0].periods, tuple(runs))
+                                              for a in runs], float), n, PbBands(*pooled), runs[0].periods, tuple(runs))
 
 
 def relax(paths: list, figures: pathlib.Path, made: list) -> tuple[Relaxation, dict]:

@@ -127,6 +127,23 @@ class Pooled:
     n: int
 
 
+# the pb_dip claim's amplitude bands: (label, lowest, highest amplitude in deg)
+PB_BANDS = (("10–30°", 0.0, 30.0), ("40–60°", 40.0, 60.0), ("70–90°", 70.0, 180.0))
+
+
+@dataclasses.dataclass(frozen=True)
+class PbBands:
+    """P_b at the end pooled over each of :data:`PB_BANDS`: the low, intermediate and high amplitudes."""
+
+    low: Pooled
+    mid: Pooled
+    high: Pooled
+
+    def items(self):
+        """(label, Pooled) in the bands' order, for a page."""
+        return zip((label for label, _, _ in PB_BANDS), (self.low, self.mid, self.high))
+
+
 @dataclasses.dataclass(frozen=True)
 class BindingVsAmplitude:
     """P_b at the end per amplitude ([A, 3]: value, exact 95 % interval), valid starts per amplitude, the
@@ -135,7 +152,7 @@ class BindingVsAmplitude:
     amplitudes_deg: np.ndarray
     pb_end: np.ndarray
     valid: np.ndarray
-    pooled: dict[str, Pooled]
+    pooled: PbBands
     periods: int
     runs: tuple = ()
 
