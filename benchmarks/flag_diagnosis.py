@@ -193,6 +193,12 @@ PROBES = {  # name -> (imperfection set, phase_jitter in periods, scene override
     # which props it; mu as the body's on the plate (0.37).
     "backlash + phase 0.02, arms meet the plate": ("backlash", 0.02, {"arm_plate_friction": 0.37}, None),
     "lab, arms meet the plate": ("lab", 0.0, {"arm_plate_friction": 0.37}, None),
+    # The squeeze that turned a robot over pressed at the servos' stall torque (0.078 N m, the HD-1440A's
+    # rating at 4.8 V). The lab ran it on a 1S LiPo (3.7 V), and a DC motor's stall torque scales with its
+    # voltage: about 0.06 N m; DART's SERVO bound in the paper's model is 0.03 N m. Added after the rows
+    # above still tipped, before it ran.
+    "lab, stall torque 0.06 N m (3.7 V)": ("lab", 0.0, {"robot.servo_torque": 0.06}, None),
+    "lab, stall torque 0.03 N m (DART's bound)": ("lab", 0.0, {"robot.servo_torque": 0.03}, None),
 }
 
 
