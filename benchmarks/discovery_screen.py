@@ -67,7 +67,7 @@ def measure(data: dict, seed: int = 0) -> dict:
     deg = [t.chain_degrees() for t in trials]
     contact = [[t.contact_relaxation[0]] for t in trials]
     moved = []
-    for i in np.flatnonzero((np.asarray(data.status) & int(BAD_STATUS)) == 0):
+    for i in np.flatnonzero(data.usable):
         k = int(data.periods_run[i])
         d = np.linalg.norm(data.poses[i][k - 1, :, :2] - data.start_poses[i][:, :2], axis=1)
         moved.append([float(d.mean() / data.body_length)])

@@ -66,7 +66,7 @@ class SimulatedTrack:
 
 def simulate_track(out, scene: str = "pair", config: str | None = None, gait=None, periods: int = 10,
                    track_stride: int = 20, backend: str = "native", overwrite: bool = False,
-                   model: str | None = None, overrides=()) -> dict:
+                   model: str | None = None, overrides=()) -> "SimulatedTrack":
     """Simulate one scene (a standard scene, or a pair started at ``config`` = '|r|,theta,phi' in W and
     degrees) and write its track to ``out`` (.csv with a .json sidecar, or .h5). Every input is checked
     before anything is simulated. ``overrides``: single fields of the preset changed (``--set``), recorded

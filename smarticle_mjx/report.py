@@ -15,6 +15,7 @@ import numpy as np
 
 from . import formatting, plots, presets
 from .reduce import analysis, binding, stepcheck
+from .records import RelaxRecord
 from .scene import SceneParams
 from .store import Store
 
@@ -321,7 +322,7 @@ def lab_relax_fraction() -> tuple[float, tuple[float, float]]:
     return LAB_RELAX["emerged"] / LAB_RELAX["trials"], (float(lo), float(hi))
 
 
-def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0, crowd=None, analysis=None) -> dict:
+def relax_summary(data: RelaxRecord, min_periods: int = 100, apart_W: float = 2.0, crowd=None, analysis=None) -> dict:
     """The relaxation study's numbers (``analysis``: reduce.relaxation.analyse's, computed when None) and
     its crowd's (``crowd``: a ``CrowdSummary``, computed when None) beside the lab's, as the report's
     JSON records them."""
@@ -340,7 +341,7 @@ def relax_summary(data: dict, min_periods: int = 100, apart_W: float = 2.0, crow
     return a
 
 
-def trial_figure(data: dict, a, out: pathlib.Path) -> list[str]:
+def trial_figure(data: RelaxRecord, a, out: pathlib.Path) -> list[str]:
     """Tracks of the trial with the longest glider (else the first trial); ``a``: the study's
     ``reduce.relaxation.RelaxAnalysis``."""
     from .reduce import relaxation as RX

@@ -35,8 +35,11 @@ class Timing:
 
     steps: int
     wall_s: float
-    steps_per_s: float
     backend_s: float | None
+
+    @property
+    def steps_per_s(self) -> float:
+        return self.steps / max(self.wall_s, 1e-9)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -143,4 +146,4 @@ def write_rows(job: RowJob, out, prep: Prepared, runs: dict[str, dict], rows: in
         ran = (executor or local).run(job, todo, on_rows)
         w.finalize()
     wall = time.perf_counter() - t0
-    return Timing(summary["steps"], wall, summary["steps"] / max(wall, 1e-9), ran.get("backend_s"))
+    return Timing(summary["steps"], wall, ran.get("backend_s"))
