@@ -19,6 +19,9 @@ app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Batched simulation of smarticles and the gliders they form.")
 
 _MODEL_HELP = "model preset (smx models --list; default: the default preset, docs/model.md)"
+_DRAWS_HELP = ("pairs of robots drawn with the imperfections: lane i runs pair i mod K, so a result is one "
+               "of the robots' population, not of one pair")
+_ROBOT_SEED_HELP = "seed of the robots drawn (default: --seed); two scans with the same one run the same robots"
 _IMPERFECTIONS_HELP = ("the robots' imperfections, drawn per robot from the seed (smx models --list; "
                        "default none: ideal robots)")
 _CONFIGS_HELP = "random (uniform |r|, theta, phi) or polar (fixed |r| grid)"
@@ -228,6 +231,8 @@ def scan(
     collisions: bool = typer.Option(False, help="store the per-period collision record (native and dart backends)"),
     collision_bins: int = typer.Option(16, help="collision record: bins per gait period"),
     imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP),
+    robot_draws: int = typer.Option(1, help=_DRAWS_HELP),
+    robot_seed: Optional[int] = typer.Option(None, help=_ROBOT_SEED_HELP),
     set_: list[str] = typer.Option([], "--set", help=_SET_HELP),
     executor=None, gait_spec=None, store=None,
 ):
@@ -238,7 +243,8 @@ def scan(
                      chirality=gait_spec.chirality, gait=gait_spec.kind, period_s=gait_spec.period_s,
                      backend=backend, seed=seed, batch_size=batch_size,
                      model=_model(model), collisions=collisions, collision_bins=collision_bins,
-                     imperfections=imperfections, overrides=_sets(set_))
+                     imperfections=imperfections, overrides=_sets(set_), robot_draws=robot_draws,
+                     robot_seed=robot_seed)
     _run_study(cfg, out, store, executor, flush_rows=flush_rows)
 
 
@@ -301,13 +307,16 @@ def sweep_amplitude(
     model: Optional[str] = typer.Option(None, help="model preset (default: the study file's, else the default preset)"),
     imperfections: Optional[str] = typer.Option(None, help="the robots' imperfections (default: the study "
                                                 "file's, else none)"),
+    robot_draws: Optional[int] = typer.Option(None, help=_DRAWS_HELP + " (default: the study file's, else 1)"),
+    robot_seed: Optional[int] = typer.Option(None, help=_ROBOT_SEED_HELP),
     set_: list[str] = typer.Option([], "--set", help=_SET_HELP + " (on top of the study file's [scene])"),
     executor=None, store=None,
 ):
     """The same scan over several amplitudes, one store, one group per amplitude."""
     from .studyfile import sweep_config
     cfg = sweep_config(study, amplitudes, configs=configs, n=n, periods=periods, backend=backend, seed=seed,
-                       model=model, imperfections=imperfections, sets=set_)
+                       model=model, imperfections=imperfections, sets=set_, robot_draws=robot_draws,
+                       robot_seed=robot_seed)
     _run_study(cfg, out, store, executor, flush_rows=flush_rows)
 
 

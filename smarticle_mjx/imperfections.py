@@ -18,6 +18,10 @@ draws and from which priors:
 Robot draws depend on the study's seed and the robot's index only (robot 0
 of a seed is the same robot in every scan, lane and trial, as the lab
 reused its robots); phase jitter depends on the seed and the lane or trial.
+A scan may run several pairs of robots (``robot_draws`` K: lane i runs pair
+i mod K, robots 2k and 2k + 1 of the pool drawn from ``robot_seed``), so
+that a claim measured over its lanes is one of the robots' population, not
+of one pair; two studies with the same robot seed and K run the same pairs.
 Every store records the set's name, its seed and the values drawn.
 
 The paper's simulation added no noise (``none``). ``--imperfections NAME``
@@ -154,8 +158,18 @@ class Draw:
 
     def robot(self, i: int) -> "Draw":
         """Robot ``i`` alone: a one-robot draw (a lone robot on the plate)."""
-        return dataclasses.replace(self, arm_speed=self.arm_speed[i:i + 1], clock=self.clock[i:i + 1],
-                                   quirks=self.quirks[i:i + 1])
+        return self._robots(i, i + 1)
+
+    def pair(self, k: int) -> "Draw":
+        """Robots ``2k`` and ``2k + 1``: the ``k``-th pair of a pool drawn for several pairs (a scan whose
+        lanes run ``robot_draws`` different pairs of robots). Pair 0 of a two-robot draw is the draw itself."""
+        if not 0 <= 2 * k + 1 < len(self.clock):
+            raise ValueError(f"pair {k} is not in a draw of {len(self.clock)} robots")
+        return self._robots(2 * k, 2 * k + 2)
+
+    def _robots(self, lo: int, hi: int) -> "Draw":
+        return dataclasses.replace(self, arm_speed=self.arm_speed[lo:hi], clock=self.clock[lo:hi],
+                                   quirks=self.quirks[lo:hi])
 
     def scene(self, params: SceneParams) -> SceneParams:
         """``params`` with these robots' scene-level quirks (unchanged for a set without any)."""

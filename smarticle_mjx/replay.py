@@ -44,8 +44,10 @@ def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 
     inputs = RunInputs.of(config, params, float(st.run_attrs[run]["amplitude_deg"]))
     if frame_interval is not None:
         track_stride = max(1, int(round(frame_interval / params.timestep)))
+    robots = config.robots(int(config.lane_draw([lane])[0]))  # the lane's robot pair
+    params = robots.scene(params)
     res = simulate(params, inputs.poses[lane], inputs.gait, int(config.periods), track_stride=track_stride,
-                   imperfections=config.robots(), row=lane)
+                   imperfections=robots, row=lane)
     # the track starts after its first stride: put the start in front
     t = np.concatenate([[0.0], res.track_t])
     track = np.concatenate([inputs.poses[lane][None], res.track], 0)

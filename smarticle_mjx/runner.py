@@ -85,10 +85,11 @@ def prepare(config, kind: str, params: SceneParams | None, executor: Executor | 
     model = config.model if params is None else "custom"
     params = config.scene_params() if params is None else params
     config.validate(params)
-    robots = config.robots()
-    params = robots.scene(params)  # the drawn robots' backlash and centres of mass, recorded with the scene
+    # the drawn robots' backlash and centres of mass, recorded with the scene (a scan of several robot
+    # pairs records its first pair's there and every pair's in the drawn imperfections)
+    params = config.robots().scene(params)
     params.validate()
-    header = store_header(config, kind, model, params, robots)
+    header = store_header(config, kind, model, params, config.robot_pool())
     where = executor.describe() if executor is not None else None
     if where is not None:
         header["executor"] = where
@@ -105,6 +106,8 @@ def store_header(config, kind: str, model: str, params: SceneParams, robots) -> 
         header["overrides"] = overrides_json(config.overrides)
     if not robots.set.ideal:
         header["imperfections"] = robots.to_json()
+        if getattr(config, "robot_draws", 1) > 1:
+            header["imperfections"]["pairs"] = int(config.robot_draws)
     return header
 
 

@@ -72,27 +72,69 @@ class ScanJob:
     amplitudes: dict  # run name -> amplitude (deg)
 
     def backend_key(self, nthread: int | None) -> tuple:
-        return (repr(self.params), self.config.backend, self.config.collisions, nthread)
+        return (repr(self.params), self.config.backend, self.config.collisions, nthread,
+                self.config.robot_draws, self.config.robot_seed)
+
+    def pair_params(self, k: int) -> SceneParams:
+        """The scene of robot pair ``k`` (its gear play and centres of mass; pair 0's is ``params``)."""
+        return self.config.robots(k).scene(self.params)
 
     def open_backend(self, nthread: int | None = None):
-        return open_backend(self.config.backend, self.params, 2, collisions=self.config.collisions, nthread=nthread,
+        if self.config.robot_draws == 1:
+            return self._open(self.params, nthread)
+        return PairBackends(self, nthread)
+
+    def _open(self, params: SceneParams, nthread: int | None):
+        return open_backend(self.config.backend, params, 2, collisions=self.config.collisions, nthread=nthread,
                             **self.config.backend_options())
 
     def rows(self, backend, run: str, lo: int, hi: int, on_rows: Callable[[np.ndarray, dict], None]) -> dict:
         """Simulate rows ``lo .. hi-1`` of ``run``; ``on_rows(rows index, rows)`` as lanes finish (any order).
-        Returns the engine's summary (``run_lanes``: lane-periods run, seconds inside the backend)."""
+        Returns the engine's summary (``run_lanes``: lane-periods run, seconds inside the backend; summed
+        over the robot pairs of a scan that draws several, each pair's lanes run on its own scene)."""
         config = self.config
         inputs = RunInputs.of(config, self.params, self.amplitudes[run])
         record = Record(collisions=config.collisions, collision_bins=config.collision_bins)
-        lanes = config.robots().lanes(Lanes.from_gait(inputs.poses[lo:hi], inputs.gait), np.arange(lo, hi))
+        idx_all = np.arange(lo, hi)
+        draws = config.lane_draw(idx_all)
+        total: dict = {}
+        for k in np.unique(draws):
+            idx = idx_all[draws == k]
+            lanes = config.robots(int(k)).lanes(Lanes.from_gait(inputs.poses[idx], inputs.gait), idx)
 
-        def on_lanes(res):
-            idx = lo + res.index
-            on_rows(idx, _rows(inputs.cfg[idx], inputs.valid[idx], res, self.params.robot.body_length))
+            def on_lanes(res, idx=idx):
+                rows = idx[res.index]
+                on_rows(rows, _rows(inputs.cfg[rows], inputs.valid[rows], res, self.params.robot.body_length))
 
-        return run_lanes(backend, lanes, config.periods, batch_size=config.batch_size,
-                         chunk_periods=config.chunk_periods, rule=RetireRule(quiet_periods=config.quiet_periods),
-                         valid=inputs.valid[lo:hi], on_lanes=on_lanes, record=record)
+            b = backend if config.robot_draws == 1 else backend.get(int(k))
+            ran = run_lanes(b, lanes, config.periods, batch_size=config.batch_size,
+                            chunk_periods=config.chunk_periods, rule=RetireRule(quiet_periods=config.quiet_periods),
+                            valid=inputs.valid[idx], on_lanes=on_lanes, record=record)
+            for key, v in ran.items():
+                total[key] = total.get(key, 0) + v
+        return total
+
+
+class PairBackends:
+    """The backends of a scan that runs several robot pairs: one per distinct scene (pairs whose drawn
+    robots change no scene field, only servo speeds, clocks and phases, share one), opened when first
+    asked for and closed together."""
+
+    def __init__(self, job: ScanJob, nthread: int | None):
+        self.job, self.nthread = job, nthread
+        self._open: dict[str, object] = {}
+
+    def get(self, k: int):
+        params = self.job.pair_params(k)
+        key = repr(params)
+        if key not in self._open:
+            self._open[key] = self.job._open(params, self.nthread)
+        return self._open[key]
+
+    def close(self) -> None:
+        for b in self._open.values():
+            b.close()
+        self._open.clear()
 
 
 def run_scan(config: ScanConfig, out, mode: str = "new", params: SceneParams | None = None,

@@ -59,19 +59,38 @@ class ScanConfig:
     initial: tuple[tuple[float, float, float], ...] | None = None  # configs = "explicit"
     # backend "dart": (time step s, collision detector, LCP solver[, servo]); None: the DART twin's defaults
     dart_numerics: tuple | None = None
-    # the robots' imperfections (smarticle_mjx/imperfections.py), drawn from ``seed``
+    # the robots' imperfections (smarticle_mjx/imperfections.py), drawn from ``robot_seed`` (None: ``seed``)
     imperfections: str = "none"
     # single fields of the preset changed (``--set``, a study file's [scene]): sorted (field, value)
     overrides: tuple[tuple[str, object], ...] = ()
+    # pairs of robots drawn (K): lane i runs pair i mod K (robots 2k, 2k + 1 of the pool drawn from
+    # ``robot_seed``), or pair ``lane_draws[i]`` where given (pairs started as another study's gliders,
+    # on the robots that made them); meaningless for ideal robots, whose stores leave all three out
+    robot_draws: int = 1
+    robot_seed: int | None = None
+    lane_draws: tuple[int, ...] | None = None
 
     def scene_params(self) -> SceneParams:
         """The preset's parameters with the overrides (ValueError naming the known presets if unknown,
         or for a bad override)."""
         return presets.apply(presets.params(self.model), self.overrides)
 
-    def robots(self) -> imperfections.Draw:
-        """The pair's imperfections, drawn from the scan's seed (ValueError for an unknown set)."""
-        return imperfections.draw(self.imperfections, 2, self.seed)
+    def robot_pool(self) -> imperfections.Draw:
+        """Every robot the scan runs: ``2 robot_draws`` robots drawn from the robot seed (ValueError for an
+        unknown set). With one draw, the pair itself."""
+        seed = self.seed if self.robot_seed is None else self.robot_seed
+        return imperfections.draw(self.imperfections, 2 * self.robot_draws, seed)
+
+    def robots(self, k: int = 0) -> imperfections.Draw:
+        """Pair ``k`` of the pool (the pair of every lane when the scan draws one)."""
+        return self.robot_pool().pair(k)
+
+    def lane_draw(self, lanes) -> np.ndarray:
+        """The robot pair (0 .. robot_draws - 1) each of ``lanes`` runs."""
+        lanes = np.asarray(lanes, dtype=np.int64)
+        if self.lane_draws is not None:
+            return np.asarray(self.lane_draws, dtype=np.int64)[lanes]
+        return lanes % self.robot_draws
 
     def validate(self, params: SceneParams) -> None:
         imperfections.get(self.imperfections).check_backend(self.backend)
@@ -102,6 +121,14 @@ class ScanConfig:
             raise ValueError("amplitudes must be distinct")
         for a in self.amplitudes_deg:
             self.gait_spec(a).validate(params.robot.servo_speed, params.robot.arm_limit_deg)
+        if self.robot_draws < 1:
+            raise ValueError(f"robot draws must be >= 1, got {self.robot_draws}")
+        if self.lane_draws is not None:
+            d = np.asarray(self.lane_draws)
+            if self.configs != "explicit" or len(d) != len(self.initial_configs()):
+                raise ValueError("lane draws name one robot pair per explicit configuration")
+            if len(d) and (d.min() < 0 or d.max() >= self.robot_draws):
+                raise ValueError(f"lane draws must lie in 0 .. {self.robot_draws - 1}")
         self.engine().check(self.robots().scene(params), self.overrides, self.collisions)
         if self.batch_size <= 0 or self.chunk_periods <= 0 or self.quiet_periods < 0:
             raise ValueError("batch size and chunk periods must be positive, quiet periods >= 0")
@@ -139,6 +166,12 @@ class ScanConfig:
             d["initial"] = [[float(x) for x in c] for c in self.initial]
         if self.imperfections == "none":
             del d["imperfections"]  # nor do stores of ideal robots
+        if self.imperfections == "none" or self.robot_draws == 1:
+            del d["robot_draws"], d["lane_draws"]  # nor do stores of one pair of robots
+        else:
+            d["lane_draws"] = None if self.lane_draws is None else [int(x) for x in self.lane_draws]
+        if self.imperfections == "none" or self.robot_seed is None or self.robot_seed == self.seed:
+            del d["robot_seed"]
         _overrides_json(d, self.overrides)
         return self.engine().record(d)
 
@@ -199,6 +232,10 @@ class RelaxConfig:
 
     def robots(self) -> imperfections.Draw:
         return imperfections.draw(self.imperfections, self.n_robots, self.seed)
+
+    def robot_pool(self) -> imperfections.Draw:
+        """Every robot the study runs: the same ``n_robots`` in every trial."""
+        return self.robots()
 
     def gait_spec(self) -> GaitSpec:
         return GaitSpec(amplitude_deg=self.amplitude_deg, chirality=self.chirality, kind=self.gait,
@@ -358,6 +395,8 @@ def config_keywords(d: dict, spec=ScanConfig) -> dict:
             kw[k] = tuple(float(x) for x in kw[k])
     if kw.get("initial") is not None:
         kw["initial"] = tuple(tuple(float(x) for x in c) for c in kw["initial"])
+    if kw.get("lane_draws") is not None:
+        kw["lane_draws"] = tuple(int(x) for x in kw["lane_draws"])
     if kw.get("dart_numerics") is not None:
         kw["dart_numerics"] = tuple(kw["dart_numerics"])
     if "overrides" in kw:

@@ -29,7 +29,7 @@ from .reduce import analysis, gliders as GL
 from .runner import RelaxSummary, ScanSummary, store_header
 from .scan import run_scan
 from .scene import params_json
-from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, with_overrides
+from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, config_from_json, with_overrides
 from .scene import SceneParams
 from .store import PACKAGE, Store, journal_path
 
@@ -68,9 +68,8 @@ def _normalised(config: dict, want: dict, params: SceneParams, kind: str) -> dic
 def _recorded(cfg: ScanConfig | RelaxConfig) -> tuple[SceneParams, dict]:
     """The scene parameters (with the drawn robots' quirks) and the configuration a store of study
     ``cfg`` records, as run_scan and run_relax write them (runner.store_header)."""
-    robots = cfg.robots()
-    params = robots.scene(cfg.scene_params())
-    return params, json.loads(json.dumps(store_header(cfg, _kind(cfg), cfg.model, params, robots)))
+    params = cfg.robots().scene(cfg.scene_params())
+    return params, json.loads(json.dumps(store_header(cfg, _kind(cfg), cfg.model, params, cfg.robot_pool())))
 
 
 def stale_reason(cfg: ScanConfig | RelaxConfig, path: pathlib.Path) -> str | None:
@@ -137,13 +136,29 @@ def glider_starts(store: Store, kind: str, pairs: int) -> np.ndarray:
     """[P, 3] (|r|, theta, phi) at the end of the last period of the first
     ``pairs`` lanes (lane order) that end as steady ``kind`` gliders (the glider types alone:
     ``reduce.analysis.glider_types``, with the report's default options)."""
+    return _gliders(store, kind, pairs)[0]
+
+
+def _gliders(store: Store, kind: str, pairs: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`glider_starts` and the lanes they ended in."""
     a = store.analysis_arrays(store.runs[0])
     o = analysis.Options.for_periods(a["periods"])
     types = analysis.glider_types(a["rel"], a["touched"], a["valid"], o.burn_in, o.clusters)
     if types is None:
-        return np.zeros((0, 3))
+        return np.zeros((0, 3)), np.zeros(0, np.int64)
     lanes = np.flatnonzero(types.final == {"C1": GL.C1, "C2": GL.C2}[kind])[:pairs]
-    return a["rel"][lanes, -1].astype(np.float64)
+    return a["rel"][lanes, -1].astype(np.float64), lanes
+
+
+def _source_robots(source: Store, lanes: np.ndarray, imperfections: str) -> dict:
+    """Where the source study ran several robot pairs: the stage keywords that start each glider on the
+    pair that made it (the source's pool, one pair per start); else none (the study's own seed's pair)."""
+    src = config_from_json(source.config["scan"])
+    if imperfections == "none" or src.imperfections != imperfections or src.robot_draws == 1:
+        return {}
+    seed = src.seed if src.robot_seed is None else src.robot_seed
+    return {"robot_draws": src.robot_draws, "robot_seed": seed,
+            "lane_draws": tuple(int(x) for x in src.lane_draw(lanes))}
 
 
 def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.Path, model: str,
@@ -153,14 +168,16 @@ def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.
     store per amplitude, ``<stem>_aNNNN.h5`` (tenths of a degree). Stops
     early when no pair is left bound to carry on (continuation), or, with
     ``run=False``, at the first stage without a current complete store."""
-    starts = glider_starts(Store(source), bs.glider, bs.pairs)
+    starts, lanes = _gliders(Store(source), bs.glider, bs.pairs)
+    robots = _source_robots(Store(source), lanes, imperfections)
     paths = []
     for a in bs.amplitudes_deg:
         if len(starts) == 0:
             if notes is not None:
                 notes.append(f"{stem}: no {bs.glider} pair left bound before {a:g}°; later stages not run")
             break
-        cfg = with_overrides(bs.stage_config(a, starts, model, imperfections), overrides)
+        cfg = with_overrides(dataclasses.replace(bs.stage_config(a, starts, model, imperfections), **robots),
+                             overrides)
         # amplitude in tenths of a degree: descent_a0900.h5 is 90 deg
         path = ensure_scan(cfg, pathlib.Path(data) / f"{stem}_a{int(round(a * 10)):04d}.h5", on_progress, notes,
                            run=run)
@@ -172,6 +189,8 @@ def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.
             d = st.run(st.runs[0], fields=("touched", "rel", "valid"))
             keep = d["valid"] & d["touched"][:, -bs.keep_window:, 0].all(1)
             starts = d["rel"][keep, -1].astype(np.float64)
+            if robots:
+                robots["lane_draws"] = tuple(np.asarray(robots["lane_draws"])[keep].tolist())
     return paths
 
 

@@ -285,3 +285,112 @@ def test_lab_resync_is_the_lab_robots_without_drifting_clocks():
     rows = np.arange(4)
     np.testing.assert_array_equal(resync.lane_phase(rows), lab.lane_phase(rows))
     assert np.std(lab.lane_phase(rows)) > 0.005
+
+
+def _pair_of(pool: I.Draw, k: int) -> I.Draw:
+    """Robots 2k and 2k + 1 of ``pool``, sliced here rather than by ``Draw.pair``."""
+    return dataclasses.replace(pool, arm_speed=pool.arm_speed[2 * k:2 * k + 2], clock=pool.clock[2 * k:2 * k + 2],
+                               quirks=pool.quirks[2 * k:2 * k + 2])
+
+
+def test_a_scan_of_several_robot_pairs_runs_each_lane_on_its_own_pair(tmp_path):
+    """A scan that draws K pairs of robots runs lane i on robots 2k, 2k + 1 (k = i mod K) of the pool
+    drawn from its robot seed: each lane, simulated alone on those two robots (their gear play and
+    centres of mass in the scene, their servo speeds, clocks and start offsets in the gait), ends where the
+    scan put it, and on the other pair it ends elsewhere (so the test can tell the pairs apart)."""
+    from smarticle_mjx.engine.simulate import simulate
+    from smarticle_mjx.scan import RunInputs
+    cfg = ScanConfig(configs="polar", positions=6, orientations=1, periods=2, imperfections="lab", seed=5,
+                     robot_draws=2, robot_seed=11, batch_size=8)
+    out = tmp_path / "s.h5"
+    run_scan(cfg, out)
+    st = Store(out)
+    rec = st.config["imperfections"]
+    pool = I.draw("lab", 4, 11)
+    assert rec["seed"] == 11 and rec["pairs"] == 2 and rec["clock"] == pool.clock.tolist()
+    assert st.config["scan"]["robot_draws"] == 2 and st.config["scan"]["robot_seed"] == 11
+    rows = st.run(st.runs[0], fields=("valid", "poses"))
+    base = cfg.scene_params()
+    inputs = RunInputs.of(cfg, base, 90.0)
+    lanes = np.flatnonzero(rows["valid"])
+    assert {int(x) % 2 for x in lanes} == {0, 1}
+    for lane in lanes[:4]:
+        k = int(lane) % 2
+        own, other = _pair_of(pool, k), _pair_of(pool, 1 - k)
+        res = simulate(own.scene(base), inputs.poses[lane], inputs.gait, 2, imperfections=own, row=int(lane))
+        np.testing.assert_allclose(res.poses[1:], rows["poses"][lane], atol=1e-5)
+        res = simulate(other.scene(base), inputs.poses[lane], inputs.gait, 2, imperfections=other, row=int(lane))
+        assert np.abs(res.poses[-1, :, :2] - rows["poses"][lane][-1, :, :2]).max() > 1e-4
+        # and the lane's replay (smx movie, smx replay) finds the same pair
+        _, _, rep, params, _, _ = resimulate_lane(out, None, int(lane))
+        assert params.quirks == own.quirks
+        np.testing.assert_allclose(rep.poses[1:], rows["poses"][lane], atol=1e-5)
+
+
+def test_one_robot_draw_is_the_pair_scans_always_ran_and_two_chiralities_share_a_pool():
+    """K = 1 is robots 0 and 1 of the scan's seed, as before robot draws existed (stores unchanged: the
+    configuration leaves the new keys out); studies with the same robot seed and K run the same robots
+    whatever their own seeds and chiralities; ideal robots record no draws."""
+    one = ScanConfig(imperfections="lab", seed=5)
+    assert one.robots().to_json() == I.draw("lab", 2, 5).to_json()
+    assert not {"robot_draws", "robot_seed", "lane_draws"} & set(one.to_json())
+    ccw = ScanConfig(imperfections="lab", seed=0, robot_draws=10, robot_seed=0)
+    cw = ScanConfig(imperfections="lab", seed=3, robot_draws=10, robot_seed=0, chirality="cw")
+    assert ccw.robot_pool().to_json() == cw.robot_pool().to_json()
+    assert cw.robot_pool().to_json() != ScanConfig(imperfections="lab", seed=3, robot_draws=10).robot_pool().to_json()
+    assert ccw.lane_draw(np.arange(25)).tolist() == [i % 10 for i in range(25)]
+    assert set(ScanConfig(robot_draws=10, robot_seed=4).to_json()) == set(ScanConfig().to_json())
+
+
+def test_lane_draws_are_checked_and_survive_the_store_record():
+    """Explicit per-lane pairs (pairs started as another study's gliders, on the robots that made them):
+    one per configuration, each naming a drawn pair; read back from the stored configuration unchanged."""
+    from smarticle_mjx.specs import config_from_json
+    init = ((1.3, 0.5, 3.1), (1.4, 4.0, 0.1), (1.2, 2.0, 3.0))
+    cfg = ScanConfig(configs="explicit", initial=init, imperfections="lab", robot_draws=4, lane_draws=(3, 0, 3))
+    cfg.validate(cfg.scene_params())
+    assert cfg.lane_draw([0, 1, 2]).tolist() == [3, 0, 3]
+    assert config_from_json(json_round(cfg.to_json())) == cfg
+    for bad, msg in ((dict(lane_draws=(3, 0)), "one robot pair per explicit configuration"),
+                     (dict(lane_draws=(4, 0, 1)), "lane draws must lie in 0 .. 3"),
+                     (dict(robot_draws=0, lane_draws=None), "robot draws must be >= 1")):
+        with pytest.raises(ValueError, match=msg):
+            c = dataclasses.replace(cfg, **bad)
+            c.validate(c.scene_params())
+    with pytest.raises(ValueError, match="one robot pair per explicit configuration"):
+        c = ScanConfig(n=3, imperfections="lab", robot_draws=4, lane_draws=(0, 1, 2))
+        c.validate(c.scene_params())
+
+
+def json_round(d):
+    import json
+    return json.loads(json.dumps(d))
+
+
+def test_a_bad_robot_draw_count_is_one_line_exit_2_and_writes_nothing(tmp_path):
+    r = runner.invoke(app, ["scan", "--configs", "polar", "--positions", "2", "--periods", "1", "--imperfections",
+                            "lab", "--robot-draws", "0", "--out", str(tmp_path / "x.h5"), "--quiet"])
+    assert r.exit_code == 2, r.output
+    assert "robot draws must be >= 1" in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_pairs_started_from_another_studys_gliders_keep_the_robots_that_made_them(tmp_path):
+    """A started-bound study (descent, diagonal) whose source scan ran several robot pairs starts each
+    glider on the pair of the lane it came from: the stage's lane draws are the source lanes' pairs, from
+    the source's pool; with one pair, or ideal robots, nothing changes."""
+    from smarticle_mjx.studies import _source_robots
+    src = ScanConfig(configs="polar", positions=5, orientations=1, periods=1, imperfections="lab", seed=2,
+                     robot_draws=3, batch_size=8)
+    out = tmp_path / "src.h5"
+    run_scan(src, out)
+    got = _source_robots(Store(out), np.array([4, 0, 2]), "lab")
+    assert got == {"robot_draws": 3, "robot_seed": 2, "lane_draws": (1, 0, 2)}
+    stage = dataclasses.replace(ScanConfig(configs="explicit", initial=((1.3, 0.1, 3.0),) * 3, imperfections="lab"),
+                                **got)
+    assert stage.robot_pool().to_json() == src.robot_pool().to_json()
+    assert stage.robots(int(stage.lane_draw([0])[0])).to_json() == src.robots(1).to_json()
+    assert _source_robots(Store(out), np.array([4, 0]), "none") == {}
+    one = tmp_path / "one.h5"
+    run_scan(dataclasses.replace(src, robot_draws=1), one)
+    assert _source_robots(Store(one), np.array([4, 0]), "lab") == {}
