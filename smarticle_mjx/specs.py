@@ -86,8 +86,11 @@ class ScanConfig:
         return self.robot_pool().pair(k)
 
     def lane_draw(self, lanes) -> np.ndarray:
-        """The robot pair (0 .. robot_draws - 1) each of ``lanes`` runs."""
+        """The robot pair (0 .. robot_draws - 1) each of ``lanes`` runs (0 for ideal robots: every pair is
+        the same machine, so their lanes run together)."""
         lanes = np.asarray(lanes, dtype=np.int64)
+        if self.imperfections == "none":
+            return np.zeros_like(lanes)
         if self.lane_draws is not None:
             return np.asarray(self.lane_draws, dtype=np.int64)[lanes]
         return lanes % self.robot_draws

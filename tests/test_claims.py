@@ -126,6 +126,18 @@ def test_chirality_mirrors_gliders_when_turns_have_opposite_significant_signs_an
     assert verdict("mirror", mirror_ev((16, 13, 19, 79), (-12, -16, -8, 54), 355.0, 5.0)) == "holds"
 
 
+def test_the_mirror_row_says_which_drawn_robots_the_two_chiralities_ran():
+    """Drawn robots: the row says how many pairs and whether both chiralities ran the same ones (else the
+    comparison mixes chirality with the robots); ideal robots: nothing about robots."""
+    import dataclasses
+    ev = mirror_ev((16, 13, 19, 79), (-12, -16, -8, 54))
+    how = lambda e: K.get("mirror").row(e).note  # noqa: E731
+    assert "robot" not in how(ev)
+    assert "both on the same 10 drawn robot pairs" in how(dataclasses.replace(ev, robot_pairs=10))
+    assert "mixes chirality with the robots" in how(dataclasses.replace(ev, robot_pairs=1, same_robots=False))
+    assert dataclasses.replace(ev, robot_pairs=10).as_json()["robots"] == {"pairs": 10, "same": True}
+
+
 def descent_ev(r_by_amp):
     sep = tuple(I.SteadyR(a, r, r - 0.02, r + 0.02, pairs=20, started=32) for a, r in sorted(r_by_amp.items()))
     return I.Descent(sep, window=10, periods=15, continuation=False)

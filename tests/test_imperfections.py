@@ -394,3 +394,11 @@ def test_pairs_started_from_another_studys_gliders_keep_the_robots_that_made_the
     one = tmp_path / "one.h5"
     run_scan(dataclasses.replace(src, robot_draws=1), one)
     assert _source_robots(Store(one), np.array([4, 0]), "lab") == {}
+
+
+def test_ideal_robots_run_every_lane_together_whatever_the_draws():
+    """Ideal robots are one machine: a study file's robot draws change neither their lanes' grouping nor
+    their stores."""
+    cfg = ScanConfig(robot_draws=10, robot_seed=0, seed=3)
+    assert cfg.lane_draw(np.arange(30)).tolist() == [0] * 30
+    assert cfg.to_json() == ScanConfig(seed=3).to_json()

@@ -324,8 +324,21 @@ def mirror(ev: Mirror) -> Outcome:
                    f"cw {ci(m2, lo2, hi2)}°/period ({n2} gliders); C1 mean θ: ccw {f(th_ccw, '.0f')}°, "
                    f"cw mirrored (180° − θ) {f(mirrored, '.0f')}°",
                    f"Clockwise random study ({ev.cw_valid} valid starts, {ev.cw_periods} periods) against the "
-                   f"counter-clockwise one; gliders = bound runs ≥ {ev.cw_glider_min_periods} periods, one "
-                   "mean turn per glider; a mirror maps θ to 180° − θ and φ to −φ.")
+                   f"counter-clockwise one{_mirror_robots(ev)}; gliders = bound runs ≥ {ev.cw_glider_min_periods} "
+                   "periods, one mean turn per glider; a mirror maps θ to 180° − θ and φ to −φ.")
+
+
+def _mirror_robots(ev: Mirror) -> str:
+    """Which drawn robots the two chiralities ran (nothing for ideal robots)."""
+    if not ev.robot_pairs:
+        return ""
+    which = (f"{ev.robot_pairs} drawn robot pairs (lane i on pair i mod {ev.robot_pairs})" if ev.robot_pairs > 1
+             else "one drawn robot pair")
+    if not ev.same_robots:
+        return f", each on its own {which}: the comparison mixes chirality with the robots"
+    return (f", both on the same {which}" + (" (until November 2026 each chirality ran one pair of its own "
+                                             "seed, so the claim compared two robot pairs)" if ev.robot_pairs > 1
+                                             else ""))
 
 
 # ------------------------------------------------------- steady |r| vs amplitude

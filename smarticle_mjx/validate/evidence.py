@@ -264,6 +264,9 @@ def _diagonal(ctx: Context) -> Diagonal:
 def _mirror(ctx: Context) -> Mirror:
     sc = Store(ctx.stores["cw_90"])
     ev = mirror(ctx.get("random_90"), analyse_store_run(sc, sc.runs[0]))
+    cw, ccw = sc.config.get("imperfections"), Store(ctx.stores["random_90"]).config.get("imperfections")
+    if cw is not None:  # drawn robots: which, and whether the counter-clockwise study ran the same ones
+        ev = dataclasses.replace(ev, robot_pairs=int(cw.get("pairs", 1)), same_robots=cw == ccw)
     ctx.extra["mirror"] = ev.as_json()
     return ev
 

@@ -84,12 +84,16 @@ class Mirror:
     cw_valid: int
     cw_periods: int
     cw_glider_min_periods: int
+    # drawn robots: the pairs each study ran (0: ideal robots) and whether both ran the same ones
+    robot_pairs: int = 0
+    same_robots: bool = True
 
     def as_json(self) -> dict:
         return {"ccw": tuple(dataclasses.astuple(self.ccw)), "cw": tuple(dataclasses.astuple(self.cw)),
                 "c1_theta_ccw": self.c1_theta_ccw, "c1_theta_cw_mirrored": self.c1_theta_cw_mirrored,
                 "cw_summary": {"valid": self.cw_valid, "periods": self.cw_periods,
-                               "options": {"glider_min_periods": self.cw_glider_min_periods}}}
+                               "options": {"glider_min_periods": self.cw_glider_min_periods}},
+                **({"robots": {"pairs": self.robot_pairs, "same": self.same_robots}} if self.robot_pairs else {})}
 
 
 @dataclasses.dataclass(frozen=True)
