@@ -152,6 +152,34 @@ def test_the_page_writes_its_time_step_check_itself(tmp_path):
     assert "No reference-step check" in step_check(result, "lab-lag", {0.5}, tmp_path / "none.json")[0]
 
 
+def test_the_step_rule_gives_every_checked_claim_the_reference_verdict(tmp_path):
+    """A check that ran whole studies at the reference step (the lab page's: random_90 and cw_90) carries
+    the reference's verdict of every claim measured from them alone; the page takes the reference's
+    verdict wherever the two differ, names those rows, and counts the claims that hold with them. Claims
+    from other studies (and the lone robots, which no study holds) keep their verdicts. Built data: of
+    the five claims measured from random_90 and cw_90, β holds here and not at the reference, the mirror
+    the other way round, and C1's basin is the same at both."""
+    from smarticle_mjx.validate.claims import CLAIMS, ClaimRow, Validation
+    from smarticle_mjx.validate.page import step_check, step_check_path
+    here = {"lone_drift": "holds", "both_types": "holds", "c1_basin": "holds", "c1_lifetime": "holds",
+            "beta": "holds", "mirror": "does not hold", "relax_distance": "holds"}
+    rows = tuple(ClaimRow(c.text, "", "", "", here.get(c.key, "does not hold"), "") for c in CLAIMS)
+    result = Validation(rows, {"random_90": {"beta": {"value": 1.9501}}})
+    assert result.held == 6
+    path = _check_file(tmp_path, 1.95, 2.2)
+    got = json.loads(path.read_text())
+    got.update(studies=["random_90", "cw_90"], imperfections="lab",
+               reference_verdicts={"lone_drift": "does not hold", "both_types": "holds", "c1_basin": "holds",
+                                   "c1_lifetime": "holds", "beta": "does not hold", "mirror": "holds",
+                                   "relax_distance": "does not hold"})
+    path.write_text(json.dumps(got))
+    text = step_check(result, "lab-lag", {0.5}, path)[0]
+    assert "5 of 13" in text and "2 moved" in text and "**6 of 13 claims hold**" in text, text
+    assert "“gliders at 90° move nearly ballistically (β ≈ 1.8)” holds here, **does not hold** at the reference" in text
+    assert "**holds** at the reference" in text and "lone robot" not in text and "2.9" not in text
+    assert step_check_path("lab").name == "validation_step_lab.json" and step_check_path().name == "validation_step.json"
+
+
 def test_validate_with_imperfections_keeps_its_stores_apart_and_records_the_robots(tmp_path):
     """--imperfections lab runs the studies with drawn robots into DATA/MODEL+lab: the ideal model's
     stores are not touched, every store records the set and its draws, the lone-robot row is the mean

@@ -19,6 +19,12 @@ REPO = SWEEPS.parent
 STEP_CHECK = REPO / "benchmarks" / "results" / "validation_step.json"
 
 
+def step_check_path(imperfections: str = "none") -> pathlib.Path:
+    """The reference-step check of the page of ideal robots (``validation_step.json``) or of robots with
+    the imperfections ``imperfections`` (``validation_step_<set>.json``)."""
+    return STEP_CHECK if imperfections == "none" else STEP_CHECK.with_name(f"validation_step_{imperfections}.json")
+
+
 def study_line(name: str, paths) -> str:
     paths = paths if isinstance(paths, list) else [paths]
     st = Store(paths[0])
@@ -108,6 +114,8 @@ def step_check(result: Validation, model: str, step_ms: set, check: pathlib.Path
     h = here[0]
     fmt = lambda r: (f"β {r['beta'][0]:.2f} [{r['beta'][1]:.2f}, {r['beta'][2]:.2f}], net gliding speed "  # noqa: E731
                      f"{r['v_com_W_per_period'][0]:.4f} W/period ({r['gliders']} gliders)")
+    if got.get("reference_verdicts") is not None:
+        return [_verdict_rule(result, got, check, step, ref, fmt(h), fmt(ref))]
     at_ref, at_here = beta_holds(ref["beta"][0]), beta_holds(h["beta"][0])
     held = result.held
     held_ref = held - int(bool(at_here)) + int(bool(at_ref))
@@ -119,8 +127,35 @@ def step_check(result: Validation, model: str, step_ms: set, check: pathlib.Path
             f"With the reference's verdict, **{held_ref} of {len(rows)} claims hold**."]
 
 
+def _verdict_rule(result: Validation, got: dict, check: pathlib.Path, step: float, ref: dict, here_text: str,
+                  ref_text: str) -> str:
+    """The step rule over every claim the check measured at the reference (its studies all among the
+    check's): a claim whose verdict differs between this page's step and the reference takes the reference's."""
+    from .claims import CLAIMS
+    checked, verdicts = set(got.get("studies") or ()), got["reference_verdicts"]
+    measured, moved, held_ref = [], [], 0
+    for c, r in zip(CLAIMS, result.rows):
+        v = r.verdict
+        if c.studies and set(c.studies) <= checked and c.key in verdicts:
+            measured.append(c.key)
+            if verdicts[c.key] != v:
+                moved.append(f"“{r.claim}” {v} here, **{verdicts[c.key]}** at the reference")
+                v = verdicts[c.key]
+        held_ref += v == VERDICTS[True]
+    studies = ", ".join(sorted(checked))
+    return (f"The time step is checked against a reference step (`benchmarks/validation_step.py`, "
+            f"`benchmarks/results/{check.name}`): the studies {studies} were run again at "
+            f"{ref['timestep_ms']:g} ms and every claim measured from them alone ({len(measured)} of "
+            f"{len(result.rows)}) was measured there too; the 90° random study gives {here_text} at {step:g} ms "
+            f"and {ref_text} at {ref['timestep_ms']:g} ms. The rule: a claim whose verdict differs between this "
+            "page's step and the reference takes the reference's. "
+            + (f"{len(moved)} moved: {'; '.join(moved)}. " if moved else "No verdict moved. ")
+            + f"With the reference's verdicts, **{held_ref} of {len(result.rows)} claims hold**.")
+
+
 def write_page(result: Validation, stores: dict, out_md: pathlib.Path, figures: pathlib.Path, command: str,
-               model: str, check: pathlib.Path = STEP_CHECK, imperfections: str = "none", overrides=()) -> None:
+               model: str, check: pathlib.Path | None = None, imperfections: str = "none", overrides=()) -> None:
+    check = step_check_path(imperfections) if check is None else check
     rel = pathlib.Path(figures).name
     every = [q for v in stores.values() for q in (v if isinstance(v, list) else [v])]
     held = result.held
