@@ -270,3 +270,85 @@ def test_a_servos_timing_is_no_hypothesis_without_arm_tracks_and_none_where_the_
     assert servo_skip_reason(body_only, none_found) == NO_ARMS
     assert servo_skip_reason(tracked, undecided) is None
     assert "no constant excess" in servo_skip_reason(tracked, none_found)
+
+
+def test_the_noise_estimator_reads_white_noise_and_not_smooth_motion():
+    """Third differences remove motion that is quadratic over four frames and leave white noise of s.d.
+    sqrt(20) sigma: a smooth track (a body swinging 3 mm at 0.6 Hz with a drift, sampled at 60 Hz) reads
+    under 2 % of a 0.3 mm noise, the same track with that noise reads it within 10 %, and a few sharp
+    jerks (an arm starting) do not move the median."""
+    from smarticle_mjx.calibrate.noise import robust_sigma, third_differences
+    t = np.arange(0, 10, 1 / 60)
+    smooth = 3.0 * np.sin(2 * np.pi * 0.6 * t) + 0.1 * t
+    smooth[::40] += 0.5  # a jerk every 40 frames
+    rng = np.random.default_rng(1)
+    assert robust_sigma(third_differences(smooth)) < 0.02 * 0.3
+    assert abs(robust_sigma(third_differences(smooth + rng.normal(0, 0.3, len(t)))) / 0.3 - 1) < 0.1
+    x = smooth + rng.normal(0, 0.3, len(t))
+    x[100:110] = np.nan  # occluded frames are skipped, not bridged
+    assert len(third_differences(x)) == len(t) - 3 - 13
+    assert math.isnan(robust_sigma(np.zeros(0)))
+
+
+@pytest.mark.parametrize("fr,amp,xy,th,want", [
+    (60, 90, 0.02, 0.02, (False, False)),  # a good tracker's noise: absent
+    (30, 60, 0.3, 0.02, (True, False)),
+    (60, 45, 0.02, 0.4, (False, True)),
+    (30, 20, 0.3, 0.3, None),  # 11 frames per gait period: the test does not apply
+])
+def test_the_noise_test_finds_tracking_noise_in_another_simulators_tracks(tmp_path, fr, amp, xy, th, want):
+    """On lone robots of the independent simulator (its own robot, servo and contacts): a noise level of
+    0.3-0.4 mm or deg is found and read within 20 %, a good tracker's 0.02 is not, and a gait too fast for
+    the frame rate is left to the fitted effects."""
+    from smarticle_mjx.calibrate.noise import noise_test
+    I.write_case(tmp_path, robots=1, amplitude_deg=amp, trials=2, periods=5, seed=4, frame_rate=fr, name="a",
+                 noise_xy_mm=xy, noise_theta_deg=th)
+    nt = noise_test(load(tmp_path))
+    if want is None:
+        assert nt["trials"] == [] and not nt["present"] and "does not apply" in nt["reason"]
+        return
+    assert (nt["xy"]["present"], nt["theta"]["present"]) == want and nt["present"] == any(want)
+    for key, truth, found in (("xy", xy, want[0]), ("theta", th, want[1])):
+        if found:
+            assert abs(nt[key]["level"] / truth - 1) < 0.2 and nt[key]["lo"] <= nt[key]["level"] <= nt[key]["hi"]
+
+
+def test_measured_noise_is_added_before_any_fit_and_held(tmp_path):
+    """The noise stage adds tracking_noise at the measured level as the first effect, holds it, and every
+    model's frame increments are compared with the data's with it (the Problem's own noise)."""
+    from smarticle_mjx.calibrate.effects import LIBRARY, EffectSet
+    from smarticle_mjx.calibrate.fit import Problem
+    from smarticle_mjx.calibrate.stages import Model, noise_stage
+    I.write_case(tmp_path, robots=1, amplitude_deg=90, trials=2, periods=5, seed=4, frame_rate=60, name="a",
+                 noise_xy_mm=0.5, noise_theta_deg=0.02)
+    trials = load(tmp_path)
+    train, test, model = Problem(trials[:1]), Problem(trials[1:]), Model()
+    nt = noise_stage(trials, train, test, LIBRARY, model, lambda m: None)
+    assert nt["applies"] and nt["present"]
+    assert [e.name for e in model.chosen] == ["tracking_noise"] and "tracking_noise" in model.fixed
+    assert train.noise == test.noise == (model.fixed["tracking_noise"]["noise_xy_mm"],
+                                         model.fixed["tracking_noise"]["noise_theta_deg"])
+    assert abs(train.noise[0] / 0.5 - 1) < 0.2
+    # an effect set that fits its own noise overrides the measured one; one without noise uses it
+    feats = train.meas
+    assert EffectSet().noise() == (0.0, 0.0) and feats
+    none = noise_stage(trials, Problem(trials[:1]), Problem(trials[1:]), (), Model(), lambda m: None)
+    assert none == {"applies": False, "reason": "tracking_noise is not in the library"}
+
+
+def test_jerky_motion_is_not_read_as_tracking_noise():
+    """White noise's third differences correlate -0.75 with their neighbours (coefficients 1, -3, 3, -1);
+    a motion with a random jerk every few frames (stick-slip) correlates positively. The correlation reads
+    white noise within 0.05 and keeps a jerky track, however large its third differences, below the
+    whiteness bound."""
+    from smarticle_mjx.calibrate.noise import WHITE_RHO, _runs, lag1_correlation
+    rng = np.random.default_rng(3)
+    white = rng.normal(0, 0.3, 5000)
+    assert abs(lag1_correlation(_runs(white)) + 0.75) < 0.05
+    # a track that jumps by a random step every 3 frames, then rests: piecewise constant velocity kicks
+    v = np.repeat(rng.normal(0, 0.3, 1700), 3)[:5000]
+    jerky = np.cumsum(np.cumsum(v)) * 0.01
+    assert lag1_correlation(_runs(jerky)) > WHITE_RHO + 0.1
+    x = white.copy()
+    x[2000:2010] = np.nan
+    assert len(_runs(x)) == 2 and sum(len(r) for r in _runs(x)) == 5000 - 3 - 13

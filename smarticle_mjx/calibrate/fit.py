@@ -85,6 +85,9 @@ class Problem:
         self.runs = 0
         self.nominal: dict = {}
         self.priors: dict = {}  # {name: (measured value, sd)}: priors of the nominal fit (calibrate.data.priors)
+        # tracking noise (xy mm, theta deg) measured without the model (calibrate.noise): what every model's
+        # frame increments are compared with, unless the effects fitted set their own
+        self.noise: tuple[float, float] = (0.0, 0.0)
 
     def prior_chi2(self, nominal: dict) -> float:
         """The priors' share of chi^2 at these nominal values."""
@@ -121,7 +124,8 @@ class Problem:
 
     def blocks(self, eff: EffectSet, nominal: dict | None = None) -> list[dict[str, np.ndarray]]:
         _, feats = self.model(eff, nominal)
-        return [residual_blocks(m, f, eff.noise()) for m, f in zip(self.meas, feats)]
+        noise = eff.noise() if "tracking_noise" in eff.as_dict() else self.noise
+        return [residual_blocks(m, f, noise) for m, f in zip(self.meas, feats)]
 
     def vector(self, eff: EffectSet) -> np.ndarray:
         return np.concatenate([v for b in self.blocks(eff) for v in b.values()])

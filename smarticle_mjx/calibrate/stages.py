@@ -1,5 +1,5 @@
-"""The calibration loop as stages: preset -> conventions -> nominal parameters -> plate tilt -> effect
-rounds -> observables -> verdict.
+"""The calibration loop as stages: preset -> conventions -> tracking noise -> nominal parameters -> plate tilt ->
+effect rounds -> observables -> verdict.
 
 Each stage is a function that returns a dataclass; :func:`calibrate` runs them in order and returns a
 :class:`Calibration` (the fitted model and the JSON-ready summary that ``report`` writes). Every effect
@@ -18,6 +18,7 @@ import numpy as np
 
 from .data import Trial, priors
 from .drift import drift_test, fit_tilt
+from .noise import effect_values as noise_values, noise_test
 from .effects import BY_NAME, LIBRARY, Effect, EffectSet
 from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN, MIN_SHARE,
                   NOMINAL_EFFECTS, NOMINAL_NFEV, SERVO_HYPOTHESES, SERVO_NOMINAL, TILT_Z2, UNEXPLAINED, Fit,
@@ -225,6 +226,32 @@ def tilt_stage(trials: list[Trial], train: Problem, model: Model, say) -> TiltSt
     return TiltStage(drift, tilt, 3)
 
 
+def noise_stage(trials: list[Trial], train: Problem, test: Problem, library, model: Model, say) -> dict:
+    """Tracking noise, measured without the model (third differences of the tracks, calibrate.noise) before
+    any fit: where present, added at the measured level and held there, and every model's frame increments
+    are compared with the data's with it (the nominal fit's included). ``applies``: the test read some
+    trial (a gait period of enough frames) and ``tracking_noise`` is in the library."""
+    if "tracking_noise" not in {e.name for e in library}:
+        return {"applies": False, "reason": "tracking_noise is not in the library"}
+    nt = noise_test(trials)
+    nt["applies"] = bool(nt["trials"])
+    if not nt["applies"]:
+        say(f"tracking noise: {nt['reason']}")
+        return nt
+    say(f"tracking noise (third differences, {len(nt['trials'])} trials): "
+        f"{nt['xy']['level']:.3f} [{nt['xy']['lo']:.3f}, {nt['xy']['hi']:.3f}] mm, "
+        f"{nt['theta']['level']:.3f} [{nt['theta']['lo']:.3f}, {nt['theta']['hi']:.3f}] deg: "
+        + ("present" if nt["present"] else "within a good tracker's resolution"))
+    if nt["present"]:
+        values, interval = noise_values(nt)
+        model.add(BY_NAME["tracking_noise"], values, interval)
+        model.base = {**model.base, "tracking_noise": values}
+        model.fixed["tracking_noise"] = values
+        train.noise = test.noise = (values["noise_xy_mm"], values["noise_theta_deg"])
+        say("added tracking_noise (third differences of the tracks)")
+    return nt
+
+
 def rounds_stage(train: Problem, test: Problem, library, model: Model, current: dict, say) -> list[dict]:
     """Up to ``MAX_EFFECTS`` rounds: rank the remaining effects by their signatures, fit the leaders
     (with the effects already chosen), add the accepted one with the largest held-out gain."""
@@ -302,7 +329,12 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     if conv.get("warning"):
         say(conv["warning"])
     model = Model()
+    noise = noise_stage(trials, train, test, library, model, say)
+    if noise.get("applies"):  # measured without the model: the rounds do not fit it again
+        library = tuple(e for e in library if e.name != "tracking_noise")
     nom = nominal_stage(train, test, trials, library, model, say) if nominal else None
+    if "tracking_noise" in model.fixed:  # the nominal stage sets the base anew
+        model.base = {**model.base, "tracking_noise": model.fixed["tracking_noise"]}
     if nominal:  # the library's effects that rescale a fitted nominal parameter would fit it twice
         library = tuple(e for e in library if e.name not in NOMINAL_EFFECTS and e.name not in SERVO_HYPOTHESES
                         and e not in model.chosen)
@@ -345,7 +377,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
                    "interval": model.found[e.name][1], "units": {p.name: p.unit for p in e.params}}
                   for e in model.chosen],
         "verdict": verdict(after["err_heldout"], model.chosen), "model_runs": train.runs + test.runs + tilt.runs,
-        "drift": {**tilt.drift, "tilt_fit": tilt.tilt}, "observables": obs,
+        "drift": {**tilt.drift, "tilt_fit": tilt.tilt}, "noise_test": noise, "observables": obs,
         "criteria": {"min_heldout_gain": MIN_HELDOUT_GAIN, "unexplained_error": UNEXPLAINED,
                      "bic": "chi2 drop > k ln n on training trials"}}
     return Calibration(summary, final, dict(train.nominal))
