@@ -241,7 +241,8 @@ def noise_stage(trials: list[Trial], train: Problem, test: Problem, library, mod
     say(f"tracking noise (third differences, {len(nt['trials'])} trials): "
         f"{nt['xy']['level']:.3f} [{nt['xy']['lo']:.3f}, {nt['xy']['hi']:.3f}] mm, "
         f"{nt['theta']['level']:.3f} [{nt['theta']['lo']:.3f}, {nt['theta']['hi']:.3f}] deg: "
-        + ("present" if nt["present"] else "within a good tracker's resolution"))
+        + ("present" if nt["present"] else "above a good tracker's resolution but not white (the robot's motion)"
+           if any(nt[k]["lo"] > nt["threshold"][k] for k in ("xy", "theta")) else "within a good tracker's resolution"))
     if nt["present"]:
         values, interval = noise_values(nt)
         model.add(BY_NAME["tracking_noise"], values, interval)
