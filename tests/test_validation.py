@@ -227,6 +227,7 @@ def test_the_lab_page_runs_both_chiralities_on_the_same_drawn_robot_pairs(tmp_pa
     rows = json.loads((tmp_path / "v" / "validation.json").read_text())["rows"]
     mirror = next(row for row in rows if row["claim"].startswith("opposite chirality"))
     assert "both on the same 3 drawn robot pairs" in mirror["note"], mirror
+    assert "lane i on pair i mod K (3 pairs from robot seed 0, the same pairs in each)" in out.read_text()
 
 
 def test_validate_rejects_unknown_imperfections_in_one_line(tmp_path):

@@ -161,7 +161,7 @@ def write_page(result: Validation, stores: dict, out_md: pathlib.Path, figures: 
     held = result.held
     made = made_with(every)
     lines = ["# Validation against the paper", "",
-             f"Model `{model}` (docs/model.md){overrides_line(overrides)}{robots_line(imperfections)}. {provenance(made)} Regenerate with `{command}`: it reuses complete stores made by the "
+             f"Model `{model}` (docs/model.md){overrides_line(overrides)}{robots_line(imperfections, every)}. {provenance(made)} Regenerate with `{command}`: it reuses complete stores made by the "
              "same model and package version, resumes interrupted ones and runs the missing studies "
              f"(these took {wall_minutes(every):.0f} minutes of wall time on 2 cores). "
              "`--studies NAME,...` runs a subset; the page is written from the complete stores there are.", "",
@@ -201,14 +201,27 @@ def overrides_line(overrides) -> str:
     return " with " + ", ".join(f"`{k}={v}`" for k, v in overrides) + " changed from the preset (`--set`)"
 
 
-def robots_line(imperfections: str) -> str:
-    """How the page's robots were drawn: nothing for ideal robots (the paper's simulation)."""
+def robots_line(imperfections: str, paths=()) -> str:
+    """How the page's robots were drawn: nothing for ideal robots (the paper's simulation). ``paths``: the
+    page's stores, whose recorded draws say how many robot pairs each scan study ran, and from which seed."""
     if imperfections == "none":
         return ""
     from .. import imperfections as imp
     priors = "; ".join(what for what, _ in imp.get(imperfections).sources)
-    return (f" with real robots' imperfections, set `{imperfections}` ({priors}), drawn per robot from each "
-            "study's seed and recorded in its stores")
+    pools = set()
+    for p in paths:
+        st = Store(p)
+        rec = st.config.get("imperfections")
+        if st.kind != "relax" and rec is not None and rec.get("pairs", 1) > 1:
+            pools.add((int(rec["pairs"]), int(rec["seed"])))
+    if not pools:
+        return (f" with real robots' imperfections, set `{imperfections}` ({priors}), drawn per robot from each "
+                "study's seed and recorded in its stores")
+    pairs = "; ".join(f"{k} pairs from robot seed {seed}" for k, seed in sorted(pools))
+    return (f" with real robots' imperfections, set `{imperfections}` ({priors}), drawn per robot and recorded in "
+            f"the stores: the scan studies that draw several pairs of robots run lane i on pair i mod K ({pairs}"
+            f"{', the same pairs in each' if len(pools) == 1 else ''}), the others and the relaxation one pair or "
+            "group of robots of their own seed")
 
 
 def relative_command(data: pathlib.Path, out_md: pathlib.Path, model: str, studies=None,
