@@ -183,10 +183,15 @@ def test_the_step_rule_gives_every_checked_claim_the_reference_verdict(tmp_path)
 def test_validate_with_imperfections_keeps_its_stores_apart_and_records_the_robots(tmp_path):
     """--imperfections lab runs the studies with drawn robots into DATA/MODEL+lab: the ideal model's
     stores are not touched, every store records the set and its draws, the lone-robot row is the mean
-    of several drawn robots, the page names the set, and a second run reuses the stores bit for bit."""
+    of several drawn robots, the page names the set, and a second run reuses the stores bit for bit.
+    Study files that draw K robot pairs from one robot seed: the cw and ccw stores record the same pool of
+    2K robots though their configurations' seeds differ, and the mirror row and the page say so."""
     sweeps, data, out = _sweeps(tmp_path), tmp_path / "data", tmp_path / "v.md"
+    for name in ("random_90", "cw_90"):
+        f = sweeps / STUDIES[name]
+        f.write_text(f.read_text() + ("seed = 3\n" if name == "cw_90" else "") + "robot_draws = 3\nrobot_seed = 0\n")
     args = ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps), "--single-periods", "3",
-            "--quiet", "--studies", "polar,relax"]
+            "--quiet", "--studies", "polar,relax,random_90,cw_90"]
     r = CliRunner().invoke(app, args)
     assert r.exit_code == 0, r.output
     ideal = _hashes(data / DEFAULT)
@@ -202,32 +207,19 @@ def test_validate_with_imperfections_keeps_its_stores_apart_and_records_the_robo
     assert "set `lab`" in page and "--imperfections lab" in page
     rows = json.loads((tmp_path / "v" / "validation.json").read_text())["rows"]
     assert "mean of 8 robots" in rows[0]["measured"]
-    before = _hashes(folder)
-    r = CliRunner().invoke(app, args + ["--imperfections", "lab"])
-    assert r.exit_code == 0, r.output
-    assert _hashes(folder) == before and "note:" not in r.output
-
-
-def test_the_lab_page_runs_both_chiralities_on_the_same_drawn_robot_pairs(tmp_path):
-    """Study files that draw K robot pairs from one robot seed: the cw and ccw stores record the same pool
-    of 2K robots though their configurations' seeds differ, and the mirror row says so."""
-    sweeps, data, out = _sweeps(tmp_path), tmp_path / "data", tmp_path / "v.md"
-    for name in ("random_90", "cw_90"):
-        f = sweeps / STUDIES[name]
-        f.write_text(f.read_text() + ("seed = 3\n" if name == "cw_90" else "") + "robot_draws = 3\nrobot_seed = 0\n")
-    r = CliRunner().invoke(app, ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps),
-                                 "--single-periods", "2", "--quiet", "--studies", "random_90,cw_90",
-                                 "--imperfections", "lab"])
-    assert r.exit_code == 0, r.output
-    folder = data / f"{DEFAULT}+lab"
     ccw, cw = (Store(folder / STUDIES[n].replace(".toml", ".h5")) for n in ("random_90", "cw_90"))
     assert cw.config["scan"]["seed"] == 3 and ccw.config["scan"]["seed"] == 0
     assert cw.config["imperfections"] == ccw.config["imperfections"]
     assert cw.config["imperfections"]["pairs"] == 3 and len(cw.config["imperfections"]["clock"]) == 6
-    rows = json.loads((tmp_path / "v" / "validation.json").read_text())["rows"]
     mirror = next(row for row in rows if row["claim"].startswith("opposite chirality"))
     assert "both on the same 3 drawn robot pairs" in mirror["note"], mirror
-    assert "lane i on pair i mod K (3 pairs from robot seed 0, the same pairs in each)" in out.read_text()
+    assert "lane i on pair i mod K (3 pairs from robot seed 0, the same pairs in each)" in page
+    ideal_cw = Store(data / DEFAULT / STUDIES["cw_90"].replace(".toml", ".h5"))
+    assert "robot_draws" not in ideal_cw.config["scan"]  # ideal robots: the draws change nothing stored
+    before = _hashes(folder)
+    r = CliRunner().invoke(app, args + ["--imperfections", "lab"])
+    assert r.exit_code == 0, r.output
+    assert _hashes(folder) == before and "note:" not in r.output
 
 
 def test_validate_rejects_unknown_imperfections_in_one_line(tmp_path):
