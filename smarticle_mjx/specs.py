@@ -126,6 +126,8 @@ class ScanConfig:
             self.gait_spec(a).validate(params.robot.servo_speed, params.robot.arm_limit_deg)
         if self.robot_draws < 1:
             raise ValueError(f"robot draws must be >= 1, got {self.robot_draws}")
+        if self.robot_seed is not None and self.robot_seed < 0:
+            raise ValueError(f"robot seed must be >= 0, got {self.robot_seed}")
         if self.lane_draws is not None:
             d = np.asarray(self.lane_draws)
             if self.configs != "explicit" or len(d) != len(self.initial_configs()):

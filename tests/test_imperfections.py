@@ -367,11 +367,13 @@ def json_round(d):
     return json.loads(json.dumps(d))
 
 
-def test_a_bad_robot_draw_count_is_one_line_exit_2_and_writes_nothing(tmp_path):
+@pytest.mark.parametrize("option,msg", [(["--robot-draws", "0"], "robot draws must be >= 1"),
+                                        (["--robot-seed", "-1"], "robot seed must be >= 0")])
+def test_a_bad_robot_draw_is_one_line_exit_2_and_writes_nothing(tmp_path, option, msg):
     r = runner.invoke(app, ["scan", "--configs", "polar", "--positions", "2", "--periods", "1", "--imperfections",
-                            "lab", "--robot-draws", "0", "--out", str(tmp_path / "x.h5"), "--quiet"])
+                            "lab", *option, "--out", str(tmp_path / "x.h5"), "--quiet"])
     assert r.exit_code == 2, r.output
-    assert "robot draws must be >= 1" in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert msg in r.output and len(r.output.strip().splitlines()) == 1, r.output
     assert list(tmp_path.iterdir()) == []
 
 
