@@ -86,7 +86,7 @@ def with_verdicts(args) -> None:
     """The page of robots with ``args.imperfections``: its studies ``args.studies`` at the reference step,
     run and measured by ``smx validate`` itself, their claims' verdicts there, and the 90-degree study's
     numbers at the reference beside every ``--compare`` store."""
-    from smarticle_mjx.validate import parse_studies, run_validation
+    from smarticle_mjx.validate import data_folder, parse_studies, run_validation
     from smarticle_mjx.validate.claims import CLAIMS
     from smarticle_mjx.validate.page import step_check_path
     studies = parse_studies(args.studies)
@@ -95,10 +95,11 @@ def with_verdicts(args) -> None:
     out = args.out or ROOT / "results" / step_check_path(args.imperfections).name
     args.data.mkdir(parents=True, exist_ok=True)
     t = time.perf_counter()
+    overrides = [f"timestep={args.dt!r}"]
     result = run_validation(args.data, args.data / "reference.md", args.sweeps, model="lab-lag", studies=studies,
-                            imperfections=args.imperfections, overrides=[f"timestep={args.dt!r}"], single_periods=2)
+                            imperfections=args.imperfections, overrides=overrides, single_periods=2)
     wall = time.perf_counter() - t
-    folder = next(p for p in args.data.iterdir() if p.is_dir() and p.name.startswith(f"lab-lag+{args.imperfections}~"))
+    folder = data_folder(args.data, "lab-lag", args.imperfections, overrides)
     rows = [reduce(p) for p in [folder / "validation_random.h5", *args.compare]]
     verdicts = {c.key: r.verdict for c, r in zip(CLAIMS, result.rows) if c.studies and set(c.studies) <= set(studies)}
     for r in rows:

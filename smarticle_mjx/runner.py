@@ -89,7 +89,7 @@ def prepare(config, kind: str, params: SceneParams | None, executor: Executor | 
     # pairs records its first pair's there and every pair's in the drawn imperfections)
     params = config.robots().scene(params)
     params.validate()
-    header = store_header(config, kind, model, params, config.robot_pool())
+    header = store_header(config, kind, model, params)
     where = executor.describe() if executor is not None else None
     if where is not None:
         header["executor"] = where
@@ -97,13 +97,14 @@ def prepare(config, kind: str, params: SceneParams | None, executor: Executor | 
     return Prepared(model, params, dt, header)
 
 
-def store_header(config, kind: str, model: str, params: SceneParams, robots) -> dict:
+def store_header(config, kind: str, model: str, params: SceneParams) -> dict:
     """What a store of ``config`` records about its scene: the preset's name, the spec (under
     ``kind``), the full parameters (drawn robots included), the single fields changed from the preset
     (``overrides``, when any) and the drawn imperfections (when not ideal)."""
     header = {"model": model, kind: config.to_json(), "scene": params_json(params)}
     if config.overrides:
         header["overrides"] = overrides_json(config.overrides)
+    robots = config.robot_pool()
     if not robots.set.ideal:
         header["imperfections"] = robots.to_json()
         if getattr(config, "robot_draws", 1) > 1:

@@ -69,7 +69,7 @@ def _recorded(cfg: ScanConfig | RelaxConfig) -> tuple[SceneParams, dict]:
     """The scene parameters (with the drawn robots' quirks) and the configuration a store of study
     ``cfg`` records, as run_scan and run_relax write them (runner.store_header)."""
     params = cfg.robots().scene(cfg.scene_params())
-    return params, json.loads(json.dumps(store_header(cfg, _kind(cfg), cfg.model, params, cfg.robot_pool())))
+    return params, json.loads(json.dumps(store_header(cfg, _kind(cfg), cfg.model, params)))
 
 
 def stale_reason(cfg: ScanConfig | RelaxConfig, path: pathlib.Path) -> str | None:
@@ -156,8 +156,7 @@ def _source_robots(source: Store, lanes: np.ndarray, imperfections: str) -> dict
     src = config_from_json(source.config["scan"])
     if imperfections == "none" or src.imperfections != imperfections or src.robot_draws == 1:
         return {}
-    seed = src.seed if src.robot_seed is None else src.robot_seed
-    return {"robot_draws": src.robot_draws, "robot_seed": seed,
+    return {"robot_draws": src.robot_draws, "robot_seed": src.robot_pool().seed,
             "lane_draws": tuple(int(x) for x in src.lane_draw(lanes))}
 
 
@@ -168,8 +167,9 @@ def ensure_bound(bs: BoundStudy, stem: str, source: pathlib.Path, data: pathlib.
     store per amplitude, ``<stem>_aNNNN.h5`` (tenths of a degree). Stops
     early when no pair is left bound to carry on (continuation), or, with
     ``run=False``, at the first stage without a current complete store."""
-    starts, lanes = _gliders(Store(source), bs.glider, bs.pairs)
-    robots = _source_robots(Store(source), lanes, imperfections)
+    src = Store(source)
+    starts, lanes = _gliders(src, bs.glider, bs.pairs)
+    robots = _source_robots(src, lanes, imperfections)
     paths = []
     for a in bs.amplitudes_deg:
         if len(starts) == 0:

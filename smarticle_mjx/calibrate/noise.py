@@ -47,18 +47,32 @@ BOOT = 2000
 WHITE_RHO = -0.65
 
 
-def third_differences(x: np.ndarray) -> np.ndarray:
-    """Third differences of a 1-d series over every run of four consecutive finite values."""
+def _runs(x: np.ndarray) -> list[np.ndarray]:
+    """Third differences of a 1-d series, one array per run of consecutive finite values (split at
+    occlusions, never bridged)."""
     x = np.asarray(x, float)
     d = x[3:] - 3 * x[2:-1] + 3 * x[1:-2] - x[:-3]
-    return d[np.isfinite(d)]
+    ok = np.isfinite(d)
+    cuts = np.flatnonzero(np.diff(ok.astype(int)) != 0) + 1
+    return [seg for seg, good in zip(np.split(d, cuts), np.split(ok, cuts)) if len(good) and good[0]]
+
+
+def third_differences(x: np.ndarray) -> np.ndarray:
+    """Third differences of a 1-d series over every run of four consecutive finite values."""
+    runs = _runs(x)
+    return np.concatenate(runs) if runs else np.zeros(0)
+
+
+def _scale(d: np.ndarray) -> float:
+    """Robust s.d. of ``d``: 1.4826 x its median absolute value (the s.d. for a normal)."""
+    return float(1.4826 * np.median(np.abs(d)))
 
 
 def robust_sigma(d3: np.ndarray) -> float:
     """The white-noise s.d. whose third differences have the median absolute value of ``d3``."""
     if len(d3) == 0:
         return float("nan")
-    return float(1.4826 * np.median(np.abs(d3)) / math.sqrt(D3_VAR))
+    return _scale(d3) / math.sqrt(D3_VAR)
 
 
 def lag1_correlation(series: list[np.ndarray]) -> float:
@@ -68,30 +82,25 @@ def lag1_correlation(series: list[np.ndarray]) -> float:
     for d in series:
         if len(d) < 2:
             continue
-        s = 1.4826 * np.median(np.abs(d))
+        s = _scale(d)
         d = np.clip(d, -3 * s, 3 * s)
         num += float(np.sum(d[:-1] * d[1:]))
         den += float(np.sum(d * d))
     return num / den if den > 0 else float("nan")
 
 
-def _runs(x: np.ndarray) -> list[np.ndarray]:
-    """Third differences of ``x`` split at occlusions (consecutive ones only)."""
-    x = np.asarray(x, float)
-    d = x[3:] - 3 * x[2:-1] + 3 * x[1:-2] - x[:-3]
-    ok = np.isfinite(d)
-    cuts = np.flatnonzero(np.diff(ok.astype(int)) != 0) + 1
-    return [seg for seg, good in zip(np.split(d, cuts), np.split(ok, cuts)) if len(good) and good[0]]
-
-
-def trial_differences(trial) -> dict[str, np.ndarray]:
-    """Every robot's third differences in one trial: x and y pooled (mm), heading (deg)."""
-    xy, th = [], []
+def trial_runs(trial) -> dict[str, list[np.ndarray]]:
+    """Every robot's runs of third differences in one trial: x and y pooled (mm), heading (deg)."""
+    out: dict[str, list[np.ndarray]] = {"xy": [], "theta": []}
     for i in range(trial.pose.shape[1]):
         p = trial.pose[:, i]
-        xy += [third_differences(p[:, 0] * MM), third_differences(p[:, 1] * MM)]
-        th.append(third_differences(p[:, 2] * DEG))
-    return {"xy": np.concatenate(xy) if xy else np.zeros(0), "theta": np.concatenate(th) if th else np.zeros(0)}
+        out["xy"] += _runs(p[:, 0] * MM) + _runs(p[:, 1] * MM)
+        out["theta"] += _runs(p[:, 2] * DEG)
+    return out
+
+
+def _pooled(runs: list[np.ndarray]) -> np.ndarray:
+    return np.concatenate(runs) if runs else np.zeros(0)
 
 
 def noise_test(trials, seed: int = 0) -> dict:
@@ -99,9 +108,8 @@ def noise_test(trials, seed: int = 0) -> dict:
     bootstrap interval over trials, and whether it is present (the interval's lower end above
     ``NOISE_PRESENT``). ``present`` is True when either coordinate's is."""
     used = [t for t in trials if t.gait.period() * t.frame_rate_hz >= MIN_FRAMES_PER_PERIOD]
-    per = [trial_differences(t) for t in used]
-    runs = {"xy": [r for t in used for i in range(t.pose.shape[1]) for c in (0, 1) for r in _runs(t.pose[:, i, c] * MM)],
-            "theta": [r for t in used for i in range(t.pose.shape[1]) for r in _runs(t.pose[:, i, 2] * DEG)]}
+    runs = [trial_runs(t) for t in used]
+    per = [{k: _pooled(r[k]) for k in ("xy", "theta")} for r in runs]
     rng = np.random.default_rng(seed)
     out = {"present": False, "frames": int(sum(len(p["theta"]) for p in per)), "threshold": dict(NOISE_PRESENT),
            "trials": [t.name for t in used]}
@@ -120,7 +128,7 @@ def noise_test(trials, seed: int = 0) -> dict:
             lo, hi = (float(v) for v in np.nanpercentile(boot, [2.5, 97.5]))
         else:
             lo = hi = level
-        rho = lag1_correlation(runs[key])
+        rho = lag1_correlation([d for r in runs for d in r[key]])
         present = bool(np.isfinite(lo) and lo > NOISE_PRESENT[key] and rho <= WHITE_RHO)
         out[key] = {"level": level, "lo": lo, "hi": hi, "rho1": rho, "present": present}
         out["present"] |= present

@@ -164,7 +164,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     if best is not None:
         fe, _, e, nom_e, interval = best
         model.add(e, fe.values[e.name], interval)
-        model.base = {e.name: fe.values[e.name]}
+        model.base = {**model.base, e.name: fe.values[e.name]}  # beside what was measured before the fit
         train.nominal = test.nominal = dict(nom_e)
         nominal_fit = dataclasses.replace(fe, values=dict(nom_e))
         say(f"added {e.name} (fitted with the nominal parameters)")
@@ -334,8 +334,6 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     if noise.get("applies"):  # measured without the model: the rounds do not fit it again
         library = tuple(e for e in library if e.name != "tracking_noise")
     nom = nominal_stage(train, test, trials, library, model, say) if nominal else None
-    if "tracking_noise" in model.fixed:  # the nominal stage sets the base anew
-        model.base = {**model.base, "tracking_noise": model.fixed["tracking_noise"]}
     if nominal:  # the library's effects that rescale a fitted nominal parameter would fit it twice
         library = tuple(e for e in library if e.name not in NOMINAL_EFFECTS and e.name not in SERVO_HYPOTHESES
                         and e not in model.chosen)

@@ -96,6 +96,13 @@ def check_inputs(data, out_md, sweeps, single_periods: int, studies=None) -> Non
         raise ValueError("--single-periods must be >= 2")
 
 
+def data_folder(data, model: str, imperfections: str = "none", overrides=()) -> pathlib.Path:
+    """Where ``run_validation`` keeps a page's stores: ``data/<model>[+<set>][~<field>=<value>...]``."""
+    from .. import imperfections as imp
+    label = model if imp.get(imperfections).ideal else f"{model}+{imperfections}"
+    return pathlib.Path(data) / (label + "".join(f"~{k}={v}" for k, v in presets.overrides(overrides)))
+
+
 def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Path = SWEEPS,
                    model: str = presets.DEFAULT, on_progress=None, command: str | None = None,
                    single_periods: int = SINGLE_PERIODS, studies: list[str] | None = None,
@@ -112,8 +119,7 @@ def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Pat
     check_inputs(data, out_md, sweeps, single_periods, studies)
     ideal = imp.get(imperfections).ideal
     params = presets.apply(presets.params(model), overrides)
-    label = (model if ideal else f"{model}+{imperfections}") + "".join(f"~{k}={v}" for k, v in overrides)
-    data = pathlib.Path(data) / label
+    data = data_folder(data, model, imperfections, overrides)
     data.mkdir(parents=True, exist_ok=True)
     wanted = list(STUDIES) if studies is None else list(studies)
     specs = {name: read_study(sweeps / f) for name, f in STUDIES.items()}
