@@ -97,6 +97,8 @@ class ScanConfig:
 
     def validate(self, params: SceneParams) -> None:
         imperfections.get(self.imperfections).check_backend(self.backend)
+        if self.seed < 0:
+            raise ValueError(f"--seed must be >= 0, got {self.seed}")
         if self.configs not in ("random", "polar", "explicit"):
             raise ValueError(f"--configs must be random, polar or explicit, got {self.configs!r}")
         if self.configs == "explicit":
@@ -251,6 +253,8 @@ class RelaxConfig:
 
     def validate(self, params: SceneParams) -> None:
         imperfections.get(self.imperfections).check_backend(self.backend)
+        if self.seed < 0:
+            raise ValueError(f"--seed must be >= 0, got {self.seed}")
         if self.n_robots < 2:
             raise ValueError(f"a relaxation needs at least 2 robots, got {self.n_robots}")
         if self.n_robots > 30:

@@ -97,3 +97,13 @@ def test_gait_rates_are_the_derivative_of_the_setpoints():
     np.testing.assert_allclose(out[smooth, 2:], fd[smooth], atol=2e-2)
     speeds = np.abs(out[:, 2:]).ravel()
     assert np.all(np.isclose(speeds, 0.0) | np.isclose(speeds, 8.727, rtol=1e-5))
+
+
+@pytest.mark.parametrize("command", [["scan", "--configs", "polar", "--positions", "2"],
+                                     ["relax", "--trials", "1"]])
+def test_a_negative_seed_is_one_line_naming_the_option_exit_2_and_writes_nothing(tmp_path, command):
+    out = tmp_path / "x.h5"
+    r = _smx(*command, "--periods", "1", "--seed", "-1", "--out", out, "--quiet")
+    assert r.exit_code == 2, r.output
+    assert "--seed must be >= 0" in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert list(tmp_path.iterdir()) == []
