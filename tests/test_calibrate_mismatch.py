@@ -295,5 +295,51 @@ def test_a_half_degree_tilt_of_another_simulators_plate_is_detected_and_clean_da
             assert res["significant"], res
             for g in res["groups"]:
                 assert g["v_mm"][1] < -2 * g["se_mm"][1]  # downhill: -y
+            assert res["directions"]["compared"] and res["directions"]["consistent"], res["directions"]
         else:
             assert not res["significant"] and res["p"] > 0.01, res
+
+
+def test_a_tilt_is_found_through_tracking_noise_and_a_level_plate_is_not(tmp_path):
+    """Tracking noise of 0.6 mm per frame is 4-10 times what the independent robot drifts per cycle on a
+    plate tilted 1.5 deg (0.06-0.14 mm); one frame per cycle boundary cannot see that drift (p 0.8 with
+    it), but a whole cycle's frames (120 Hz: 96-192 per cycle) average the noise away while the cycle's
+    wobble repeats. So the drift test finds the tilt, downhill (-y), and with the same robot and noise on a
+    level plate finds none."""
+    from smarticle_mjx.calibrate import drift as D
+    noise = dict(noise_xy_mm=0.6, noise_theta_deg=0.5, frame_rate=120.0)
+    for name, kw in (("tilt", dict(tilt_deg=(1.5, 0.0))), ("level", {})):
+        d = tmp_path / name
+        for a in (40, 90):
+            I.write_case(d, amplitude_deg=float(a), name=f"a{a}", trials=3, periods=5, seed=300 + a, **noise, **kw)
+        res = D.drift_test(load(d))
+        if name == "tilt":
+            assert res["significant"], res
+            for g in res["groups"]:
+                assert g["v_mm"][1] < -2 * g["se_mm"][1]  # downhill: -y
+        else:
+            assert not res["significant"] and res["p"] > 0.01, res
+
+
+def test_drifts_pointing_different_ways_in_different_gaits_are_not_one_tilt():
+    """A tilt pulls every gait's robots downhill; drifts of different gaits that point apart by more than
+    the allowed spread are not one tilt. Only drifts beyond twice their error are compared, weighted by
+    |v| / se, and with fewer than two of them nothing is compared."""
+    from smarticle_mjx.calibrate.drift import MAX_DIRECTION_SPREAD_DEG, directions
+
+    def row(deg, size=0.1, se=0.005):
+        a = math.radians(deg)
+        return {"v_mm": [size * math.cos(a), size * math.sin(a)], "se_mm": [se, se]}
+
+    d = directions([row(30), row(50), row(40, size=0.2)])
+    assert d["compared"] and d["consistent"] and d["groups"] == 3
+    assert abs(d["mean_deg"] - 40) < 1 and abs(d["max_angle_deg"] - 10) < 1
+    d = directions([row(-150), row(30)])  # opposite ways
+    assert d["compared"] and not d["consistent"] and d["max_angle_deg"] > MAX_DIRECTION_SPREAD_DEG
+    d = directions([row(179), row(-179)])  # 2 deg apart across the cut at 180 deg
+    assert d["consistent"] and d["max_angle_deg"] < 2
+    d = directions([row(0), row(120, size=0.008)])  # the second within twice its error: not compared
+    assert not d["compared"] and d["consistent"] and d["groups"] == 1
+    # the weights: a sharp drift holds the mean, so the vaguer one is the one far from it
+    d = directions([row(0, se=0.001), row(60, se=0.04)])
+    assert d["angles_deg"][0] < 5 and d["angles_deg"][1] > MAX_DIRECTION_SPREAD_DEG and not d["consistent"]

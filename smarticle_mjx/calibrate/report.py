@@ -193,8 +193,16 @@ def markdown(r: dict) -> str:
             lines += ["", f"Tilt whose model drift matches: ({tf['tilt_deg'][0]:+.3f}, {tf['tilt_deg'][1]:+.3f})° "
                       f"± ({tf['se_deg'][0]:.3f}, {tf['se_deg'][1]:.3f})°, drift χ² {tf['chi2_before']:.1f} → "
                       f"{tf['chi2_after']:.1f}; {'added' if tf.get('accepted') else 'not added'} (kept when "
-                      "the drift test finds drift, the tilt's 95 % region excludes a level plate and the drift χ² at "
-                      "least halves)."]
+                      "the drift test finds drift, the tilt's 95 % region excludes a level plate, the drift χ² at "
+                      "least halves and the gaits' drifts point one way)."]
+            di = dr.get("directions") or {}
+            if di.get("compared"):
+                lines += ["", f"Directions of the {di['groups']} gaits' significant drifts: up to "
+                          f"{di['max_angle_deg']:.0f}° from their mean ({di['mean_deg']:.0f}°); "
+                          + ("one way, as a tilt pulls." if di["consistent"] else
+                             "**they point different ways**: not a tilt, which pulls every gait downhill, but a "
+                             "plate that is not level in another way (slipperier along one axis, a grip that depends "
+                             "on the robot's heading), which the library's tilt does not describe.")]
             disc = tf.get("discrepancy")
             if disc:
                 mi = tf["magnitude_interval"]

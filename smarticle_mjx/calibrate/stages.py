@@ -215,8 +215,13 @@ def tilt_stage(trials: list[Trial], train: Problem, model: Model, say) -> TiltSt
         t_vec = np.array(tilt["tilt_deg"])
         z2 = float(t_vec @ np.linalg.solve(np.diag(np.square(tilt["se_deg"])), t_vec))
         tilt["z2"] = z2
-        tilt["accepted"] = bool(z2 > TILT_Z2 and tilt["chi2_after"] <= 0.5 * tilt["chi2_before"])
-        say(f"  plate_tilt from the drift: {t_vec.round(2).tolist()} deg, accepted: {tilt['accepted']}")
+        tilt["one_direction"] = bool(drift["directions"]["consistent"])
+        tilt["accepted"] = bool(z2 > TILT_Z2 and tilt["chi2_after"] <= 0.5 * tilt["chi2_before"]
+                                and tilt["one_direction"])
+        say(f"  plate_tilt from the drift: {t_vec.round(2).tolist()} deg, accepted: {tilt['accepted']}"
+            + ("" if tilt["one_direction"] else
+               f" (the gaits' drifts point up to {drift['directions']['max_angle_deg']:.0f} deg apart: "
+               "a plate not level in another way)"))
         if tilt["accepted"]:
             vals = {"tilt_x_deg": float(t_vec[0]), "tilt_y_deg": float(t_vec[1])}
             model.add(BY_NAME["plate_tilt"], vals, tilt["interval"])
