@@ -1,8 +1,8 @@
 """Plate-frame drift, measured without the model: a test for a tilted plate.
 
 A robot on a level plate steps the same way in its own body frame whatever
-its heading: per gait cycle c its centre moves by R(h_c) s, where h_c is the
-heading at the cycle's start and s the body-frame step (which our model,
+its heading: per gait cycle c its centre moves by R(h_c) s, where h_c is its
+heading then (below: at the boundary the step is centred on) and s the body-frame step (which our model,
 with another robot's geometry and servo, never gets exactly right). A plate
 that tilts adds the same vector v in the plate frame to every cycle:
 
