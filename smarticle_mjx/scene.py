@@ -234,9 +234,11 @@ class SceneParams:
     # solimp (dmin, dmax, width): stiff enough that a stalled servo pressing an
     # arm into a neighbour penetrates ~0.1 mm, not the ~2 mm of the defaults
     contact_solimp: tuple[float, float, float] = (0.95, 0.99, 0.001)
-    # the cheapest numerics that keep labels, lone drift and glider quantities of the 0.0625 ms
-    # reference (benchmarks/timestep_candidates.py, docs/timestep.md); 0.25 ms before version 0.3.0 (November 2026)
-    timestep: float = 5e-4
+    # the cheapest numerics that keep labels, lone drift and the glider quantities (beta, net speed,
+    # persistence) of the 0.0625 ms reference (benchmarks/glider_step.py, docs/timestep.md): about 20
+    # contact evaluations per contact time constant. 0.5 ms in versions 0.3.x (labels converged, glider
+    # transport biased: beta +0.14, speed +39 %); 0.25 ms again since version 0.4.0 (November 2026)
+    timestep: float = 2.5e-4
     # MuJoCo's integrator (docs/timestep.md compares them); "discrete" merges the
     # constraint solve and the implicit velocity update (MuJoCo >= 3.13; native and warp, not MJX)
     integrator: str = "implicitfast"
