@@ -130,8 +130,8 @@ _NUMERICS = {
     # the values are SceneParams' own (written from them, so the text cannot fall behind)
     "default": ({}, ((f"timestep {SceneParams.timestep * 1e3:g} ms, contacts solref "
                       f"{SceneParams.contact_timeconst * 1e3:g} ms",
-                      "chosen: labels and lone drift converge against a 0.0625 ms reference, glider transport "
-                      "does not (docs/timestep.md)"),)),
+                      "chosen: labels, lone drift and glider transport converge against a 0.0625 ms "
+                      "reference (0.5 ms converges labels and drift only; docs/timestep.md)"),)),
     # DART's time stepping is an LCP: rigid contacts, 0.1 ms steps. MuJoCo's contacts are soft;
     # the stiffest it integrates stably has a time constant of two steps.
     "rigid": (dict(timestep=1e-4, contact_timeconst=2e-4, contact_substeps=1), (
