@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 from smarticle_mjx import configs as C, presets
 from smarticle_mjx.cli import app
 from smarticle_mjx.reduce import relaxation as RX
+from smarticle_mjx.scene import SceneParams
 
 W = 0.05
 
@@ -231,6 +232,20 @@ def test_relax_cli_store_report_and_bad_input(tmp_path):
     # the crowd's measures: every usable trial measured, their rows beside the lab's, their figure
     assert j["crowd"]["trials"] == 2 and j["crowd"]["plateau"]["n"] == 2 and (rep / "crowd.png").exists()
     assert "chain lifetime" in (rep / "report.md").read_text() and "8–10 periods" in (rep / "report.md").read_text()
+    # the glider's distance is a transport number: its row says what is known of the store's step. The
+    # default step passed the glider check (reduce.stepcheck); the 0.5 ms step of versions 0.3.x did not
+    row = next(ln for ln in (rep / "report.md").read_text().splitlines() if ln.startswith("| distance travelled"))
+    assert f"{SceneParams.timestep * 1e3:g} ms implicitfast: checked, passed" in row, row
+    assert j["step_check"]["status"] == "passed"
+    old = tmp_path / "relax_05.h5"
+    r = run.invoke(app, ["relax", "--robots", "3", "--trials", "1", "--periods", "2", "--out", str(old), "--quiet",
+                         "--set", "timestep=0.0005"])
+    assert r.exit_code == 0, r.output
+    r = run.invoke(app, ["report", str(old), "--out", str(tmp_path / "rep05"), "--glider-min-periods", "2"])
+    assert r.exit_code == 0, r.output
+    row = next(ln for ln in (tmp_path / "rep05" / "report.md").read_text().splitlines()
+               if ln.startswith("| distance travelled"))
+    assert "0.5 ms implicitfast: biased against 0.0625 ms, β +0.14" in row and "net speed +39%" in row, row
     before = _digest(out)
     for args in (["--robots", "1"], ["--jitter-mm", "-1"], ["--trials", "0"], ["--amplitude", "120"], []):
         r = run.invoke(app, ["relax", "--trials", "2", "--periods", "4", "--out", str(out), "--quiet", *args])
