@@ -20,7 +20,9 @@ import resource
 import tempfile
 import time
 
+from smarticle_mjx import __version__
 from smarticle_mjx.scan import ScanConfig, run_scan
+from smarticle_mjx.store import Store
 
 
 def main():
@@ -41,25 +43,27 @@ def main():
         wall = time.perf_counter() - t
         size = path.stat().st_size
         outcome = _outcome(path, args.periods)
+        scene = Store(path).config.get("scene") or {}  # the numerics the scan ran with, as its store says
     usage = resource.getrusage(resource.RUSAGE_SELF)
     rss = usage.ru_maxrss / 1024
     cpu = usage.ru_utime + usage.ru_stime
     run = next(iter(s.runs.values()))
     out = dict(n=args.n, periods=args.periods, backend=args.backend, batch_size=args.batch_size,
-               model=cfg.model, device=_device(args.backend), wall_s=wall, steps=s.steps,
+               model=cfg.model, timestep_s=scene.get("timestep"), integrator=scene.get("integrator"),
+               package=__version__, device=_device(args.backend), wall_s=wall, steps=s.steps,
                steps_per_s=s.steps_per_s, valid=run.valid, bound_end_fraction=run.bound_end_fraction,
                peak_rss_mib=rss, store_mib=size / 2 ** 20, cpu_s=cpu, cpu_per_wall=cpu / wall,
                backend_s=s.backend_s, tail=_tail(timeline, args.n, args.batch_size, wall),
                **outcome)
     print(f"{args.n} configurations ({run.valid} valid) x {args.periods} periods, {args.backend}: "
           f"{wall:.0f} s wall, {s.steps:,} steps ({s.steps_per_s:,.0f}/s), peak RSS {rss:.0f} MiB, "
-          f"store {size / 2 ** 20:.1f} MiB, bound at end {run['bound_end_fraction']:.1%}, "
+          f"store {size / 2 ** 20:.1f} MiB, bound at end {run.bound_end_fraction:.1%}, "
           f"CPU {cpu:.0f} s ({cpu / wall:.2f} cores busy on average)")
     ee = pathlib.Path(__file__).parent / "results" / "early_exit.json"
     if ee.exists() and args.periods < 75:
         e = json.loads(ee.read_text())
         saved = next(r["saved_work"] for r in e["rows"] if r["quiet_periods"] == cfg.quiet_periods)
-        est = wall / args.periods * 75 * (1 - saved) if run["valid"] else float("nan")
+        est = wall / args.periods * 75 * (1 - saved) if run.valid else float("nan")
         out["estimated_75_period_wall_s"] = est
         print(f"estimated 75-period wall time with early exit (saves {saved:.0%} of lane-periods): "
               f"{est / 3600:.1f} h")
