@@ -384,7 +384,8 @@ def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 
                   {k: v for k, v in r["glider"].items() if k != "track"}} for r in a["per_trial"]]
     checks = {json.dumps(c, sort_keys=True, default=json_default): c
               for c in (store_step_check(Store(p)).as_dict() for p in data.paths)}
-    # the stages of one study share their model; should they not, no one check speaks for the pooled glider
+    # read_relax lets the stages of one study differ only in their trials and backend; a stage run on another
+    # engine has another check (DART's own step: not checked), and then no one check speaks for the pooled glider
     step = next(iter(checks.values())) if len(checks) == 1 else None
     rep = {"stores": [str(p) for p in data.paths], "kind": "relax", **{k: v for k, v in a.items()
                                                                           if k not in ("episodes", "per_trial")},
@@ -474,7 +475,7 @@ def relax_markdown(rep: dict) -> str:
              f"[{f(rep['interval'][0])}, {f(rep['interval'][1])}] | {lab['emerged']}/{lab['trials']} = "
              f"{f(lab['fraction'])} [{f(lab['interval'][0])}, {f(lab['interval'][1])}] |",
              f"| distance travelled by the glider (W) | {f(d['mean'])} ± {f(d['sem'])} (n = {d['n']}); "
-             f"{step_note(rep['step_check']) if rep.get('step_check') else 'stages made by different models: step not checked'} | "
+             f"{step_note(rep['step_check']) if rep.get('step_check') else 'stages with different step checks (backends): step not checked'} | "
              f"{lab['distance_W'][0]} ± {lab['distance_W'][1]} |",
              f"| glider lifetime (periods) | {f(gl['mean'], 0)} ± {f(gl['sem'], 0)}, {rep['glider_censored']} of "
              f"{gl['n']} still bound at the end | ≥ 100; some C1 still bound at 300 |",
