@@ -31,6 +31,20 @@ from smarticle_mjx.bench import mj_step_rate, sample_lanes
 from smarticle_mjx.gait import GaitSpec
 
 
+def _versions():
+    """The installed versions that decide these figures (absent ones as None)."""
+    from importlib import metadata
+
+    import smarticle_mjx
+    out = {"smarticle-mjx": smarticle_mjx.__version__}
+    for name in ("mujoco", "mujoco-mjx", "jax", "jaxlib", "mujoco-warp", "warp-lang"):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
@@ -55,7 +69,8 @@ def main():
     pair = S.compile_model(S.build_mjcf(params, S.standard_poses("pair")))
     cores = os.cpu_count() or 1
     out = dict(machine=platform.platform(), cores=cores, timestep=params.timestep,
-               model=args.model or presets.DEFAULT, backends=backends)
+               model=args.model or presets.DEFAULT, backends=backends,
+               integrator=params.integrator, versions=_versions())
 
     import jax
     out["jax_device"] = str(jax.devices()[0].device_kind)

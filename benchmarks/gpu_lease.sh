@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# The GPU figures of #42 (MJX's throughput curve beside MuJoCo Warp's, and the
+# paper scan on Warp at the default step) on a lent GPU machine that reaches no
+# package index, in two consecutive calls on the same warm machine:
+#
+#   bash benchmarks/gpu_lease.sh 1   # install the carried wheels, time MJX (1k-16k worlds)
+#   bash benchmarks/gpu_lease.sh 2   # finish Warp's library, time Warp, run the 5000 x 75 scan
+#
+# What travels (ignored folders, prepared on a machine with pip):
+#   .whl1/  mujoco 4.0.0 (+ mujoco-core), mujoco-mjx 3.17.0, mujoco-warp 4.0.0,
+#           glfw, PyOpenGL, trimesh wheels; warp_py.tar.xz (warp-lang 1.19.0's
+#           Python files, without its two shared libraries and examples);
+#           warpso.part1 (the first bytes of warp/bin/warp.so, xz-compressed)
+#   .whl2/  warpso.part2 (the rest)
+# warp-clang.so (Warp's CPU compiler, 69 MB) is left behind: Warp loads it only
+# if present and needs it only for its CPU device. JAX is the machine's own
+# (its version goes into the JSON). Results go to $OUT (or RESULTS).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+R=${OUT:-${RESULTS:-benchmarks/results}}
+SITE=/tmp/site
+export PYTHONUNBUFFERED=1 PYTHONPATH=$SITE:$PWD JAX_COMPILATION_CACHE_DIR=/tmp/jaxcache
+case "${1:-}" in
+1)
+  mkdir -p /tmp/keep "$SITE"
+  cp .whl1/warpso.part1 /tmp/keep/
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
+    --target "$SITE" .whl1/*.whl
+  tar -xJf .whl1/warp_py.tar.xz -C "$SITE"
+  nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv | tee "$R/gpu_lease_smi.txt"
+  python3 -c "import jax, mujoco, mujoco.mjx; print('jax', jax.__version__, jax.devices(), 'mujoco', mujoco.__version__)"
+  timeout "${MJX_LIMIT:-330}" python3 benchmarks/engine.py --backends mjx --model lab-lag \
+    --mjx-batches 1024,4096,16384 --mjx-steps 200 --out "$R/engine_gpu_mjx.json"
+  ;;
+2)
+  cat /tmp/keep/warpso.part1 .whl2/warpso.part2 \
+    | python3 -c "import lzma, sys; sys.stdout.buffer.write(lzma.decompress(sys.stdin.buffer.read()))" \
+    > "$SITE/warp/bin/warp.so"
+  python3 -c "import warp; warp.init(); print('warp', warp.__version__, warp.get_cuda_device())"
+  python3 benchmarks/engine.py --backends warp --model lab-lag --warp-batches 1024,4096,16384 \
+    --warp-steps 2000 --out "$R/engine_gpu_warp.json"
+  timeout "${SCAN_LIMIT:-420}" python3 benchmarks/full_scan.py --backend warp --batch-size 8192 \
+    --n 5000 --periods 75 --out "$R/full_scan_gpu.json"
+  ;;
+*)
+  echo "usage: bash benchmarks/gpu_lease.sh 1|2" >&2
+  exit 2
+  ;;
+esac
