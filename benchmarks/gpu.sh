@@ -5,10 +5,11 @@
 #   bash benchmarks/gpu.sh            # every stage
 #   bash benchmarks/gpu.sh tests      # one stage: tests | throughput | mjx | mjxwarp | agreement | agreement-mjx | scan
 #
-# The Warp stages have run on one H100 (at 0.25 ms: the scan stage took about
-# 5 minutes); the MJX stages (mjx, mjxwarp, agreement-mjx) have not been timed
-# on a GPU. Run one stage per call where the machine is lent for a limited
-# time. The default model (lab-lag, dt 0.5 ms) is measured.
+# The Warp stages have run on one H100 and one H200 (at 0.25 ms: the scan stage
+# took about 5 minutes); of the MJX stages only the throughput (mjx) has been
+# timed on a GPU (an H200, through benchmarks/gpu_lease.sh, which carries the
+# wheels to a machine without a package index). Run one stage per call where the
+# machine is lent for a limited time. The default model (lab-lag) is measured.
 # Results go to benchmarks/results/*_gpu.json (RESULTS=DIR to put them elsewhere).
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -5,6 +5,7 @@
 #
 #   bash benchmarks/gpu_lease.sh 1   # install the carried wheels, time MJX (1k-16k worlds)
 #   bash benchmarks/gpu_lease.sh 2   # finish Warp's library, time Warp, run the 5000 x 75 scan
+#   bash benchmarks/gpu_lease.sh merge DIR OUT.json   # here: the three JSONs of DIR into one
 #
 # What travels (ignored folders, prepared on a machine with pip):
 #   .whl1/  mujoco 4.0.0 (+ mujoco-core), mujoco-mjx 3.17.0, mujoco-warp 4.0.0,
@@ -42,8 +43,37 @@ case "${1:-}" in
   timeout "${SCAN_LIMIT:-420}" python3 benchmarks/full_scan.py --backend warp --batch-size 8192 \
     --n 5000 --periods 75 --out "$R/full_scan_gpu.json"
   ;;
+merge)
+  python3 - "$2" "$3" <<'PY'
+import json, pathlib, sys
+d = pathlib.Path(sys.argv[1])
+mjx = json.loads((d / "engine_gpu_mjx.json").read_text())
+warp = json.loads((d / "engine_gpu_warp.json").read_text())
+scan = json.loads((d / "full_scan_gpu.json").read_text())
+devices = {mjx["jax_device"], warp["warp_device"], scan["device"]}
+if len(devices) != 1:
+    sys.exit(f"the three runs name different devices: {sorted(devices)}")
+rate = {(r["backend"], r["batch"]): r["steps_per_s"] for r in mjx["throughput"] + warp["throughput"]}
+curve = [dict(batch=b, mjx_steps_per_s=rate[("mjx", b)], warp_steps_per_s=rate[("warp", b)],
+              warp_over_mjx=rate[("warp", b)] / rate[("mjx", b)])
+         for b in sorted({b for _, b in rate}) if ("mjx", b) in rate and ("warp", b) in rate]
+out = dict(device=devices.pop(), timestep=scan["timestep_s"], integrator=scan["integrator"],
+           model=scan["model"], versions=warp["versions"],
+           how="bash benchmarks/gpu_lease.sh 1, then 2, on the same warm machine",
+           curve=curve,
+           paper_scan=dict(n=scan["n"], periods=scan["periods"], wall_s=scan["wall_s"],
+                           steps_per_s=scan["steps_per_s"], peak_rss_mib=scan["peak_rss_mib"],
+                           bound_end_fraction=scan["bound_end_fraction"]),
+           runs=dict(mjx=mjx, warp=warp, scan=scan))
+pathlib.Path(sys.argv[2]).write_text(json.dumps(out, indent=2) + "\n")
+for c in curve:
+    print(f"{c['batch']:>6} worlds: mjx {c['mjx_steps_per_s']:>10,.0f}  warp {c['warp_steps_per_s']:>10,.0f}"
+          f"  warp/mjx {c['warp_over_mjx']:.1f}")
+print(f"paper scan on warp: {scan['wall_s']:.0f} s, {out['device']}, dt {scan['timestep_s']} s")
+PY
+  ;;
 *)
-  echo "usage: bash benchmarks/gpu_lease.sh 1|2" >&2
+  echo "usage: bash benchmarks/gpu_lease.sh 1|2|merge DIR OUT.json" >&2
   exit 2
   ;;
 esac
