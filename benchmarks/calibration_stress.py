@@ -210,12 +210,20 @@ def run_set(s: dict) -> dict:
     return {"set": s, "score": score(s, res, twin), "wall_s": wall, "total_s": time.perf_counter() - t0,
             "model_runs": res["model_runs"], "fitted": {a["effect"]: a["values"] for a in res["added"]},
             "intervals": {a["effect"]: a["interval"] for a in res["added"]},
+            "intervals_statistical": {a["effect"]: a.get("interval_statistical", a["interval"]) for a in res["added"]},
             "nominal_findings": res["nominal_findings"], "version": __version__, "source": source_hash()}
 
 
 def _rate(xs) -> dict:
     xs = [bool(x) for x in xs]
     return {"rate": (sum(xs) / len(xs)) if xs else None, "n": len(xs)}
+
+
+def _covered_statistical(row: dict, effect: str) -> bool:
+    """Whether the statistical interval alone (before the model-mismatch term, calibrate/discrepancy.py)
+    holds the truth in every parameter; rows of runs before the term have none."""
+    iv = row["intervals_statistical"][effect]
+    return all(iv[k][0] <= v <= iv[k][1] for k, v in row["set"]["truth"][effect].items())
 
 
 def summarise(rows: list[dict]) -> dict:
@@ -231,6 +239,9 @@ def summarise(rows: list[dict]) -> dict:
             "size_within_1_5_of_added": _rate(e["within_1_5"] for e in same if e["added"]),
             "covered": _rate(e["covered"] for e in same),
             "covered_of_added": _rate(e["covered"] for e in same if e["added"]),
+            "covered_statistical_of_added": _rate(_covered_statistical(r, e["effect"]) for r in lib
+                                                  for e in r["score"]["same_law"]
+                                                  if e["added"] and "intervals_statistical" in r),
             "heldout_within_1_5_of_twin": _rate(x <= 1.5 for x in twin),
             "wall_s_median": float(np.median([r["wall_s"] for r in rows])) if rows else None,
             "targets": {"right_with_effects": 0.9, "nothing_added_clean": 0.95, "size_within_1_5": 0.8,

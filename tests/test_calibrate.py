@@ -159,6 +159,11 @@ def test_smx_synth_and_calibrate_write_the_report_and_refuse_to_clobber(tmp_path
     rep = json.loads((out / "report.json").read_text())
     assert rep["added"] and rep["added"][0]["effect"] == "servo_response"
     assert "servo response" in (out / "report.md").read_text()
+    # its size carries the model's mismatch (calibrate/discrepancy.py), the statistical interval beside it
+    a = rep["added"][0]
+    (lo, hi), (slo, shi) = a["interval"]["servo_scale"], a["interval_statistical"]["servo_scale"]
+    assert lo < slo <= shi < hi and a["mismatch_log_sd"]["servo_scale"] > 0
+    assert "| statistical 95 % |" in (out / "report.md").read_text()
     for f in rep["figures"]:
         assert (out / f).stat().st_size > 1000
     before = (out / "report.md").read_text()

@@ -225,12 +225,23 @@ def markdown(r: dict) -> str:
         lines.append("")
     lines += observables_markdown(r.get("observables"))
     if r["added"]:
-        lines += ["## Added effects", "", "| effect | parameter | fitted | 95 % interval |", "|---|---|---|---|"]
+        lines += ["## Added effects", "",
+                  "The 95 % interval carries the model robot's mismatch with the measured one: the statistical "
+                  "interval (beside it) widened by a log-normal factor per effect, estimated on independently "
+                  "built robots (docs/calibration.md, \"Sizes that carry the model's mismatch\"); a plate "
+                  "tilt's carries the robots' slide mismatch instead.", "",
+                  "| effect | parameter | fitted | 95 % interval | statistical 95 % | mismatch (ln sd) |",
+                  "|---|---|---|---|---|---|"]
         for e in r["added"]:
+            stat = e.get("interval_statistical") or e["interval"]
             for k, v in e["values"].items():
                 lo, hi = e["interval"][k]
+                slo, shi = stat[k]
+                sd = (e.get("mismatch_log_sd") or {}).get(k)
                 lines.append(f"| {e['title']} | {k} ({e['units'][k]}) | {_num(v, '.4g')} | "
-                             f"[{_num(lo, '.4g')}, {_num(hi, '.4g')}] |")
+                             f"[{_num(lo, '.4g')}, {_num(hi, '.4g')}] | [{_num(slo, '.4g')}, {_num(shi, '.4g')}] | "
+                             + ("slide mismatch" if e["effect"] == "plate_tilt" and sd is None else
+                                "–" if sd is None else f"{sd:.2f}") + " |")
         lines.append("")
     else:
         lines += ["No effect from the library was added.", ""]

@@ -17,6 +17,7 @@ from typing import Callable
 import numpy as np
 
 from .data import Trial, priors
+from .discrepancy import carry, log_sd
 from .drift import drift_test, fit_tilt
 from .noise import effect_values as noise_values, noise_test
 from .effects import BY_NAME, LIBRARY, Effect, EffectSet
@@ -314,6 +315,22 @@ class Calibration:
         return self.summary["verdict"]
 
 
+def added_entry(e: Effect, values: dict, interval: dict, statistical: dict | None = None) -> dict:
+    """One added effect as the summary reports it: its 95 % interval carries the model's mismatch
+    (``discrepancy.py``), the statistical one beside it. ``statistical`` is given where ``interval``
+    already carries it (the drift stage's plate tilt, ``drift.py``); the table has no term for a tilt the
+    rounds fitted."""
+    if statistical is not None:
+        total, interval, sds = dict(interval), statistical, {}
+    else:
+        total = carry(e.name, values, interval)
+        sds = {k: log_sd(e.name, k) for k in interval}
+    return {"effect": e.name, "title": e.title, "values": values,
+            "interval": {k: list(v) for k, v in total.items()},
+            "interval_statistical": {k: list(v) for k, v in interval.items()},
+            "mismatch_log_sd": sds, "units": {p.name: p.unit for p in e.params}}
+
+
 def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_step: Callable | None = None,
               nominal: bool = True, structural: bool = True) -> Calibration:
     """The whole loop: conventions -> nominal parameters -> plate tilt -> ranked diagnosis -> fit ->
@@ -377,8 +394,9 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         "before": before, "after_nominal": after_nominal, "after": after, "rounds": rounds,
         "nominal_hypotheses": nom.hypotheses if nom else [],
         "delay_test": nom.delay.as_dict() if nom else None,
-        "added": [{"effect": e.name, "title": e.title, "values": model.found[e.name][0],
-                   "interval": model.found[e.name][1], "units": {p.name: p.unit for p in e.params}}
+        "added": [added_entry(e, *model.found[e.name],
+                              statistical=(tilt.tilt or {}).get("interval_statistical")
+                              if e.name == "plate_tilt" and "plate_tilt" in model.fixed else None)
                   for e in model.chosen],
         "verdict": verdict(after["err_heldout"], model.chosen), "model_runs": train.runs + test.runs + tilt.runs,
         "drift": {**tilt.drift, "tilt_fit": tilt.tilt}, "noise_test": noise, "observables": obs,
