@@ -17,6 +17,8 @@ engine; what the scan's wall time adds beyond its time inside the engine is
 ``full_scan.py``'s ``backend_s`` against its wall time.
 
     python benchmarks/scan_gap.py            # ~3 minutes on 2 cores
+    python benchmarks/scan_gap.py --rounds 3 --reference-lanes 0 --same-lanes   # the fraction on
+        # exactly the same work, three interleaved rounds (median and spread)
 
 Each workload is also timed with single-thread ``mj_step`` (MuJoCo's rollout on
 one MjData, controls computed beforehand) over the same lanes and periods (a
@@ -100,7 +102,14 @@ def main():
     ap.add_argument("--classify-periods", type=int, default=3, help="periods that decide touching or apart")
     ap.add_argument("--timestep", type=float, default=None, help="the scene's step (default: the preset's)")
     ap.add_argument("--reference-lanes", type=int, default=32,
-                    help="lanes of each workload timed with single-thread mj_step (a prefix of the batch)")
+                    help="lanes of each workload timed with single-thread mj_step (a prefix of the batch); "
+                         "0: all of them")
+    ap.add_argument("--rounds", type=int, default=1,
+                    help="timings of each workload, backend and reference alternating (which goes first "
+                         "alternates too); the fraction is given per round, with the median")
+    ap.add_argument("--same-lanes", action="store_true",
+                    help="time the backend on the reference's lanes only (not the whole batch), so both "
+                         "time exactly the same work")
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parent / "results" / "scan_gap.json"))
     args = ap.parse_args()
     cfg = ScanConfig()  # smx scan's defaults: 5000 starts in 0.5-2.5 W, seed 0, 90 degrees
@@ -128,16 +137,30 @@ def main():
     rows = {}
     threads = backend.nthread
     for name, ln in workloads.items():
-        rate = timed(backend, ln, args.periods)
-        # the same lanes' physics alone: single-thread mj_step over a prefix of them (same periods from rest)
-        ref = mj_step_same_lanes(backend.scene, ln.take(np.arange(min(ln.size, args.reference_lanes))),
-                                 args.periods)
-        rows[name] = {"lanes": int(ln.size), "steps_per_s": rate, "mj_step_same_lanes_steps_per_s": ref,
-                      "reference_lanes": int(min(ln.size, args.reference_lanes)),
-                      "fraction_of_threads_x_mj_step": rate / (threads * ref)}
-        print(f"{name}: {ln.size} lanes, {rate:,.0f} steps/s on {threads} threads; single-thread mj_step on "
-              f"the same lanes {ref:,.0f} steps/s: {rows[name]['fraction_of_threads_x_mj_step']:.2f} of "
-              f"{threads}x", flush=True)
+        nref = ln.size if args.reference_lanes <= 0 else min(ln.size, args.reference_lanes)
+        ref_lanes = ln.take(np.arange(nref))
+        timed_lanes = ref_lanes if args.same_lanes else ln
+        rates, refs = [], []
+        for k in range(max(1, args.rounds)):
+            # the same lanes' physics alone: single-thread mj_step over a prefix of them (same periods from
+            # rest), timed next to the backend, first or second by turns
+            if k % 2:
+                refs.append(mj_step_same_lanes(backend.scene, ref_lanes, args.periods))
+                rates.append(timed(backend, timed_lanes, args.periods))
+            else:
+                rates.append(timed(backend, timed_lanes, args.periods))
+                refs.append(mj_step_same_lanes(backend.scene, ref_lanes, args.periods))
+        fr = [a / (threads * b) for a, b in zip(rates, refs)]
+        rate, ref = float(np.median(rates)), float(np.median(refs))
+        rows[name] = {"lanes": int(timed_lanes.size), "steps_per_s": rate, "mj_step_same_lanes_steps_per_s": ref,
+                      "reference_lanes": int(nref), "same_lanes": bool(args.same_lanes),
+                      "fraction_of_threads_x_mj_step": float(np.median(fr)),
+                      "rounds": [{"steps_per_s": a, "mj_step_same_lanes_steps_per_s": b, "fraction": f}
+                                 for a, b, f in zip(rates, refs, fr)]}
+        spread = f" (rounds {min(fr):.2f}-{max(fr):.2f})" if len(fr) > 1 else ""
+        print(f"{name}: {timed_lanes.size} lanes, {rate:,.0f} steps/s on {threads} threads; single-thread "
+              f"mj_step on {nref} of them {ref:,.0f} steps/s: {rows[name]['fraction_of_threads_x_mj_step']:.2f} "
+              f"of {threads}x{spread}", flush=True)
     backend.close()
     from smarticle_mjx import scene as S
     # the machine's speed in engine.py's own unit, so results of other machines can be scaled
