@@ -30,16 +30,15 @@ import json
 import math
 import pathlib
 
+from smarticle_mjx.calibrate.effects import LIBRARY
+
 ROOT = pathlib.Path(__file__).resolve().parent
 RESULTS = ROOT / "results"
 SEEDS = (2026, 2027, 2028, 2029)  # the stress-suite seeds run before the term existed
 MIN_CASES = 5
 LEFT_OUT = ("plate_tilt",)  # carries its own mismatch (calibrate/drift.py)
 # every effect of the library whose size the term covers, added or not on these seeds
-EFFECTS = {"servo_response": ("servo_scale",), "friction_scale": ("friction_scale",),
-           "servo_lag": ("extra_lag_s",), "servo_dead_time": ("dead_time_s",), "phase_offset": ("phase_offset",),
-           "anisotropic_friction": ("friction_y_ratio",), "arm_plate_contact": ("arm_plate_mu",),
-           "tracking_noise": ("noise_xy_mm", "noise_theta_deg")}
+EFFECTS = {e.name: tuple(p.name for p in e.params) for e in LIBRARY if e.name not in LEFT_OUT}
 
 
 def cases(rows: list[dict]) -> dict:
