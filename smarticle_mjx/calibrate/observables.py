@@ -11,7 +11,14 @@ effect moves, and how much of each the effect itself accounts for:
 
 * **arm delay** (ms): the time from the command's switch to the arm
   crossing its midpoint, averaged over every swing of every arm; it moves
-  with a servo lag, a dead time, a slower or weaker servo;
+  with a servo lag, a dead time, a slower or weaker servo. Since November
+  2026 (after version 0.4.0) the average is taken over groups of swings
+  of one arm in one direction (per trial and robot), each group weighted
+  alike, with the spread measured within groups: an arm read with a
+  constant angle error crosses its midpoint early on the way up and late
+  on the way down by the same time, which the pairing cancels, where the
+  plain average kept it in its standard error (20x larger, which hid
+  delays from the delay test);
 * **phase lead** (periods): how far robot i's arm swings run ahead of robot
   0's, for robots that share robot 0's gait; it moves with a phase offset
   between robots;
@@ -81,9 +88,15 @@ def swing_delays(t: np.ndarray, arms: np.ndarray, gait, settle: float = SETTLE) 
     ``settle`` periods of the track's first frame are left out (the start
     transient: the arms start at rest, wherever the servo's state is).
     """
+    return swing_delay_groups(t, arms, gait, settle)[0]
+
+
+def swing_delay_groups(t: np.ndarray, arms: np.ndarray, gait, settle: float = SETTLE
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`swing_delays` and each swing's group [S]: 2 arm + (1 if the arm swung up), 0-3."""
     T = gait.period()
     sw = _command_switches(gait)
-    out = []
+    out, grp = [], []
     for k in range(2):
         tc, dirs = crossings(t, arms[:, k])
         keep = tc >= t[0] + settle * T
@@ -95,7 +108,38 @@ def swing_delays(t: np.ndarray, arms: np.ndarray, gait, settle: float = SETTLE) 
             u = np.mod(tc[dirs == d] / T, 1.0)
             diff = np.stack([np.mod(u - r + 0.5, 1.0) - 0.5 for r in ref])  # to each switch, wrapped
             out.append(diff[np.argmin(np.abs(diff), 0), np.arange(diff.shape[1])] * T)
-    return np.concatenate(out) if out else np.zeros(0)
+            grp.append(np.full(len(out[-1]), 2 * k + (d > 0)))
+    if not out:
+        return np.zeros(0), np.zeros(0, int)
+    return np.concatenate(out), np.concatenate(grp)
+
+
+def grouped_mean_se(x, groups) -> dict:
+    """The mean of per-group means (every group weighted alike) and its standard error from the spread
+    within groups (pooled), for values ``x`` [S] in groups ``groups`` [S] (any hashable labels).
+
+    An offset shared by one group's values (an arm read with a constant error, on its way up) moves
+    that group's mean and not the spread; with groups that cancel in pairs (up and down) it leaves the
+    mean too. Groups of one value count in the mean, not in the spread; with no spread to measure the
+    error is NaN.
+    """
+    x = np.asarray(x, float)
+    g = np.asarray(groups)
+    ok = np.isfinite(x)
+    x, g = x[ok], g[ok]
+    if len(x) == 0:
+        return {"mean": float("nan"), "se": float("nan"), "n": 0}
+    labels, inv = np.unique(g, return_inverse=True, axis=0) if g.ndim > 1 else np.unique(g, return_inverse=True)
+    inv = inv.reshape(-1)
+    n_g = np.bincount(inv, minlength=len(labels)).astype(float)
+    means = np.bincount(inv, weights=x, minlength=len(labels)) / n_g
+    dof = len(x) - len(labels)
+    if dof < 1:
+        se = float("nan")
+    else:
+        s2 = float(np.sum((x - means[inv]) ** 2) / dof)
+        se = float(math.sqrt(s2 * np.sum(1.0 / n_g)) / len(labels))
+    return {"mean": float(means.mean()), "se": se, "n": int(len(x))}
 
 
 def _mean_se(x) -> dict:
@@ -142,20 +186,27 @@ def observables(trials, tracks=None) -> dict:
                     rot.setdefault(g, []).append(np.degrees(np.diff(pc[:, 2])))
         if arms is None:
             continue
-        per = [swing_delays(tr.t, arms[:, i], tr.gaits[i]) for i in range(tr.robots)]
-        d0 = _mean_se(per[0])["mean"]
+        # each swing's group: (trial, robot, arm, direction), so that one arm's constant misreading cancels
+        per = [swing_delay_groups(tr.t, arms[:, i], tr.gaits[i]) for i in range(tr.robots)]
+        label = [np.column_stack([np.full(len(gr), k), np.full(len(gr), i), gr]) for i, (_, gr) in enumerate(per)]
+        d0 = grouped_mean_se(per[0][0], label[0])["mean"]
         for i, g in enumerate(tr.gaits):
             if i == 0 or g != tr.gaits[0]:
-                delays.setdefault(g, []).append(per[i])
-            elif len(per[i]) and np.isfinite(d0):
+                delays.setdefault(g, []).append((per[i][0], label[i]))
+            elif len(per[i][0]) and np.isfinite(d0):
                 # robot 0's mean delay minus this robot's: how far ahead it swings (periods)
-                lead.setdefault((g, i), []).append((d0 - per[i]) / g.period())
+                lead.setdefault((g, i), []).append(((d0 - per[i][0]) / g.period(), label[i]))
     out: dict = {"arm_delay_ms": [], "phase_lead": [], "drift_mm_per_s": [], "body_step_mm": [], "rotation_deg": []}
+
+    def pooled(parts, scale=1.0):
+        return grouped_mean_se(np.concatenate([p[0] for p in parts]) * scale,
+                               np.concatenate([p[1] for p in parts]))
+
     for g, parts in delays.items():
         out["arm_delay_ms"].append({"gait": _gait_label(g), "amplitude_deg": float(g.amplitude_deg),
-                                    **_mean_se(np.concatenate(parts) * 1e3)})
+                                    **pooled(parts, 1e3)})
     for (g, i), parts in lead.items():
-        out["phase_lead"].append({"gait": _gait_label(g), "robot": i, **_mean_se(np.concatenate(parts))})
+        out["phase_lead"].append({"gait": _gait_label(g), "robot": i, **pooled(parts)})
     for key, r in sorted(group_drift(trials, tracks).items()):
         T = key[3]
         out["drift_mm_per_s"].append({"gait": _key_label(key), "v": (np.asarray(r["v"]) / T).tolist(),
