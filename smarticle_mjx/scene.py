@@ -125,6 +125,11 @@ class RobotParams:
     # axis with that range, after MuJoCo's modelling guide; its stops as stiff
     # as the time step integrates, 2 dt); 0: no free play
     backlash_deg: float = 0.0
+    # Coulomb friction inside the free play (N m, MuJoCo's frictionloss on the
+    # play hinge): the torque it takes to move an arm through its play; 0 (the
+    # presets): the arm swings freely between the stops. No public source
+    # measures it for the lab's servos (a diagnosis knob, docs/relax.md)
+    backlash_friction: float = 0.0
 
     def validate(self) -> None:
         positive = ("body_length", "body_thickness", "body_height", "arm_length",
@@ -166,6 +171,9 @@ class RobotParams:
             raise ValueError(f"robot.servo_clip must be one of {', '.join(SERVO_CLIPS)}, got {self.servo_clip!r}")
         if not 0 <= self.backlash_deg <= 10:
             raise ValueError(f"robot.backlash_deg must be in [0, 10], got {self.backlash_deg}")
+        if not 0 <= self.backlash_friction < self.servo_torque:
+            raise ValueError("robot.backlash_friction must be in [0, servo_torque), "
+                             f"got {self.backlash_friction}")
 
     @property
     def arm_radius(self) -> float:
@@ -382,8 +390,12 @@ def _robot_xml(i: int, s: SceneParams, pose: Sequence[float], plate_bits: int = 
         axis = "0 0 -1" if k == 1 else "0 0 1"
         # gear teeth are rigid: the stops are as stiff as the step integrates (2 dt), with the contacts' solimp
         teeth = (f'solreflimit="{_fmt(2 * s.timestep, 1.0)}" solimplimit="{_fmt(*s.contact_solimp)}"')
+        # the friction as firm as the stops, and nearly hard (MuJoCo's friction loss is a soft constraint: at
+        # its defaults an arm as light as this one creeps through its play under half the friction torque)
+        mesh = (f' frictionloss="{p.backlash_friction:.9g}" solreffriction="{_fmt(2 * s.timestep, 1.0)}" '
+                'solimpfriction="0.999 0.9999 0.001"' if p.backlash_friction > 0 else "")
         return (f'\n        <joint name="r{i}_k{k}" type="hinge" axis="{axis}" ref="0" '
-                f'range="{-b:.9g} {b:.9g}" {teeth}/>')
+                f'range="{-b:.9g} {b:.9g}" {teeth}{mesh}/>')
     inertial = ""
     if quirk.com_offset != (0.0, 0.0):
         # an explicit inertial moves the body's centre of mass, not its shape

@@ -183,3 +183,29 @@ def test_raised_arms_meet_the_plate_only_when_their_robot_leans():
         d.qpos[2] = S.RobotParams().body_thickness / 2 * math.sin(-lean) + S.RobotParams().body_height / 2 * math.cos(lean)
         mujoco.mj_forward(m, d)
         assert bool(arm_plate(d)) == expect
+
+
+def test_friction_inside_the_gears_play_holds_an_arm_against_a_smaller_torque():
+    """Coulomb friction in the free play (robot.backlash_friction): a lone robot's arm in +-2 deg of play,
+    its servo holding, pushed for 50 ms by a torque on the play alone. Without friction (the presets) half
+    of 5 mN m swings it to the stop (2 deg); with 5 mN m of friction the same push moves it by under
+    0.01 deg, and twice the friction still swings it to the stop. Off (0) writes no friction at all."""
+    import dataclasses
+
+    def swing(friction, torque):
+        p = presets.params(None)
+        p = dataclasses.replace(p, robot=dataclasses.replace(p.robot, backlash_deg=2.0, backlash_friction=friction))
+        m = S.compile_model(S.build_mjcf(p, S.standard_poses("single")))
+        d = mujoco.MjData(m)
+        j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "r0_k2")
+        for _ in range(int(0.05 / m.opt.timestep)):
+            d.qfrc_applied[m.jnt_dofadr[j]] = torque
+            mujoco.mj_step(m, d)
+        return float(np.degrees(d.qpos[m.jnt_qposadr[j]])), float(m.dof_frictionloss[m.jnt_dofadr[j]])
+
+    assert swing(0.0, 0.0025) == (pytest.approx(2.0, abs=0.02), 0.0)
+    held, loss = swing(0.005, 0.0025)
+    assert abs(held) < 0.01 and loss == 0.005
+    assert swing(0.005, 0.01)[0] == pytest.approx(2.0, abs=0.02)
+    with pytest.raises(ValueError, match="backlash_friction"):
+        S.RobotParams(backlash_friction=-0.001).validate()
