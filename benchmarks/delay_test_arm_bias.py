@@ -27,7 +27,7 @@ import calibration_stress as CS  # noqa: E402
 
 from smarticle_mjx import __version__  # noqa: E402
 from smarticle_mjx.calibrate import observables as OB  # noqa: E402
-from smarticle_mjx.calibrate.data import load, priors  # noqa: E402
+from smarticle_mjx.calibrate.data import load  # noqa: E402
 from smarticle_mjx.calibrate.effects import EffectSet  # noqa: E402
 from smarticle_mjx.calibrate.fit import Problem, split, stage_tracks  # noqa: E402
 
@@ -48,8 +48,7 @@ def one(seed: int, index: int) -> dict:
         CS.write_set(s, tmp)
         trials = load(tmp)
     train_t, test_t = split(trials)
-    train, test = Problem(train_t), Problem(test_t)
-    train.priors = priors(trials)
+    train, test = Problem(train_t), Problem(test_t)  # the preset model's tracks (no nominal values, no priors)
     model = OB.observables(trials, stage_tracks(train, test, trials, {}, EffectSet()))
     out = {"suite_seed": seed, "index": index, "hidden": s["hidden"], "truth": s["truth"],
            "arm_bias_deg": s["generator"].get("arm2_bias_deg"), "amplitudes": s["amplitudes"]}
