@@ -7,6 +7,15 @@
 #   bash benchmarks/gpu_lease.sh 2   # finish Warp's library, time Warp, run the 5000 x 75 scan
 #   bash benchmarks/gpu_lease.sh merge DIR OUT.json   # here: the three JSONs of DIR into one
 #
+# Why Warp flags lanes the native backend does not (benchmarks/warp_flags.py), in
+# two or three calls on the same warm machine:
+#
+#   bash benchmarks/gpu_lease.sh install  # install the carried wheels only
+#   bash benchmarks/gpu_lease.sh flags    # finish Warp, the 5000 x 75 scan on Warp with its store kept,
+#                                         # its flagged lanes run again alone on Warp
+#   bash benchmarks/gpu_lease.sh flags2   # the same lanes in deterministic mode, at half the step,
+#                                         # with five times the solver iterations
+#
 # What travels (ignored folders, prepared on a machine with pip):
 #   .whl1/  mujoco 4.0.0 (+ mujoco-core), mujoco-mjx 3.17.0, mujoco-warp 4.0.0,
 #           glfw, PyOpenGL, trimesh wheels; warp_py.tar.xz (warp-lang 1.19.0's
@@ -21,7 +30,43 @@ cd "$(dirname "$0")/.."
 R=${OUT:-${RESULTS:-benchmarks/results}}
 SITE=/tmp/site
 export PYTHONUNBUFFERED=1 PYTHONPATH=$SITE:$PWD JAX_COMPILATION_CACHE_DIR=/tmp/jaxcache
+install_wheels() {
+  mkdir -p /tmp/keep "$SITE"
+  cp .whl1/warpso.part1 /tmp/keep/
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
+    --target "$SITE" .whl1/*.whl
+  tar -xJf .whl1/warp_py.tar.xz -C "$SITE"
+  nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv | tee "$R/gpu_lease_smi.txt"
+}
+finish_warp() {
+  [ -s "$SITE/warp/bin/warp.so" ] || cat /tmp/keep/warpso.part1 .whl2/warpso.part2 \
+    | python3 -c "import lzma, sys; sys.stdout.buffer.write(lzma.decompress(sys.stdin.buffer.read()))" \
+    > "$SITE/warp/bin/warp.so"
+  python3 -c "import warp; warp.init(); print('warp', warp.__version__, warp.get_cuda_device())"
+}
 case "${1:-}" in
+install)
+  install_wheels
+  python3 -c "import jax, mujoco; print('jax', jax.__version__, jax.devices(), 'mujoco', mujoco.__version__)"
+  ;;
+flags)
+  finish_warp
+  mkdir -p /tmp/keep/scan
+  timeout "${SCAN_LIMIT:-450}" python3 benchmarks/full_scan.py --backend warp --batch-size 8192 \
+    --n 5000 --periods 75 --store /tmp/keep/scan/warp_scan.h5 --out "$R/full_scan_gpu_flags.json"
+  cp /tmp/keep/scan/warp_scan.h5 "$R/"
+  timeout "${RERUN_LIMIT:-100}" python3 benchmarks/warp_flags.py --store /tmp/keep/scan/warp_scan.h5 \
+    --backend warp --controls 64 --out "$R/warp_flags_rerun.json"
+  ;;
+flags2)
+  S=/tmp/keep/scan/warp_scan.h5
+  timeout "${RERUN_LIMIT:-150}" python3 benchmarks/warp_flags.py --store $S --backend warp --deterministic \
+    --out "$R/warp_flags_deterministic.json" || true
+  timeout "${RERUN_LIMIT:-150}" python3 benchmarks/warp_flags.py --store $S --backend warp --timestep 0.000125 \
+    --out "$R/warp_flags_half_step.json" || true
+  timeout "${RERUN_LIMIT:-150}" python3 benchmarks/warp_flags.py --store $S --backend warp \
+    --replace iterations=100 --replace ls_iterations=100 --out "$R/warp_flags_iterations.json" || true
+  ;;
 1)
   mkdir -p /tmp/keep "$SITE"
   cp .whl1/warpso.part1 /tmp/keep/

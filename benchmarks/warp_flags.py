@@ -1,0 +1,162 @@
+"""Which lanes of a scan store were flagged (penetration beyond the limit, a
+non-finite state), and do they flag again when run alone, on another backend,
+in Warp's deterministic mode or at a finer step?
+
+    # on a GPU: the paper scan on Warp, its store kept, then its flagged lanes again
+    python benchmarks/full_scan.py --backend warp --batch-size 8192 --store S.h5 --out scan.json
+    python benchmarks/warp_flags.py --store S.h5 --backend warp --out warp_rerun.json
+    python benchmarks/warp_flags.py --store S.h5 --backend warp --deterministic --out warp_det.json
+    python benchmarks/warp_flags.py --store S.h5 --backend warp --timestep 0.000125 --out warp_half.json
+    # here, on the CPU: the same lanes on MuJoCo C (float64)
+    python benchmarks/warp_flags.py --store S.h5 --backend native --out native_rerun.json
+
+The lanes are the store's own (its scan configuration, model, amplitude and
+robots, rebuilt from the store's attributes), so a rerun starts each lane
+exactly where the scan started it. Each rerun runs the lanes as one batch (no
+other lanes beside them) for the scan's periods with the scan's early-exit
+rule; a flagged lane retires at the chunk in which it was flagged, as in the
+scan. Per lane the JSON gives the store's first flagged period and deepest
+inter-robot contact, and the rerun's. Nothing in the store is changed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import pathlib
+import time
+
+import numpy as np
+
+from smarticle_mjx import __version__
+from smarticle_mjx.engine import Lanes, open_backend
+from smarticle_mjx.engine.batch import RetireRule, run_lanes
+from smarticle_mjx.scan import RunInputs
+from smarticle_mjx.scene import params_from_json
+from smarticle_mjx.specs import config_from_json
+from smarticle_mjx.store import BAD_STATUS, Store
+
+LIMIT = 0.002  # the engines' penetration flag (m)
+
+
+def lane_summary(min_dist: np.ndarray, status: int, periods_run: int) -> dict:
+    """One lane's flag record from its per-period deepest contacts [K, P] (m; inf where no touch)."""
+    deepest = np.min(min_dist, axis=-1)  # [K], most negative signed distance per period
+    past = np.flatnonzero(deepest < -LIMIT)
+    finite = deepest[np.isfinite(deepest)]
+    return {"status": int(status), "flagged": bool(status & BAD_STATUS),
+            "first_period_past_limit": int(past[0]) if past.size else None,
+            "deepest_mm": float(-finite.min() * 1e3) if finite.size else 0.0,
+            "periods_run": int(periods_run)}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--store", required=True, help="a scan store (HDF5)")
+    ap.add_argument("--run", default=None, help="run name (default: the first)")
+    ap.add_argument("--backend", default="native", help="native | warp | mjx")
+    ap.add_argument("--deterministic", action="store_true", help="MuJoCo Warp's deterministic mode")
+    ap.add_argument("--timestep", type=float, default=None, help="another step (s) for the rerun")
+    ap.add_argument("--replace", action="append", default=[], metavar="FIELD=VALUE",
+                    help="change one numerical field of the stored scene for the rerun (e.g. iterations=100)")
+    ap.add_argument("--lanes", default="flagged", help="'flagged' or comma-separated lane indices")
+    ap.add_argument("--controls", type=int, default=0,
+                    help="also rerun this many unflagged valid lanes, drawn with a fixed seed (a control)")
+    ap.add_argument("--batch-size", type=int, default=256)
+    ap.add_argument("--nthread", type=int, default=2, help="native backend threads")
+    ap.add_argument("--out", required=True)
+    args = ap.parse_args()
+
+    st = Store(args.store)
+    run = args.run or st.runs[0]
+    config = config_from_json(st.config["scan"])
+    params = params_from_json(st.config["scene"])
+    stored = st.run(run, fields=("valid", "status", "periods_run", "min_dist"))
+    flagged = np.flatnonzero(stored["valid"] & ((stored["status"] & BAD_STATUS) > 0))
+    if args.lanes == "flagged":
+        idx = flagged
+    else:
+        idx = np.array(sorted({int(x) for x in args.lanes.split(",")}), dtype=int)
+        bad = [int(i) for i in idx if not 0 <= i < stored["valid"].size or not stored["valid"][i]]
+        if bad:
+            raise SystemExit(f"lanes {bad} are out of range or were never simulated (overlapping start)")
+    controls = np.array([], dtype=int)
+    if args.controls:
+        ok = np.flatnonzero(stored["valid"] & ((stored["status"] & BAD_STATUS) == 0))
+        controls = np.sort(np.random.default_rng(0).choice(ok, size=min(args.controls, ok.size), replace=False))
+    idx = np.concatenate([idx, controls]).astype(int)
+    if idx.size == 0:
+        raise SystemExit(f"{args.store}: no lanes to rerun (flagged lanes: {flagged.size})")
+    if config.robot_draws != 1:
+        raise SystemExit("scans that draw several robot pairs are not handled here")
+
+    run_params = params if args.timestep is None else dataclasses.replace(params, timestep=args.timestep)
+    for item in args.replace:
+        field, _, value = item.partition("=")
+        if not hasattr(run_params, field) or not value:
+            raise SystemExit(f"--replace {item!r}: not FIELD=VALUE with a field of the scene")
+        run_params = dataclasses.replace(run_params, **{field: type(getattr(run_params, field))(value)})
+    inputs = RunInputs.of(config, params, float(st.run_attrs[run]["amplitude_deg"]))
+    lanes = config.robots(0).lanes(Lanes.from_gait(inputs.poses[idx], inputs.gait), idx)
+    options = dict(config.backend_options()) if args.backend == config.backend else {}
+    if args.deterministic:
+        options["deterministic"] = True
+    got: dict[int, dict] = {}
+
+    def on_lanes(res):
+        for j, q in enumerate(res.index):
+            got[int(idx[q])] = lane_summary(res.min_dist[j], int(res.status[j]), int(res.periods_run[j]))
+
+    t = time.perf_counter()
+    with open_backend(args.backend, run_params, 2, nthread=args.nthread if args.backend == "native" else None,
+                      **options) as backend:
+        device = _device(args.backend)
+        ran = run_lanes(backend, lanes, config.periods, batch_size=args.batch_size, chunk_periods=config.chunk_periods,
+                        rule=RetireRule(quiet_periods=config.quiet_periods), on_lanes=on_lanes)
+    wall = time.perf_counter() - t
+
+    rows = []
+    for lane in idx:
+        before = lane_summary(stored["min_dist"][lane], int(stored["status"][lane]), int(stored["periods_run"][lane]))
+        rows.append({"lane": int(lane), "control": bool(lane in set(controls.tolist())),
+                     "config_r_theta_phi": [float(x) for x in inputs.cfg[lane]],
+                     "store": before, "rerun": got[int(lane)]})
+    fl = [r for r in rows if not r["control"]]
+    ct = [r for r in rows if r["control"]]
+    out = dict(store=str(args.store), store_backend=config.backend, store_timestep_s=params.timestep,
+               backend=args.backend, device=device, deterministic=args.deterministic,
+               timestep_s=run_params.timestep, integrator=params.integrator, replaced=args.replace,
+               package=__version__,
+               periods=int(config.periods), lanes_flagged_in_store=int(flagged.size), wall_s=wall,
+               lane_periods=int(ran.get("lane_periods", 0)),
+               flagged_again=sum(r["rerun"]["flagged"] for r in fl), of_flagged=len(fl),
+               controls_flagged=sum(r["rerun"]["flagged"] for r in ct), controls=len(ct),
+               deepest_mm_rerun_of_flagged=_quantiles([r["rerun"]["deepest_mm"] for r in fl]),
+               deepest_mm_rerun_of_controls=_quantiles([r["rerun"]["deepest_mm"] for r in ct]),
+               deepest_mm_store_of_controls=_quantiles([r["store"]["deepest_mm"] for r in ct]),
+               rows=rows)
+    pathlib.Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
+    print(f"{args.backend}{' deterministic' if args.deterministic else ''} at {run_params.timestep * 1e3:g} ms on "
+          f"{device}: {out['flagged_again']} of {len(fl)} flagged lanes flagged again, "
+          f"{out['controls_flagged']} of {len(ct)} controls; deepest (mm) flagged {out['deepest_mm_rerun_of_flagged']}, "
+          f"controls {out['deepest_mm_rerun_of_controls']}; {wall:.0f} s")
+
+
+def _quantiles(x) -> dict | None:
+    if not x:
+        return None
+    q = np.quantile(np.asarray(x, float), [0.0, 0.5, 0.9, 1.0])
+    return {"min": float(q[0]), "median": float(q[1]), "p90": float(q[2]), "max": float(q[3])}
+
+
+def _device(backend: str) -> str:
+    import platform
+    if backend == "warp":
+        import warp as wp
+        return str(wp.get_device("cuda:0" if wp.is_cuda_available() else "cpu").name)
+    return platform.processor() or platform.machine()
+
+
+if __name__ == "__main__":
+    main()
