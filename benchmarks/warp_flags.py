@@ -65,8 +65,16 @@ def main():
                     help="also rerun this many unflagged valid lanes, drawn with a fixed seed (a control)")
     ap.add_argument("--batch-size", type=int, default=256)
     ap.add_argument("--nthread", type=int, default=2, help="native backend threads")
+    ap.add_argument("--signature", action="store_true",
+                    help="run nothing: the store's flagged lanes' depths against the robots' box sizes, and "
+                         "how far the robots moved in the flagged period against the periods before")
     ap.add_argument("--out", required=True)
     args = ap.parse_args()
+    if args.signature:
+        out = signature(args.store, args.run)
+        pathlib.Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
+        print(json.dumps({k: v for k, v in out.items() if k != "lanes"}, indent=1))
+        return
 
     st = Store(args.store)
     run = args.run or st.runs[0]
@@ -141,6 +149,43 @@ def main():
           f"{device}: {out['flagged_again']} of {len(fl)} flagged lanes flagged again, "
           f"{out['controls_flagged']} of {len(ct)} controls; deepest (mm) flagged {out['deepest_mm_rerun_of_flagged']}, "
           f"controls {out['deepest_mm_rerun_of_controls']}; {wall:.0f} s")
+
+
+def signature(store, run=None) -> dict:
+    """The flagged lanes' depth at their first flagged period, each named by the box size (a whole
+    thickness, height or length of an arm or a body; sums of two) it equals within 0.05 mm, and the
+    largest robot displacement and heading change in that period against the lane's median before it."""
+    st = Store(store)
+    run = run or st.runs[0]
+    params = params_from_json(st.config["scene"])
+    r = params.robot
+    sizes = {"arm thickness": r.arm_thickness, "arm height": r.arm_height, "arm length": r.arm_length,
+             "body thickness": r.body_thickness, "body height": r.body_height, "body length": r.body_length}
+    sizes.update({f"2 x {k}": 2 * v for k, v in list(sizes.items())})
+    d = st.run(run, fields=("valid", "status", "min_dist", "poses"))
+    flagged = np.flatnonzero(d["valid"] & ((d["status"] & BAD_STATUS) > 0))
+    lanes, named, moves = [], {}, []
+    for lane in flagged:
+        deepest = d["min_dist"][lane].min(-1)
+        past = np.flatnonzero(deepest < -LIMIT)
+        if not past.size:  # flagged as non-finite, not by depth
+            lanes.append({"lane": int(lane), "status": int(d["status"][lane]), "depth_mm": None})
+            continue
+        k = int(past[0])
+        depth = float(-deepest[k])
+        name = next((n for n, v in sizes.items() if abs(depth - v) < 5e-5), None)
+        named[name or "none"] = named.get(name or "none", 0) + 1
+        p = d["poses"][lane].astype(float)
+        step = np.linalg.norm(np.diff(p[:, :, :2], axis=0), axis=-1).max(-1)  # [K-1] largest robot move
+        row = {"lane": int(lane), "status": int(d["status"][lane]), "period": k, "depth_mm": depth * 1e3,
+               "equals": name}
+        if k >= 3:
+            row.update(move_mm=float(step[k - 1] * 1e3), median_move_before_mm=float(np.median(step[:k - 1]) * 1e3))
+            moves.append(step[k - 1] / np.median(step[:k - 1]))
+        lanes.append(row)
+    return {"store": str(store), "timestep_s": params.timestep, "lanes_flagged": int(flagged.size),
+            "depth_equals": named, "sizes_mm": {k: v * 1e3 for k, v in sizes.items()},
+            "move_in_flag_period_over_median_before": _quantiles(moves), "lanes": lanes}
 
 
 def _quantiles(x) -> dict | None:
