@@ -11,10 +11,13 @@
 # two or three calls on the same warm machine:
 #
 #   bash benchmarks/gpu_lease.sh install  # install the carried wheels only
-#   bash benchmarks/gpu_lease.sh flags    # finish Warp, the 5000 x 75 scan on Warp with its store kept,
-#                                         # its flagged lanes run again alone on Warp
-#   bash benchmarks/gpu_lease.sh flags2   # the same lanes in deterministic mode, at half the step,
-#                                         # with five times the solver iterations
+#   bash benchmarks/gpu_lease.sh flags    # finish Warp, the 5000 x 75 scan on Warp with its store kept
+#                                         # (the one of 27 November 2026, its flagged lanes and 108 controls: results/warp_scan_h200_flagged_lanes.json)
+#   bash benchmarks/gpu_lease.sh flags2   # (after install and the second wheel half; STORE=... or that
+#                                         # store) its flagged lanes and as many controls, box pairs through
+#                                         # the analytic collider (MuJoCo C's) and again through GJK/EPA
+#   bash benchmarks/gpu_lease.sh flags3   # the same in deterministic mode, and at half the step
+#   (flags2 and flags3 not yet run: the first lease spent its time on the scan)
 #
 # What travels (ignored folders, prepared on a machine with pip):
 #   .whl1/  mujoco 4.0.0 (+ mujoco-core), mujoco-mjx 3.17.0, mujoco-warp 4.0.0,
@@ -55,17 +58,23 @@ flags)
   timeout "${SCAN_LIMIT:-450}" python3 benchmarks/full_scan.py --backend warp --batch-size 8192 \
     --n 5000 --periods 75 --store /tmp/keep/scan/warp_scan.h5 --out "$R/full_scan_gpu_flags.json"
   cp /tmp/keep/scan/warp_scan.h5 "$R/"
-  timeout "${RERUN_LIMIT:-100}" python3 benchmarks/warp_flags.py --store /tmp/keep/scan/warp_scan.h5 \
-    --backend warp --controls 64 --out "$R/warp_flags_rerun.json"
   ;;
 flags2)
-  S=/tmp/keep/scan/warp_scan.h5
+  finish_warp
+  S=${STORE:-benchmarks/results/warp_scan_h200_flagged_lanes.json}
+  # all flagged lanes and as many unflagged controls, as one batch, convex (again) and analytic: ~4 min each
+  timeout 280 python3 benchmarks/warp_flags.py --store $S --backend warp --analytic-box --controls 108 \
+    --batch-size 256 --out "$R/warp_flags_analytic_box.json" || true
+  timeout 280 python3 benchmarks/warp_flags.py --store $S --backend warp --controls 108 \
+    --batch-size 256 --out "$R/warp_flags_convex_again.json" || true
+  ;;
+flags3)
+  finish_warp
+  S=${STORE:-benchmarks/results/warp_scan_h200_flagged_lanes.json}
   timeout "${RERUN_LIMIT:-150}" python3 benchmarks/warp_flags.py --store $S --backend warp --deterministic \
     --out "$R/warp_flags_deterministic.json" || true
   timeout "${RERUN_LIMIT:-150}" python3 benchmarks/warp_flags.py --store $S --backend warp --timestep 0.000125 \
     --out "$R/warp_flags_half_step.json" || true
-  timeout "${RERUN_LIMIT:-150}" python3 benchmarks/warp_flags.py --store $S --backend warp \
-    --replace iterations=100 --replace ls_iterations=100 --out "$R/warp_flags_iterations.json" || true
   ;;
 1)
   mkdir -p /tmp/keep "$SITE"

@@ -8,7 +8,7 @@ and the angles of its joints (each arm's servo hinge and, with gear play, its pl
 the steps around the first one past 2 deg of tilt (every 10th step) and writes them to a JSON.
 
     python benchmarks/tip_trace.py out/discovery_long/backlash-step-0.25ms_s00.h5 7 5 6 \\
-        --out benchmarks/results/tip_trace_backlash_t7.json
+        --out benchmarks/results/tip_trace/backlash_t7.json
 
 With ``--switch K --steps N`` it then continues from the state before step K of the last period (the
 period index P - 1), N steps, once as stored and once per variant with one thing changed at that moment

@@ -7,6 +7,7 @@ in Warp's deterministic mode or at a finer step?
     python benchmarks/warp_flags.py --store S.h5 --backend warp --out warp_rerun.json
     python benchmarks/warp_flags.py --store S.h5 --backend warp --deterministic --out warp_det.json
     python benchmarks/warp_flags.py --store S.h5 --backend warp --timestep 0.000125 --out warp_half.json
+    python benchmarks/warp_flags.py --store S.h5 --backend warp --analytic-box --out warp_box.json
     # here, on the CPU: the same lanes on MuJoCo C (float64)
     python benchmarks/warp_flags.py --store S.h5 --backend native --out native_rerun.json
 
@@ -30,7 +31,9 @@ import time
 import numpy as np
 
 from smarticle_mjx import __version__
-from smarticle_mjx.engine import Lanes, open_backend
+import mujoco
+
+from smarticle_mjx.engine import Lanes, Scene, make_backend
 from smarticle_mjx.engine.batch import RetireRule, run_lanes
 from smarticle_mjx.scan import RunInputs
 from smarticle_mjx.scene import params_from_json
@@ -58,6 +61,9 @@ def main():
     ap.add_argument("--backend", default="native", help="native | warp | mjx")
     ap.add_argument("--deterministic", action="store_true", help="MuJoCo Warp's deterministic mode")
     ap.add_argument("--timestep", type=float, default=None, help="another step (s) for the rerun")
+    ap.add_argument("--analytic-box", action="store_true",
+                    help="box pairs through the analytic box-box collider (MuJoCo's NATIVECCD disable flag), "
+                         "which MuJoCo C uses, instead of MuJoCo Warp's default GJK/EPA")
     ap.add_argument("--replace", action="append", default=[], metavar="FIELD=VALUE",
                     help="change one numerical field of the stored scene for the rerun (e.g. iterations=100)")
     ap.add_argument("--lanes", default="flagged", help="'flagged' or comma-separated lane indices")
@@ -65,6 +71,9 @@ def main():
                     help="also rerun this many unflagged valid lanes, drawn with a fixed seed (a control)")
     ap.add_argument("--batch-size", type=int, default=256)
     ap.add_argument("--nthread", type=int, default=2, help="native backend threads")
+    ap.add_argument("--sidecar", default=None, metavar="OUT.json",
+                    help="run nothing: write the store's configuration and its flagged lanes (with --controls, "
+                         "those too) to a small JSON that --store accepts in place of the store")
     ap.add_argument("--signature", action="store_true",
                     help="run nothing: the store's flagged lanes' depths against the robots' box sizes, and "
                          "how far the robots moved in the flagged period against the periods before")
@@ -76,7 +85,10 @@ def main():
         print(json.dumps({k: v for k, v in out.items() if k != "lanes"}, indent=1))
         return
 
-    st = Store(args.store)
+    if args.sidecar:
+        write_sidecar(args.store, args.run, args.controls, args.sidecar)
+        return
+    st = Sidecar(args.store) if str(args.store).endswith(".json") else Store(args.store)
     run = args.run or st.runs[0]
     config = config_from_json(st.config["scan"])
     params = params_from_json(st.config["scene"])
@@ -117,7 +129,10 @@ def main():
             got[int(idx[q])] = lane_summary(res.min_dist[j], int(res.status[j]), int(res.periods_run[j]))
 
     t = time.perf_counter()
-    with open_backend(args.backend, run_params, 2, nthread=args.nthread if args.backend == "native" else None,
+    scene = Scene.build(run_params, 2)
+    if args.analytic_box:
+        scene.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
+    with make_backend(args.backend, scene, nthread=args.nthread if args.backend == "native" else None,
                       **options) as backend:
         device = _device(args.backend)
         ran = run_lanes(backend, lanes, config.periods, batch_size=args.batch_size, chunk_periods=config.chunk_periods,
@@ -135,6 +150,7 @@ def main():
     out = dict(store=str(args.store), store_backend=config.backend, store_timestep_s=params.timestep,
                backend=args.backend, device=device, deterministic=args.deterministic,
                timestep_s=run_params.timestep, integrator=params.integrator, replaced=args.replace,
+               analytic_box=args.analytic_box,
                package=__version__,
                periods=int(config.periods), lanes_flagged_in_store=int(flagged.size), wall_s=wall,
                lane_periods=int(ran.get("lane_periods", 0)),
@@ -149,6 +165,51 @@ def main():
           f"{device}: {out['flagged_again']} of {len(fl)} flagged lanes flagged again, "
           f"{out['controls_flagged']} of {len(ct)} controls; deepest (mm) flagged {out['deepest_mm_rerun_of_flagged']}, "
           f"controls {out['deepest_mm_rerun_of_controls']}; {wall:.0f} s")
+
+
+def write_sidecar(store, run, controls: int, out) -> None:
+    """The store's scan configuration, scene, amplitude and, for its flagged lanes (and ``controls``
+    unflagged valid lanes drawn as a rerun draws them), the per-lane records a rerun compares with."""
+    st = Store(store)
+    run = run or st.runs[0]
+    d = st.run(run, fields=("valid", "status", "periods_run", "min_dist"))
+    flagged = np.flatnonzero(d["valid"] & ((d["status"] & BAD_STATUS) > 0))
+    ok = np.flatnonzero(d["valid"] & ((d["status"] & BAD_STATUS) == 0))
+    ctl = np.sort(np.random.default_rng(0).choice(ok, size=min(controls, ok.size), replace=False)) if controls else []
+    lanes = sorted(set(flagged.tolist()) | {int(x) for x in ctl})
+    md = d["min_dist"][lanes].astype(float)
+    side = {"from_store": str(store), "run": run, "config": {k: st.config[k] for k in ("scan", "scene")},
+            "run_attrs": {k: (v.item() if hasattr(v, "item") else v) for k, v in st.run_attrs[run].items()
+                          if k == "amplitude_deg"},
+            "n_lanes": int(d["valid"].size), "lanes": lanes,
+            "valid": d["valid"][lanes].tolist(), "status": d["status"][lanes].tolist(),
+            "periods_run": d["periods_run"][lanes].tolist(),
+            "min_dist_mm": np.where(np.isfinite(md), md * 1e3, None).tolist()}
+    pathlib.Path(out).write_text(json.dumps(side) + "\n")
+    print(f"{out}: {len(flagged)} flagged lanes and {len(ctl)} controls of {store}")
+
+
+class Sidecar:
+    """A sidecar written by ``--sidecar`` read as the store it came from (only its lanes are valid)."""
+
+    def __init__(self, path):
+        self.d = json.loads(pathlib.Path(path).read_text())
+        self.runs = [self.d["run"]]
+        self.config = self.d["config"]
+        self.run_attrs = {self.d["run"]: self.d["run_attrs"]}
+
+    def run(self, run, fields):
+        n, lanes = self.d["n_lanes"], np.array(self.d["lanes"], int)
+        k = len(self.d["min_dist_mm"][0])
+        md = np.full((n, k, len(self.d["min_dist_mm"][0][0])), np.inf)
+        md[lanes] = np.array([[[np.inf if x is None else x / 1e3 for x in per] for per in lane]
+                              for lane in self.d["min_dist_mm"]])
+        out = {"valid": np.zeros(n, bool), "status": np.zeros(n, np.int32), "periods_run": np.zeros(n, np.int32),
+               "min_dist": md}
+        out["valid"][lanes] = self.d["valid"]
+        out["status"][lanes] = self.d["status"]
+        out["periods_run"][lanes] = self.d["periods_run"]
+        return {f: out[f] for f in fields}
 
 
 def signature(store, run=None) -> dict:

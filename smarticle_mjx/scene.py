@@ -130,6 +130,12 @@ class RobotParams:
     # presets): the arm swings freely between the stops. No public source
     # measures it for the lab's servos (a diagnosis knob, docs/relax.md)
     backlash_friction: float = 0.0
+    # Time constant of the gear stops at the ends of the free play (s): None (the
+    # presets) makes them as stiff as the step integrates (2 dt), rigid teeth; a
+    # larger value makes the teeth meet compliantly (MuJoCo's solreflimit), as
+    # plastic gear teeth may. No public source measures the lab servos' mesh
+    # compliance (a diagnosis knob, docs/relax.md)
+    backlash_stop_timeconst: float | None = None
 
     def validate(self) -> None:
         positive = ("body_length", "body_thickness", "body_height", "arm_length",
@@ -174,6 +180,9 @@ class RobotParams:
         if not 0 <= self.backlash_friction < self.servo_torque:
             raise ValueError("robot.backlash_friction must be in [0, servo_torque), "
                              f"got {self.backlash_friction}")
+        if self.backlash_stop_timeconst is not None and not 0 < self.backlash_stop_timeconst <= 0.1:
+            raise ValueError("robot.backlash_stop_timeconst must be in (0, 0.1] s (or None: 2 time steps), "
+                             f"got {self.backlash_stop_timeconst}")
 
     @property
     def arm_radius(self) -> float:
@@ -389,7 +398,9 @@ def _robot_xml(i: int, s: SceneParams, pose: Sequence[float], plate_bits: int = 
             return ""
         axis = "0 0 -1" if k == 1 else "0 0 1"
         # gear teeth are rigid: the stops are as stiff as the step integrates (2 dt), with the contacts' solimp
-        teeth = (f'solreflimit="{_fmt(2 * s.timestep, 1.0)}" solimplimit="{_fmt(*s.contact_solimp)}"')
+        # (robot.backlash_stop_timeconst, when given: compliant teeth; never stiffer than 2 dt)
+        stop = 2 * s.timestep if p.backlash_stop_timeconst is None else max(p.backlash_stop_timeconst, 2 * s.timestep)
+        teeth = (f'solreflimit="{_fmt(stop, 1.0)}" solimplimit="{_fmt(*s.contact_solimp)}"')
         # the friction as firm as the stops, and nearly hard (MuJoCo's friction loss is a soft constraint: at
         # its defaults an arm as light as this one creeps through its play under half the friction torque)
         mesh = (f' frictionloss="{p.backlash_friction:.9g}" solreffriction="{_fmt(2 * s.timestep, 1.0)}" '

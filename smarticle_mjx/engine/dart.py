@@ -109,7 +109,7 @@ def check_model(params: SceneParams, numerics: DartNumerics) -> None:
 # refused on the twin rather than silently ignored.
 NOT_BUILT = ("timestep", "integrator", "contact_substeps", "substep_gate", "iterations", "ls_iterations",
              "tolerance", "contact_timeconst", "contact_dampratio", "contact_solimp", "boundary_radius", "boundary_segments",
-             "plate_friction_y_ratio", "arm_plate_friction", "robot.backlash_friction")
+             "plate_friction_y_ratio", "arm_plate_friction", "robot.backlash_friction", "robot.backlash_stop_timeconst")
 
 
 def check_study(backend: str, spec, params: SceneParams | None = None, overrides=()) -> None:
