@@ -13,7 +13,8 @@ the steps around the first one past 2 deg of tilt (every 10th step) and writes t
 With ``--switch K --steps N`` it then continues from the state before step K of the last period (the
 period index P - 1), N steps, once as stored and once per variant with one thing changed at that moment
 (gear stops' time constant, solver iterations, integrator, robot-robot friction, the robot's own gear
-play locked, every robot's play locked), and records robot R's largest tilt, height and push in each.
+play locked, every robot's play locked, each other robot's play locked, half and a quarter of the step
+with every time constant kept), and records robot R's largest tilt, height and push in each.
 """
 
 from __future__ import annotations
@@ -153,15 +154,22 @@ def switch(scene, lanes, a, saved, robot_of, jname, body) -> dict:
         variants[f"robot {r}'s gear play locked"] = lock([j for j in play if jname[j].startswith(f"r{r}_")])
     res = {}
     f6 = np.zeros(6)
+    # the same model at a finer step: every time constant kept as the default step compiled it (the gear
+    # stops' 2 dt = 0.5 ms among them), so only the integration is refined
+    refine = {f"step / {r} (time constants kept)": r for r in (2, 4)}
+    for name in refine:
+        variants[name] = lambda m, r=refine[name]: setattr(m.opt, "timestep", dt / r)
     for name, edit in variants.items():
+        r = refine.get(name, 1)
+        c = ctrl if r == 1 else lane_controls(scene, lanes.at_time(p * lanes.period), dt / r * np.arange(nstep * r))[0]
         m = copy.deepcopy(m0)
         edit(m)
         d = mujoco.MjData(m)
         mujoco.mj_setState(m, d, saved[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
         d.qacc_warmstart[:] = saved[1]
         tilt = z = push = 0.0
-        for k in range(a.switch, min(a.switch + a.steps, nstep)):
-            d.ctrl[:] = ctrl[k]
+        for k in range(a.switch * r, min((a.switch + a.steps) * r, nstep * r)):
+            d.ctrl[:] = c[k]
             mujoco.mj_step(m, d)
             for i in range(d.ncon):
                 r1, r2 = robot_of[d.contact.geom1[i]], robot_of[d.contact.geom2[i]]
