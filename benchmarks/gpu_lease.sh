@@ -77,21 +77,13 @@ flags3)
     --out "$R/warp_flags_half_step.json" || true
   ;;
 1)
-  mkdir -p /tmp/keep "$SITE"
-  cp .whl1/warpso.part1 /tmp/keep/
-  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
-    --target "$SITE" .whl1/*.whl
-  tar -xJf .whl1/warp_py.tar.xz -C "$SITE"
-  nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv | tee "$R/gpu_lease_smi.txt"
+  install_wheels
   python3 -c "import jax, mujoco, mujoco.mjx; print('jax', jax.__version__, jax.devices(), 'mujoco', mujoco.__version__)"
   timeout "${MJX_LIMIT:-330}" python3 benchmarks/engine.py --backends mjx --model lab-lag \
     --mjx-batches 1024,4096,16384 --mjx-steps 200 --out "$R/engine_gpu_mjx.json"
   ;;
 2)
-  cat /tmp/keep/warpso.part1 .whl2/warpso.part2 \
-    | python3 -c "import lzma, sys; sys.stdout.buffer.write(lzma.decompress(sys.stdin.buffer.read()))" \
-    > "$SITE/warp/bin/warp.so"
-  python3 -c "import warp; warp.init(); print('warp', warp.__version__, warp.get_cuda_device())"
+  finish_warp
   python3 benchmarks/engine.py --backends warp --model lab-lag --warp-batches 1024,4096,16384 \
     --warp-steps 2000 --out "$R/engine_gpu_warp.json"
   timeout "${SCAN_LIMIT:-420}" python3 benchmarks/full_scan.py --backend warp --batch-size 8192 \
