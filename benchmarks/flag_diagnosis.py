@@ -83,18 +83,28 @@ def _tilts_deg(d, bodies) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(d.xmat[bodies][:, 8], -1, 1)))
 
 
-def replay_to_flag(path, trial: int) -> dict:
+@dataclasses.dataclass
+class Trial:
+    """One trial of a relaxation store as the native backend ran it: its configuration, scene and lane (on
+    the step grid), and each geom's name and robot (-1 for the plate)."""
+
+    config: object
+    params: object
+    scene: object
+    lanes: object
+    gname: list
+    robot_of: list
+
+
+def trial_of(st, trial: int) -> Trial:
+    """Trial ``trial`` of the relaxation store ``st``: its start, phases, drawn robots and re-triggers."""
     import mujoco
     from smarticle_mjx.engine import Lanes, Scene
     from smarticle_mjx.engine.core import on_step_grid
-    from smarticle_mjx.relax import RUN, start_poses
+    from smarticle_mjx.relax import start_poses
     from smarticle_mjx.scene import params_from_json
     from smarticle_mjx.specs import relax_config_from_json
-    from smarticle_mjx.store import Store
-    st = Store(path)
     config, params = relax_config_from_json(st.config["relax"]), params_from_json(st.config["scene"])
-    lo = config.first_trial
-    rows = st.run(RUN, fields=("periods_run", "status"))
     start, phase = start_poses(dataclasses.replace(config, first_trial=trial, trials=1), params)
     scene = Scene.build(params, len(start[0]))
     lanes = Lanes.from_gait(start[0], config.gait_spec(), phase[0])
@@ -105,11 +115,24 @@ def replay_to_flag(path, trial: int) -> dict:
         lanes = dataclasses.replace(lanes, retrigger=retrigger_of(config, trial))
     lanes = on_step_grid(lanes, params.timestep)
     m = scene.model
-    nstep = int(round(lanes.period / m.opt.timestep))
     gname = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, i) for i in range(m.ngeom)]
     robot_of = [int(n[1:].split("_")[0]) if n and n.startswith("r") and "_" in n else -1 for n in gname]
-    bodies = [m.geom(f"r{i}_body").bodyid[0] for i in range(len(start[0]))]
-    n_rob = len(start[0])
+    return Trial(config, params, scene, lanes, gname, robot_of)
+
+
+def replay_to_flag(path, trial: int) -> dict:
+    import mujoco
+    from smarticle_mjx.relax import RUN
+    from smarticle_mjx.store import Store
+    st = Store(path)
+    tr = trial_of(st, trial)
+    config, params, scene, lanes, gname, robot_of = tr.config, tr.params, tr.scene, tr.lanes, tr.gname, tr.robot_of
+    lo = config.first_trial
+    rows = st.run(RUN, fields=("periods_run", "status"))
+    m = scene.model
+    nstep = int(round(lanes.period / m.opt.timestep))
+    n_rob = scene.n_robots
+    bodies = [m.geom(f"r{i}_body").bodyid[0] for i in range(n_rob)]
     onset: dict = {}  # robot-robot geom pair -> (approach speed, depth, step) when its contact began
     last: dict = {}
     tilt_max, tilt_onset = 0.0, None

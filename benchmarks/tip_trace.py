@@ -20,7 +20,6 @@ with every time constant kept), and records robot R's largest tilt, height and p
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import pathlib
 import sys
@@ -31,11 +30,6 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import flag_diagnosis as FD  # noqa: E402  (the replay the flag table uses)
 
-from smarticle_mjx.engine import Lanes, Scene  # noqa: E402
-from smarticle_mjx.engine.core import on_step_grid  # noqa: E402
-from smarticle_mjx.relax import start_poses  # noqa: E402
-from smarticle_mjx.scene import params_from_json  # noqa: E402
-from smarticle_mjx.specs import relax_config_from_json  # noqa: E402
 from smarticle_mjx.store import Store  # noqa: E402
 
 
@@ -51,17 +45,9 @@ def main():
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
-    st = Store(a.store)
-    config, params = relax_config_from_json(st.config["relax"]), params_from_json(st.config["scene"])
-    start, phase = start_poses(dataclasses.replace(config, first_trial=a.trial, trials=1), params)
-    scene = Scene.build(params, len(start[0]))
-    lanes = Lanes.from_gait(start[0], config.gait_spec(), phase[0])
-    if config.robots() is not None:
-        lanes = config.robots().lanes(lanes, [a.trial])
-    lanes = on_step_grid(lanes, params.timestep)
+    tr = FD.trial_of(Store(a.store), a.trial)  # the replay the flag table uses: start, phases, robots, re-triggers
+    scene, lanes, gname, robot_of = tr.scene, tr.lanes, tr.gname, tr.robot_of
     m = scene.model
-    gname = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, i) for i in range(m.ngeom)]
-    robot_of = [int(n[1:].split("_")[0]) if n and n.startswith("r") and "_" in n else -1 for n in gname]
     jname = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(m.njnt)]
     hinges = [j for j in range(m.njnt) if jname[j] and jname[j].startswith(f"r{a.robot}_")
               and m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]

@@ -30,9 +30,10 @@ import time
 
 import numpy as np
 
-from smarticle_mjx import __version__
 import mujoco
 
+from full_scan import _device  # what ran the engine, as the paper scan's JSON names it
+from smarticle_mjx import __version__
 from smarticle_mjx.engine import Lanes, Scene, make_backend
 from smarticle_mjx.engine.batch import RetireRule, run_lanes
 from smarticle_mjx.scan import RunInputs
@@ -254,14 +255,6 @@ def _quantiles(x) -> dict | None:
         return None
     q = np.quantile(np.asarray(x, float), [0.0, 0.5, 0.9, 1.0])
     return {"min": float(q[0]), "median": float(q[1]), "p90": float(q[2]), "max": float(q[3])}
-
-
-def _device(backend: str) -> str:
-    import platform
-    if backend == "warp":
-        import warp as wp
-        return str(wp.get_device("cuda:0" if wp.is_cuda_available() else "cpu").name)
-    return platform.processor() or platform.machine()
 
 
 if __name__ == "__main__":
