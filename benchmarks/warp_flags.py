@@ -39,7 +39,7 @@ from smarticle_mjx.engine.batch import RetireRule, run_lanes
 from smarticle_mjx.scan import RunInputs
 from smarticle_mjx.scene import params_from_json
 from smarticle_mjx.specs import config_from_json
-from smarticle_mjx.store import BAD_STATUS, Store
+from smarticle_mjx.store import BAD_STATUS, Store, StoreError
 
 LIMIT = 0.002  # the engines' penetration flag (m)
 
@@ -89,7 +89,10 @@ def main():
     if args.sidecar:
         write_sidecar(args.store, args.run, args.controls, args.sidecar)
         return
-    st = Sidecar(args.store) if str(args.store).endswith(".json") else Store(args.store)
+    try:
+        st = Sidecar(args.store) if str(args.store).endswith(".json") else Store(args.store)
+    except (StoreError, OSError, ValueError) as e:
+        raise SystemExit(f"error: {e}")
     run = args.run or st.runs[0]
     config = config_from_json(st.config["scan"])
     params = params_from_json(st.config["scene"])
