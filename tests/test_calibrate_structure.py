@@ -352,3 +352,27 @@ def test_jerky_motion_is_not_read_as_tracking_noise():
     x = white.copy()
     x[2000:2010] = np.nan
     assert len(_runs(x)) == 2 and sum(len(r) for r in _runs(x)) == 5000 - 3 - 13
+
+
+def _vis_set(hidden, gen, amps=(15,)):
+    return {"suite_seed": 0, "index": 0, "build": I.DEFAULT.as_dict(), "hidden": list(hidden), "outside": [],
+            "generator": dict(gen), "truth": {}, "amplitudes": list(amps), "chirality": "ccw",
+            "frame_rate_hz": 60.0, "arms_tracked": True, "robots": 1, "trials_per_amplitude": 2, "periods": 3,
+            "data_seed": 11}
+
+
+def test_an_effects_visibility_is_what_leaving_it_out_costs_the_generator_itself():
+    """benchmarks/calibration_visibility.py: the generator's own noise-free tracks fit its noisy data within
+    measurement error (about 1), and leaving out a dead time raises that error by its signal, which grows
+    with the dead time (at 15 deg a 40 ms dead time shifts the arm by about a quarter of its swing time);
+    dropping an effect the set does not hide costs nothing."""
+    import calibration_visibility as V
+    small = V.measure(_vis_set(["servo_dead_time"], {"dead_s": 0.01}))
+    large = V.measure(_vis_set(["servo_dead_time"], {"dead_s": 0.04}))
+    for m in (small, large):
+        assert m["err_full"] < 2.0
+    s_small, s_large = small["effects"]["servo_dead_time"]["signal"], large["effects"]["servo_dead_time"]["signal"]
+    assert s_large > 10.0 and s_large > 4 * s_small > 0
+    # a tilt that the set does not hide: removing it removes nothing
+    none = V.measure(_vis_set(["plate_tilt"], {"dead_s": 0.04}))
+    assert none["effects"]["plate_tilt"]["signal"] == pytest.approx(0.0, abs=1e-9)
