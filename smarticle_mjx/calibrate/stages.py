@@ -22,7 +22,7 @@ from .drift import drift_test, fit_tilt
 from .noise import effect_values as noise_values, noise_test
 from .effects import BY_NAME, LIBRARY, Effect, EffectSet
 from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN, MIN_SHARE,
-                  NOMINAL_EFFECTS, NOMINAL_NFEV, SERVO_HYPOTHESES, SERVO_NOMINAL, TILT_Z2, UNEXPLAINED, Fit,
+                  NOMINAL_EFFECTS, NOMINAL_NFEV, PLATE_HYPOTHESES, PLATE_NOMINAL, SERVO_HYPOTHESES, SERVO_NOMINAL, TILT_Z2, UNEXPLAINED, Fit,
                   Problem, conventions, fit_effects, is_present, nominal_findings, observable_stages, signatures,
                   split, stage_tracks, where_residual)
 from .observables import DelayTest, delay_test, observables
@@ -104,7 +104,11 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     # in time; fitted after the nominal servo, it found a third of a 0.1-period offset (the servo
     # had bent to split the difference between the robots), so it is a joint hypothesis too,
     # started from the offset at which the robots' own arm curves align
-    joint = SERVO_HYPOTHESES + (("phase_offset",) if max(tr.robots for tr in trials) > 1 else ())
+    # An anisotropic plate changes the model robot's wobble and steps only where the model robot slides
+    # like the measured one, which the nominal fit reaches by the plate's mu (with the anisotropy) or
+    # not at all (without it): a joint hypothesis too, started from the nominal fit and from the preset mu
+    joint = (SERVO_HYPOTHESES + (("phase_offset",) if max(tr.robots for tr in trials) > 1 else ())
+             + PLATE_HYPOTHESES)
     servo_skip = servo_skip_reason(trials, dtest)  # why a lag or dead time is not tried here, or None
     if servo_skip == NO_ARMS:
         say("no arm angles tracked: a servo lag or dead time is not tried (body motion alone cannot tell a "
@@ -129,6 +133,14 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         # error is kept. A phase offset between robots likewise: the nominal fit bends the servo to split
         # the robots' timing, and at the 0.25 ms step a 0.1-period offset started there ended at 0.066
         # (held-out gain 11 %, rejected), where at 0.5 ms it had reached 0.109
+        if name in PLATE_HYPOTHESES:
+            # from the nominal fit, mu and the anisotropy each alone barely move the model robot (it hardly
+            # slides); the second start is the best point of a coarse grid over the two together
+            start, e_start = plate_grid_start(train, nom0, e)
+            say(f"  nominal + {name}: grid start plate_friction {start['plate_friction']:.3g}, "
+                f"{', '.join(f'{k} {v:.3g}' for k, v in e_start.items())}")
+            tasks.append((name, e, start, e_start))
+            continue
         tasks.append((name, e, {k: v for k, v in nom0.items() if k not in SERVO_NOMINAL}, e_start))
     # every joint fit at once, one thread each (each fit's own runs then go one after another)
     fits = pmap(lambda t: fit_nominal(train, effect=t[1], start=t[2], max_nfev=HYPOTHESIS_NFEV, effect_start=t[3]),
@@ -141,7 +153,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         if len(fes) == 2:
             fe2 = fes[1]
             say(f"  nominal + {name}: training error {fe.err_after:.2f} started from the nominal fit, "
-                f"{fe2.err_after:.2f} from the preset servo")
+                f"{fe2.err_after:.2f} from the preset " + ("plate" if name in PLATE_HYPOTHESES else "servo"))
             runs = fe.evaluations + fe2.evaluations
             fe = dataclasses.replace(fe2 if fe2.err_after < fe.err_after else fe, evaluations=runs)
         nom_e = {k: fe.values[k] for k in fe.preset}
@@ -171,6 +183,23 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         nominal_fit = dataclasses.replace(fe, values=dict(nom_e))
         say(f"added {e.name} (fitted with the nominal parameters)")
     return NominalStage(nominal_fit, nom0, alone, hypotheses, dtest)
+
+
+PLATE_GRID_MU = (1.0, 0.5, 0.25)  # x the nominal fit's plate mu
+PLATE_GRID_RATIO = (0.4, 0.63, 1.6, 2.5)  # the anisotropy's start values, either axis rougher
+
+
+def plate_grid_start(train: Problem, nom0: dict, e: Effect) -> tuple[dict, dict]:
+    """(nominal values, effect values) of the grid point with the lowest training chi^2: the plate's mu at
+    PLATE_GRID_MU times the nominal fit's, the effect's one parameter at PLATE_GRID_RATIO (12 model runs,
+    side by side)."""
+    (p,) = e.params
+    points = [({**nom0, "plate_friction": nom0["plate_friction"] * f}, EffectSet.of({e.name: {p.name: r}}))
+              for f in PLATE_GRID_MU for r in PLATE_GRID_RATIO]
+    train.prefetch([(eff, nom) for nom, eff in points])
+    chi2 = [float(np.sum(train.vector_with(nom, eff) ** 2)) + train.prior_chi2(nom) for nom, eff in points]
+    nom, eff = points[int(np.argmin(chi2))]
+    return nom, eff.as_dict()[e.name]
 
 
 NO_ARMS = ("no arm angles were tracked: body motion alone cannot tell a servo's timing from a servo law unlike "
@@ -359,6 +388,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     nom = nominal_stage(train, test, trials, library, model, say) if nominal else None
     if nominal:  # the library's effects that rescale a fitted nominal parameter would fit it twice
         library = tuple(e for e in library if e.name not in NOMINAL_EFFECTS and e.name not in SERVO_HYPOTHESES
+                        and e.name not in PLATE_HYPOTHESES
                         and e not in model.chosen)
     if max(tr.robots for tr in trials) == 1:
         library = tuple(e for e in library if e.name != "phase_offset")  # no second robot to offset
