@@ -412,7 +412,8 @@ def test_an_anisotropic_plate_under_a_robot_that_slides_unlike_the_model_is_name
     robot slides far more than the library's (its clean twin is fitted with the plate's mu at ~0.09 for a
     true 0.33), so on a plate 2.4 times rougher along y the nominal fit alone stops near the preset mu,
     where the anisotropy changes nothing. Fitted jointly from the grid's start it is named, its interval
-    holds the truth, and the held-out error falls to the clean twin's level (5.7)."""
+    holds the truth, and the held-out error falls to the clean twin's level (5.7), also against a null
+    given the same start."""
     from calibration_stress import draw_set, write_set
     from smarticle_mjx.calibrate.stages import calibrate
     s = draw_set(2030, 22)
@@ -422,3 +423,8 @@ def test_an_anisotropic_plate_under_a_robot_that_slides_unlike_the_model_is_name
     lo, hi = res["added"][0]["interval"]["friction_y_ratio"]
     assert lo <= s["truth"]["anisotropic_friction"]["friction_y_ratio"] <= hi
     assert res["after"]["err_heldout"] < 0.2 * res["after_nominal"]["err_heldout"]
+    # it is judged against the nominal parameters restarted at the grid's mu, which alone take most of the
+    # fall (held-out 48.8 -> 9.5): the anisotropy is named for what it adds to that, not for the restart
+    (h,) = [h for h in res["nominal_hypotheses"] if h["effect"] == "anisotropic_friction"]
+    assert h["baseline_err_heldout"] < 0.5 * res["after_nominal"]["err_heldout"]
+    assert h["err_heldout"] < 0.8 * h["baseline_err_heldout"]
