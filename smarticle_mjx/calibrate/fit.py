@@ -62,7 +62,6 @@ SERVO_NOMINAL = ("servo_speed", "servo_kp", "servo_torque", "servo_armature")  #
 # slides unlike the model's (an independent robot's clean twin: mu 0.09 for a true 0.33), and only there does
 # an anisotropic plate change the model robot as it changes the measured one (docs/calibration.md)
 PLATE_HYPOTHESES = ("anisotropic_friction",)
-PLATE_NOMINAL = ("plate_friction",)  # restarted at the preset for them
 NOMINAL_NFEV, HYPOTHESIS_NFEV = 15, 10  # least-squares iterations (each costs a Jacobian: one run per parameter)  # rescale parameters the nominal fit already fits
 MEASURED_Z = 3.0  # a fitted nominal value this many of its measurement's sd away is reported as a finding
 CONVENTION_FACTOR = 4.0  # an alternative convention this much better than the declared one is reported

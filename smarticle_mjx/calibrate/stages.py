@@ -22,7 +22,7 @@ from .drift import drift_test, fit_tilt
 from .noise import effect_values as noise_values, noise_test
 from .effects import BY_NAME, LIBRARY, Effect, EffectSet
 from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN, MIN_SHARE,
-                  NOMINAL_EFFECTS, NOMINAL_NFEV, PLATE_HYPOTHESES, PLATE_NOMINAL, SERVO_HYPOTHESES, SERVO_NOMINAL, TILT_Z2, UNEXPLAINED, Fit,
+                  NOMINAL_EFFECTS, NOMINAL_NFEV, PLATE_HYPOTHESES, SERVO_HYPOTHESES, SERVO_NOMINAL, TILT_Z2, UNEXPLAINED, Fit,
                   Problem, conventions, fit_effects, is_present, nominal_findings, observable_stages, signatures,
                   split, stage_tracks, where_residual)
 from .observables import DelayTest, delay_test, observables
@@ -159,7 +159,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         if len(fes) == 2:
             fe2 = fes[1]
             say(f"  nominal + {name}: training error {fe.err_after:.2f} started from the nominal fit, "
-                f"{fe2.err_after:.2f} from the preset " + ("plate" if name in PLATE_HYPOTHESES else "servo"))
+                f"{fe2.err_after:.2f} " + ("from the grid's start" if name in PLATE_HYPOTHESES else "from the preset servo"))
             runs = fe.evaluations + fe2.evaluations
             fe = dataclasses.replace(fe2 if fe2.err_after < fe.err_after else fe, evaluations=runs)
         nom_e = {k: fe.values[k] for k in fe.preset}
