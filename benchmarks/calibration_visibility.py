@@ -36,8 +36,9 @@ import time
 
 import numpy as np
 
-from calibration_stress import RESULTS, SERVO, _indices, draw_set, write_set
+from calibration_stress import RESULTS, SERVO, _effect, _indices, draw_set, write_set
 from smarticle_mjx.calibrate import independent as IND
+from smarticle_mjx.calibrate.observables import crossings
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.residuals import features, masked, residual_blocks
 
@@ -51,11 +52,8 @@ def _write_noise_free(s: dict, out, drop: set[str]) -> None:
     """The set's generator tracks with no tracking noise and without the hidden effects in ``drop``."""
     build = IND.Build(**s["build"])
     gen = {k: v for k, v in s["generator"].items() if k not in NOISE_KEYS}
-    keys = {"servo_lag": ("lag_s",), "servo_dead_time": ("dead_s",), "plate_tilt": ("tilt_deg",),
-            "phase_offset": ("phase_offset",), "anisotropic_friction": ("friction_y_ratio",),
-            "arm_plate_contact": ("arm_plate_mu",), "tracking_noise": ()}
-    for e in drop:
-        for k in keys[e]:
+    for e in drop:  # the generator keywords the suite draws for that effect (any draw names the same ones)
+        for k in _effect(e, np.random.default_rng(0))[0]:
             gen.pop(k, None)
     for j, a in enumerate(s["amplitudes"]):
         IND.write_case(out, robots=s["robots"], amplitude_deg=float(a), trials=s["trials_per_amplitude"],
@@ -190,10 +188,9 @@ def _crossings(t, a, amp) -> dict:
     out = {}
     for frac in (0.1, 0.5, 0.9):
         ts = []
-        for sgn in (1.0, -1.0):
-            s = sgn * (a - (-sgn * amp + frac * 2 * sgn * amp))
-            for i in np.where((s[:-1] < 0) & (s[1:] >= 0))[0]:
-                ts.append(t[i] + (t[i + 1] - t[i]) * (-s[i]) / (s[i + 1] - s[i]))
+        for sgn in (1, -1):  # up from -amp, down from +amp
+            tc, dirs = crossings(t, a - sgn * amp * (2 * frac - 1))
+            ts += list(tc[dirs == sgn])
         out[frac] = np.sort(ts)
     return out
 

@@ -22,7 +22,8 @@ from .drift import drift_test, fit_tilt
 from .noise import effect_values as noise_values, noise_test
 from .effects import BY_NAME, LIBRARY, Effect, EffectSet
 from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN, MIN_SHARE,
-                  NOMINAL_EFFECTS, NOMINAL_NFEV, PLATE_HYPOTHESES, SERVO_HYPOTHESES, SERVO_NOMINAL, TILT_Z2, UNEXPLAINED, Fit,
+                  NOMINAL_EFFECTS, NOMINAL_NFEV, PLATE_HYPOTHESES, SERVO_HYPOTHESES, SERVO_NOMINAL, TILT_Z2,
+                  UNEXPLAINED, Fit,
                   Problem, conventions, fit_effects, is_present, nominal_findings, observable_stages, signatures,
                   split, stage_tracks, where_residual)
 from .observables import DelayTest, delay_test, observables
@@ -106,7 +107,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     # started from the offset at which the robots' own arm curves align
     # An anisotropic plate changes the model robot's wobble and steps only where the model robot slides
     # like the measured one, which the nominal fit reaches by the plate's mu (with the anisotropy) or
-    # not at all (without it): a joint hypothesis too, started from the nominal fit and from the preset mu
+    # not at all (without it): a joint hypothesis too, started from the nominal fit and from a grid over both
     joint = (SERVO_HYPOTHESES + (("phase_offset",) if max(tr.robots for tr in trials) > 1 else ())
              + PLATE_HYPOTHESES)
     servo_skip = servo_skip_reason(trials, dtest)  # why a lag or dead time is not tried here, or None
@@ -142,7 +143,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             tasks.append((name, e, start, e_start))
             # and the null gets the same chance: the nominal parameters alone, restarted at the grid's mu
             # (a restart that helps without the anisotropy is not the anisotropy's gain)
-            tasks.append((name + NULL_RESTART, None, {**nom0, "plate_friction": start["plate_friction"]}, None))
+            tasks.append((name, None, {**nom0, "plate_friction": start["plate_friction"]}, None))
             continue
         tasks.append((name, e, {k: v for k, v in nom0.items() if k not in SERVO_NOMINAL}, e_start))
     # every joint fit at once, one thread each (each fit's own runs then go one after another)
@@ -150,8 +151,8 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
                 tasks)
     done, nulls = {}, {}
     for (name, e, _, _), fe in zip(tasks, fits):
-        if name.endswith(NULL_RESTART):
-            nulls[name[:-len(NULL_RESTART)]] = fe
+        if e is None:  # the null's restart beside a plate hypothesis
+            nulls[name] = fe
             continue
         done.setdefault(name, (e, []))[1].append(fe)
     for name, (e, fes) in done.items():
@@ -201,7 +202,6 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     return NominalStage(nominal_fit, nom0, alone, hypotheses, dtest)
 
 
-NULL_RESTART = "#null"  # a task's name: the nominal parameters alone, from the plate hypothesis's start
 PLATE_GRID_MU = (1.0, 0.5, 0.25)  # x the nominal fit's plate mu
 PLATE_GRID_RATIO = (0.4, 0.63, 1.6, 2.5)  # the anisotropy's start values, either axis rougher
 
