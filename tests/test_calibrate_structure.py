@@ -4,6 +4,7 @@ against a closed form or against the independent simulator, not against the cali
 
 import json
 import math
+import types
 import sys
 import pathlib
 
@@ -378,6 +379,27 @@ def test_an_effects_visibility_is_what_leaving_it_out_costs_the_generator_itself
     assert none["effects"]["plate_tilt"]["signal"] == pytest.approx(0.0, abs=1e-9)
 
 
+class _GridTrain:
+    """A training problem whose chi^2 is a bowl in (log plate mu, log effect parameter) around a chosen
+    point; it records what the grid asks for and has the default preset's plate (bounds 0.2-2x its mu)."""
+
+    def __init__(self, effect, param, mu_best, value_best):
+        from smarticle_mjx import presets
+        self.trials = [types.SimpleNamespace(params=presets.params())]
+        self.effect, self.param, self.mu_best, self.value_best = effect, param, mu_best, value_best
+        self.fetched = []
+
+    def prefetch(self, points):
+        self.fetched += list(points)
+
+    def vector_with(self, nom, eff):
+        r = eff.as_dict()[self.effect][self.param]
+        return np.array([math.log(nom["plate_friction"] / self.mu_best), math.log(r / self.value_best)])
+
+    def prior_chi2(self, nom):
+        return 0.0
+
+
 def test_the_plate_hypothesis_starts_from_the_best_point_of_its_grid_over_mu_and_the_anisotropy():
     """calibrate.stages.plate_grid_start: every (mu factor, ratio) of the grid is run once and the point of
     lowest training chi^2 (priors included) is the joint fit's second start; here chi^2 is a bowl around
@@ -385,25 +407,34 @@ def test_the_plate_hypothesis_starts_from_the_best_point_of_its_grid_over_mu_and
     from smarticle_mjx.calibrate.effects import BY_NAME
     from smarticle_mjx.calibrate.stages import PLATE_GRID_MU, PLATE_GRID_RATIO, plate_grid_start
 
-    class Train:
-        def __init__(self):
-            self.fetched = []
-
-        def prefetch(self, points):
-            self.fetched += list(points)
-
-        def vector_with(self, nom, eff):
-            r = eff.as_dict()["anisotropic_friction"]["friction_y_ratio"]
-            return np.array([math.log(nom["plate_friction"] / 0.1), math.log(r / 2.5)])
-
-        def prior_chi2(self, nom):
-            return 0.0
-
-    t = Train()
+    t = _GridTrain("anisotropic_friction", "friction_y_ratio", 0.1, 2.5)
     nom, eff = plate_grid_start(t, {"plate_friction": 0.4, "servo_speed": 8.0}, BY_NAME["anisotropic_friction"])
     assert len(t.fetched) == len(PLATE_GRID_MU) * len(PLATE_GRID_RATIO)
     assert nom == {"plate_friction": pytest.approx(0.1), "servo_speed": 8.0}
     assert eff == {"friction_y_ratio": 2.5}
+
+
+def test_the_arm_plate_hypothesis_grid_raises_the_plate_mu_and_stays_where_the_fit_can_start():
+    """Arms dragging on the plate are mimicked by a slipperier plate, so the arm-plate grid also raises the
+    nominal fit's mu (a bowl at 4x it and arm-plate mu 0.5 is found); grid points are held within the
+    nominal fit's bounds (0.2-2x the preset's mu), so the returned start is one the joint fit can start
+    from: a nominal mu at the lower bound is not halved below it."""
+    from smarticle_mjx import presets
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.stages import PLATE_GRIDS, plate_grid_start
+
+    e = BY_NAME["arm_plate_contact"]
+    factors, values = PLATE_GRIDS["arm_plate_contact"]
+    assert max(factors) > 1.0
+    mu_preset = presets.params().plate_friction
+    lo = 0.2 * mu_preset
+    t = _GridTrain("arm_plate_contact", "arm_plate_mu", 4 * lo, 0.5)
+    nom, eff = plate_grid_start(t, {"plate_friction": lo, "servo_speed": 8.0}, e)
+    assert len(t.fetched) == len(factors) * len(values)
+    assert nom == {"plate_friction": pytest.approx(4 * lo), "servo_speed": 8.0}
+    assert eff == {"arm_plate_mu": 0.5}
+    asked = [n["plate_friction"] for _, n in t.fetched]
+    assert min(asked) == pytest.approx(lo) and max(asked) <= 2.0 * mu_preset + 1e-12
 
 
 @pytest.mark.slow

@@ -27,7 +27,7 @@ from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN
                   Problem, conventions, fit_effects, is_present, nominal_findings, observable_stages, signatures,
                   split, stage_tracks, where_residual)
 from .observables import DelayTest, delay_test, observables
-from .nominal import apply as apply_nominal, fit_nominal
+from .nominal import BY_NAME as NOMINAL_BY_NAME, apply as apply_nominal, fit_nominal
 from .phase import estimate_offset
 from .residuals import CONTACT_W
 from .sim import pmap, simulate_trials
@@ -107,7 +107,8 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     # started from the offset at which the robots' own arm curves align
     # An anisotropic plate changes the model robot's wobble and steps only where the model robot slides
     # like the measured one, which the nominal fit reaches by the plate's mu (with the anisotropy) or
-    # not at all (without it): a joint hypothesis too, started from the nominal fit and from a grid over both
+    # not at all (without it): a joint hypothesis too, started from the nominal fit and from a grid over both.
+    # Arms dragging on the plate the same way: the nominal fit has made the plate slipperier to mimic them
     joint = (SERVO_HYPOTHESES + (("phase_offset",) if max(tr.robots for tr in trials) > 1 else ())
              + PLATE_HYPOTHESES)
     servo_skip = servo_skip_reason(trials, dtest)  # why a lag or dead time is not tried here, or None
@@ -202,17 +203,25 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     return NominalStage(nominal_fit, nom0, alone, hypotheses, dtest)
 
 
-PLATE_GRID_MU = (1.0, 0.5, 0.25)  # x the nominal fit's plate mu
-PLATE_GRID_RATIO = (0.4, 0.63, 1.6, 2.5)  # the anisotropy's start values, either axis rougher
+# each plate hypothesis's grid: the plate's mu at these factors of the nominal fit's, times its parameter's
+# start values. An anisotropic plate matters where the model robot slides more (mu lower), either axis
+# rougher; arms dragging on the plate make the measured robot turn and step more, which the nominal fit
+# mimics by a slipperier plate (stress sets of seeds 2028-2040: mu 0.08-0.10 for a true 0.34-0.45), so
+# its grid also raises mu
+PLATE_GRIDS = {"anisotropic_friction": ((1.0, 0.5, 0.25), (0.4, 0.63, 1.6, 2.5)),
+               "arm_plate_contact": ((0.5, 1.0, 2.0, 4.0), (0.1, 0.25, 0.5))}
+PLATE_GRID_MU, PLATE_GRID_RATIO = PLATE_GRIDS["anisotropic_friction"]
 
 
 def plate_grid_start(train: Problem, nom0: dict, e: Effect) -> tuple[dict, dict]:
     """(nominal values, effect values) of the grid point with the lowest training chi^2: the plate's mu at
-    PLATE_GRID_MU times the nominal fit's, the effect's one parameter at PLATE_GRID_RATIO (12 model runs,
-    side by side)."""
+    the effect's factors (``PLATE_GRIDS``) times the nominal fit's (within the nominal bounds), the
+    effect's one parameter at its start values (12 model runs, side by side)."""
     (p,) = e.params
-    points = [({**nom0, "plate_friction": nom0["plate_friction"] * f}, EffectSet.of({e.name: {p.name: r}}))
-              for f in PLATE_GRID_MU for r in PLATE_GRID_RATIO]
+    factors, values = PLATE_GRIDS[e.name]
+    lo, hi = NOMINAL_BY_NAME["plate_friction"].bounds(train.trials[0].params)  # where the fit can start
+    points = [({**nom0, "plate_friction": float(np.clip(nom0["plate_friction"] * f, lo, hi))},
+               EffectSet.of({e.name: {p.name: r}})) for f in factors for r in values]
     train.prefetch([(eff, nom) for nom, eff in points])
     chi2 = [float(np.sum(train.vector_with(nom, eff) ** 2)) + train.prior_chi2(nom) for nom, eff in points]
     nom, eff = points[int(np.argmin(chi2))]
