@@ -459,3 +459,49 @@ def test_an_anisotropic_plate_under_a_robot_that_slides_unlike_the_model_is_name
     (h,) = [h for h in res["nominal_hypotheses"] if h["effect"] == "anisotropic_friction"]
     assert h["baseline_err_heldout"] < 0.5 * res["after_nominal"]["err_heldout"]
     assert h["err_heldout"] < 0.8 * h["baseline_err_heldout"]
+
+
+def _plate_groups(kind: str, seed: int, noise_mm: float = 0.003) -> list:
+    """Three gaits, two tracks each at headings at least 90 deg apart, four cycle steps per track (mm), built
+    without any model: each gait's body-frame step s turned by the heading, then on a plate slipperier along
+    one axis (strength 0.3, axis 30 deg: step -> (1 + E) step, E symmetric and traceless) or tilted (one
+    plate-frame vector, 0.6-1.4x as large in each gait: a tilt's drift scales with how the robot slides)."""
+    rng = np.random.default_rng(seed)
+    e = 0.3 * np.exp(2j * math.radians(30.0))
+    groups = []
+    for _ in range(3):
+        s = 0.1 * rng.uniform(0.5, 1.5) * np.exp(1j * rng.uniform(0, 2 * np.pi))
+        h0 = rng.uniform(-np.pi, np.pi)
+        size = rng.uniform(0.6, 1.4)
+        hs, ds = [], []
+        for h_start in (h0, h0 + rng.uniform(np.pi / 2, 3 * np.pi / 2)):
+            h = h_start + np.cumsum(rng.normal(0, 0.005, 4))
+            z = s * np.exp(1j * h)
+            if kind == "anisotropic":
+                z = z + e * np.conj(z)  # E acting on a plate-frame vector, in complex numbers
+            else:
+                z = z + 0.05 * size * np.exp(0.7j)
+            z = z + noise_mm * (rng.normal(size=4) + 1j * rng.normal(size=4))
+            hs.append(h)
+            ds.append(np.column_stack([z.real, z.imag]))
+        groups.append((hs, ds))
+    return groups
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_plate_slipperier_along_one_axis_drifts_with_the_robots_step_and_a_tilt_does_not(seed):
+    """calibrate.drift.plate_drift_models, on steps built without any model: a plate slipperier along one
+    axis stretches each step along that axis, so what the per-gait regression reads as drift follows each
+    gait's own step and heading, and one anisotropy K (its strength and axis: 0.3 e^{i 60 deg}) fits every
+    gait's drift better than one drift vector; a tilt's drift is one vector (whatever size each gait gives
+    it), and one anisotropy fits it worse. Both drifts are far beyond the noise."""
+    from smarticle_mjx.calibrate.drift import plate_drift_models
+    a = plate_drift_models(_plate_groups("anisotropic", seed))
+    assert a.groups == 3 and a.chi2_drift > 100
+    assert a.follows_the_robot and a.chi2_anisotropy < 0.25 * a.chi2_one_vector
+    k = complex(*a.anisotropy)
+    assert abs(k) == pytest.approx(0.3, rel=0.35)
+    assert abs(np.degrees(np.angle(k / np.exp(2j * math.radians(30.0))))) < 20
+    t = plate_drift_models(_plate_groups("tilt", seed))
+    assert t.groups == 3 and t.chi2_drift > 100
+    assert not t.follows_the_robot and t.chi2_one_vector < t.chi2_anisotropy

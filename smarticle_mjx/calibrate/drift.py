@@ -41,6 +41,7 @@ response to a small tilt (two model runs per direction).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -125,7 +126,7 @@ def _track_cov(k: int, var_step: float, var_pos: float) -> np.ndarray:
     return np.kron(c1, np.eye(2))
 
 
-def regress(tracks: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
+def regress(tracks: list[tuple[np.ndarray, np.ndarray]], noise: tuple[float, float] | None = None) -> dict | None:
     """Generalised least squares step = R(h) s + v over the cycles of one
     gait's tracks [(headings [C], steps [C, 2] mm), ...]; None if the
     headings do not span ``MIN_SPREAD_DEG`` (s and v not separable).
@@ -135,7 +136,8 @@ def regress(tracks: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
     least squares would count it twice and overstate v's error. The step
     variation and the position error are estimated from the residuals'
     variance and lag-1 covariance within tracks, and the fit repeated with
-    that covariance.
+    that covariance; ``noise`` (var_step, var_pos) gives them instead (to fit
+    another signal at the same headings with the same weights).
 
     Returns:
       dict: s [2] (body frame, mm/cycle), v [2] (plate frame, mm/cycle),
@@ -172,6 +174,8 @@ def regress(tracks: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
     g1 = g1 / n1 if n1 else 0.0
     var_pos = max(0.0, -g1)
     var_step = max(g0 - 2 * var_pos, 0.05 * g0, 1e-12)
+    if noise is not None:
+        var_step, var_pos = noise
     ata = np.zeros((4, 4))
     atb = np.zeros(4)
     for ap, yp in zip(a_parts, y_parts):
@@ -185,9 +189,8 @@ def regress(tracks: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
             "var_step": var_step, "var_pos": var_pos}
 
 
-def group_drift(trials, tracks=None) -> dict:
-    """v per gait group, from the measured tracks (``tracks`` None) or from
-    model tracks [F, N, 5] aligned with ``trials`` (masked like the data)."""
+def _gait_tracks(trials, tracks=None) -> dict:
+    """{gait group: ([headings per track], [steps per track])} over every robot that stays alone."""
     groups: dict = {}
     for k, tr in enumerate(trials):
         pose = tr.pose if tracks is None else masked(tracks[k], tr)[0]
@@ -195,6 +198,13 @@ def group_drift(trials, tracks=None) -> dict:
             g = groups.setdefault(group_key(tr.gaits[i]), ([], []))
             g[0].append(h)
             g[1].append(d)
+    return groups
+
+
+def group_drift(trials, tracks=None) -> dict:
+    """v per gait group, from the measured tracks (``tracks`` None) or from
+    model tracks [F, N, 5] aligned with ``trials`` (masked like the data)."""
+    groups = _gait_tracks(trials, tracks)
     out = {}
     for key, (hs, ds) in groups.items():
         res = regress(list(zip(hs, ds)))
@@ -223,6 +233,73 @@ def directions(rows: list[dict]) -> dict:
             "compared": True}
 
 
+@dataclasses.dataclass(frozen=True)
+class PlateDrift:
+    """Does the gaits' plate-frame drift follow the robot's own step, as a plate slipperier along one axis
+    makes it, or is it one vector, as a tilt makes it? (:func:`plate_drift_models`; model-free.)
+
+    A plate slipperier along one axis stretches each step along it: step = (1 + E) R(h) s with E symmetric
+    and traceless (strength eps, axis psi). In complex numbers E z = eps e^{2i psi} conj(z), so the extra
+    step is K conj(s) e^{-ih}, K = eps e^{2i psi}: it turns against the heading, and its size is the
+    robot's own step in that gait. With the few headings a gait has, the regression step = R(h) s + v
+    (:func:`regress`) reads part of it as a drift, v_g = K w_g, where w_g is what the same regression
+    reads from conj(s_g) e^{-ih} at the gait's own headings. A tilt adds the same vector to every gait.
+
+    Attributes:
+      groups: gait groups with a drift (two or more make the comparison).
+      chi2_drift: of v_g = 0 (the drift test's).
+      chi2_one_vector: of one v for every gait (a tilt's drift, its size taken as the same in every gait).
+      chi2_anisotropy: of v_g = K w_g, one K for every gait.
+      anisotropy: K (re, im) in the best fit: |K| about (1 - r) / (1 + r) for a ratio r of the plate's
+        mobilities along its axes, arg / 2 the slipperier axis.
+    """
+
+    groups: int
+    chi2_drift: float
+    chi2_one_vector: float
+    chi2_anisotropy: float
+    anisotropy: tuple[float, float]
+
+    @property
+    def applicable(self) -> bool:
+        return self.groups >= 2
+
+    @property
+    def follows_the_robot(self) -> bool:
+        """The drifts fit one plate anisotropy better than one drift vector."""
+        return self.applicable and self.chi2_anisotropy < self.chi2_one_vector
+
+    def as_dict(self) -> dict:
+        return {**dataclasses.asdict(self), "anisotropy": list(self.anisotropy), "applicable": self.applicable,
+                "follows_the_robot": self.follows_the_robot}
+
+
+def plate_drift_models(groups: list[tuple[list, list]]) -> PlateDrift:
+    """:class:`PlateDrift` from the tracks of each gait group [([headings per track], [steps per track,
+    mm]), ...] (groups whose headings do not separate s and v are left out, as in the drift test). Each
+    group's v is weighted by its covariance taken as isotropic (the mean of its two variances)."""
+    rows = []
+    for hs, ds in groups:
+        r = regress(list(zip(hs, ds)))
+        if r is None:
+            continue
+        s_g = complex(*r["s"])
+        signal = [(np.asarray(h, float), np.column_stack([(np.conj(s_g) * np.exp(-1j * np.asarray(h, float))).real,
+                                                          (np.conj(s_g) * np.exp(-1j * np.asarray(h, float))).imag]))
+                  for h in hs]
+        w = regress(signal, noise=(r["var_step"], r["var_pos"]))
+        rows.append((complex(*r["v"]), complex(*w["v"]), float(np.mean(np.diag(r["cov_v"])))))
+    if not rows:
+        return PlateDrift(0, 0.0, 0.0, 0.0, (0.0, 0.0))
+    v = np.array([a for a, _, _ in rows])
+    w = np.array([b for _, b, _ in rows])
+    var = np.array([c for _, _, c in rows])
+    k = complex(np.sum(np.conj(w) * v / var) / max(float(np.sum(np.abs(w) ** 2 / var)), 1e-300))
+    one = complex(np.sum(v / var) / np.sum(1.0 / var))
+    return PlateDrift(len(rows), float(np.sum(np.abs(v) ** 2 / var)), float(np.sum(np.abs(v - one) ** 2 / var)),
+                      float(np.sum(np.abs(v - k * w) ** 2 / var)), (k.real, k.imag))
+
+
 def drift_test(trials) -> dict:
     """Is there plate-frame drift? Chi-square of v = 0 pooled over groups.
 
@@ -242,7 +319,8 @@ def drift_test(trials) -> dict:
                      "spread_deg": r["spread_deg"]})
     p = float(chi2_dist.sf(total, dof)) if dof else float("nan")
     return {"groups": rows, "chi2": total, "dof": dof, "p": p, "significant": bool(dof and p < P_DRIFT),
-            "threshold_p": P_DRIFT, "directions": directions(rows)}
+            "threshold_p": P_DRIFT, "directions": directions(rows),
+            "plate_models": plate_drift_models(list(_gait_tracks(trials).values())).as_dict()}
 
 
 def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -> dict:
