@@ -37,6 +37,8 @@ a set computed with another generator or scoring (their source hashes are stored
     python benchmarks/calibration_stress.py --suite-seed 7 --sets 0-9    # development seeds
     python benchmarks/calibration_stress.py --summary                    # tables of what is stored
     python benchmarks/calibration_stress.py --sets 5,9 --tag rerun       # reported sets again, kept apart
+    python benchmarks/calibration_stress.py --suite-seed 2043 --sets 11 --plate-hypothesis arm_plate_contact \
+        --tag armplate                                                   # arms on the plate fitted jointly
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ import time
 import numpy as np
 
 from smarticle_mjx.calibrate import independent as IND
+from smarticle_mjx.calibrate.fit import PLATE_HYPOTHESES
 
 ROOT = pathlib.Path(__file__).resolve().parent
 RESULTS = ROOT / "results"
@@ -191,7 +194,7 @@ def source_hash() -> str:
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
 
-def run_set(s: dict) -> dict:
+def run_set(s: dict, plate_hypotheses: tuple[str, ...] | None = None) -> dict:
     from smarticle_mjx import __version__
     from smarticle_mjx.calibrate.data import load
     from smarticle_mjx.calibrate.stages import calibrate
@@ -200,7 +203,8 @@ def run_set(s: dict) -> dict:
         write_set(s, tmp)
         trials = load(tmp)
         t = time.perf_counter()
-        res = calibrate(trials, on_step=lambda m: print(f"    [{time.perf_counter() - t:5.0f} s] {m}", flush=True)).summary
+        res = calibrate(trials, on_step=lambda m: print(f"    [{time.perf_counter() - t:5.0f} s] {m}", flush=True),
+                        **({} if plate_hypotheses is None else {"plate_hypotheses": plate_hypotheses})).summary
         wall = time.perf_counter() - t
     twin = None
     if s["hidden"]:
@@ -208,7 +212,7 @@ def run_set(s: dict) -> dict:
             write_set(s, tmp, effects=False)
             twin = calibrate(load(tmp), structural=False).summary["after"]["err_heldout"]
     return {"set": s, "score": score(s, res, twin), "wall_s": wall, "total_s": time.perf_counter() - t0,
-            "model_runs": res["model_runs"], "fitted": {a["effect"]: a["values"] for a in res["added"]},
+            "model_runs": res["model_runs"], "plate_hypotheses": res.get("plate_hypotheses"), "fitted": {a["effect"]: a["values"] for a in res["added"]},
             "intervals": {a["effect"]: a["interval"] for a in res["added"]},
             "intervals_statistical": {a["effect"]: a.get("interval_statistical", a["interval"]) for a in res["added"]},
             "nominal_findings": res["nominal_findings"], "version": __version__, "source": source_hash()}
@@ -295,6 +299,8 @@ def main():
     ap.add_argument("--max-minutes", type=float, default=None, help="start no set after this long")
     ap.add_argument("--summary", action="store_true", help="print the tables of what is stored and stop")
     ap.add_argument("--draw-only", action="store_true", help="print what each set hides and stop")
+    ap.add_argument("--plate-hypothesis", action="append", default=[],
+                    help="also fit this plate effect jointly with the nominal parameters (smx calibrate's option)")
     ap.add_argument("--tag", default="", help="keep this run's results apart (calibration_stress/<seed>-<tag>/): "
                                               "sets of a reported seed run again under later rules")
     args = ap.parse_args()
@@ -318,7 +324,8 @@ def main():
             break
         print(f"set {i}: hidden {s['hidden']} outside {s['outside']} amplitudes {s['amplitudes']} "
               f"{s['frame_rate_hz']:g} Hz arms {s['arms_tracked']}", flush=True)
-        r = run_set(s)
+        r = run_set(s, tuple(dict.fromkeys(PLATE_HYPOTHESES + tuple(args.plate_hypothesis)))
+                    if args.plate_hypothesis else None)
         tmp = path.with_suffix(".tmp")
         tmp.write_text(json.dumps(r, indent=1, default=float))
         tmp.replace(path)

@@ -466,18 +466,29 @@ def calibrate(
     nominal: bool = typer.Option(True, help="fit the robot's nominal parameters first (servo, arm lengths, "
                                              "masses, plate μ); --no-nominal takes the preset's as exact"),
     set_: list[str] = typer.Option([], "--set", help=_SET_HELP + " (before the sidecar's measured values)"),
+    plate_hypothesis: list[str] = typer.Option([], help="also fit this plate effect jointly with the nominal "
+                                                        "parameters from a grid start (repeatable; "
+                                                        "arm_plate_contact: docs/calibration.md says what it "
+                                                        "gains and what it risks)"),
 ):
     """Residuals of the model against measured tracks, ranked candidate effects, the fit, before/after."""
     from .calibrate import report
     from .calibrate.data import load
-    from .calibrate.stages import calibrate as run
+    from .calibrate.fit import PLATE_HYPOTHESES
+    from .calibrate.stages import PLATE_GRIDS, calibrate as run
     if model is not None:
         _model(model)
+    for h in plate_hypothesis:
+        if h not in PLATE_GRIDS:
+            raise typer.BadParameter(f"no joint plate hypothesis {h!r}; choose from {', '.join(PLATE_GRIDS)}",
+                                     param_hint="--plate-hypothesis")
+    plates = tuple(dict.fromkeys(PLATE_HYPOTHESES + tuple(plate_hypothesis)))
     report.check_output(out, overwrite)
     changes = _sets(set_)
     trials = load(data, model, changes)
     t0 = time.perf_counter()
-    result = run(trials, on_step=lambda msg: typer.echo(f"[{time.perf_counter() - t0:4.0f} s] {msg}"), nominal=nominal)
+    result = run(trials, on_step=lambda msg: typer.echo(f"[{time.perf_counter() - t0:4.0f} s] {msg}"), nominal=nominal,
+                 plate_hypotheses=plates)
     if changes:
         result.summary["overrides"] = dict(changes)
     report.write(result, trials, out)

@@ -508,8 +508,8 @@ def test_a_plate_slipperier_along_one_axis_drifts_with_the_robots_step_and_a_til
 
 
 @pytest.mark.slow
-def test_arms_dragging_on_the_plate_are_named_with_the_nominal_fit(tmp_path):
-    """Stress set 2031/12 (one of the sets the joint arm-plate hypothesis was built on, ~1 min): another
+def test_arms_dragging_on_the_plate_are_named_with_the_nominal_fit_when_asked(tmp_path):
+    """``plate_hypotheses`` with arm_plate_contact (off by default: docs/calibration.md). Stress set 2031/12 (one of the sets the joint arm-plate hypothesis was built on, ~1 min): another
     simulator's robot whose arms rest on the plate with mu 0.40. Fitted alone, the nominal parameters mimic
     the arms' drag with a slipperier plate (mu at the bound of its range) and the arm-plate mu fitted after
     them gains nothing (held-out 68 against the clean twin's 4.5). Fitted jointly from a grid that also
@@ -519,8 +519,24 @@ def test_arms_dragging_on_the_plate_are_named_with_the_nominal_fit(tmp_path):
     from smarticle_mjx.calibrate.stages import calibrate
     s = draw_set(2031, 12)
     write_set(s, tmp_path)
-    res = calibrate(load(tmp_path)).summary
+    res = calibrate(load(tmp_path), plate_hypotheses=("anisotropic_friction", "arm_plate_contact")).summary
+    assert res["plate_hypotheses"] == ["anisotropic_friction", "arm_plate_contact"]
     assert [a["effect"] for a in res["added"]][:1] == ["arm_plate_contact"], res["verdict"]
     (h,) = [h for h in res["nominal_hypotheses"] if h["effect"] == "arm_plate_contact"]
     assert h["accepted"] and h["err_heldout"] < 0.8 * h["baseline_err_heldout"]
     assert res["after"]["err_heldout"] < 0.3 * res["after_nominal"]["err_heldout"]
+
+
+def test_smx_calibrate_refuses_an_unknown_plate_hypothesis_in_one_line_and_writes_nothing(tmp_path):
+    """A joint plate hypothesis the calibration does not have is a usage error: one line, exit 2, no report
+    folder, whatever the data (checked before they are read)."""
+    from typer.testing import CliRunner
+    from smarticle_mjx.cli import app
+    out = tmp_path / "report"
+    r = CliRunner().invoke(app, ["calibrate", str(tmp_path), "--out", str(out), "--plate-hypothesis", "plate_tilt"])
+    assert r.exit_code == 2
+    assert "no joint plate hypothesis" in r.output and "'plate_tilt'" in r.output
+    assert not out.exists()
+    from smarticle_mjx.calibrate.stages import calibrate
+    with pytest.raises(ValueError, match="no joint plate hypothesis"):
+        calibrate([], plate_hypotheses=("friction_scale",))

@@ -79,7 +79,8 @@ class NominalStage:
     delay: DelayTest  # the measured arm delay against the preset model's, by amplitude
 
 
-def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, model: Model, say) -> NominalStage:
+def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, model: Model, say,
+                  plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES) -> NominalStage:
     """Fit the robot's nominal parameters, then each joint hypothesis (a servo lag or dead time, a phase
     offset between robots) with them; keep the best accepted hypothesis."""
     null = EffectSet()
@@ -110,7 +111,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     # not at all (without it): a joint hypothesis too, started from the nominal fit and from a grid over both.
     # Arms dragging on the plate the same way: the nominal fit has made the plate slipperier to mimic them
     joint = (SERVO_HYPOTHESES + (("phase_offset",) if max(tr.robots for tr in trials) > 1 else ())
-             + PLATE_HYPOTHESES)
+             + tuple(plate_hypotheses))
     servo_skip = servo_skip_reason(trials, dtest)  # why a lag or dead time is not tried here, or None
     if servo_skip == NO_ARMS:
         say("no arm angles tracked: a servo lag or dead time is not tried (body motion alone cannot tell a "
@@ -135,7 +136,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         # error is kept. A phase offset between robots likewise: the nominal fit bends the servo to split
         # the robots' timing, and at the 0.25 ms step a 0.1-period offset started there ended at 0.066
         # (held-out gain 11 %, rejected), where at 0.5 ms it had reached 0.109
-        if name in PLATE_HYPOTHESES:
+        if name in plate_hypotheses:
             # from the nominal fit, mu and the anisotropy each alone barely move the model robot (it hardly
             # slides); the second start is the best point of a coarse grid over the two together
             start, e_start = plate_grid_start(train, nom0, e)
@@ -161,7 +162,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         if len(fes) == 2:
             fe2 = fes[1]
             say(f"  nominal + {name}: training error {fe.err_after:.2f} started from the nominal fit, "
-                f"{fe2.err_after:.2f} " + ("from the grid's start" if name in PLATE_HYPOTHESES else "from the preset servo"))
+                f"{fe2.err_after:.2f} " + ("from the grid's start" if name in plate_hypotheses else "from the preset servo"))
             runs = fe.evaluations + fe2.evaluations
             fe = dataclasses.replace(fe2 if fe2.err_after < fe.err_after else fe, evaluations=runs)
         nom_e = {k: fe.values[k] for k in fe.preset}
@@ -396,10 +397,16 @@ def added_entry(e: Effect, values: dict, interval: dict, statistical: dict | Non
 
 
 def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_step: Callable | None = None,
-              nominal: bool = True, structural: bool = True) -> Calibration:
+              nominal: bool = True, structural: bool = True,
+              plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES) -> Calibration:
     """The whole loop: conventions -> nominal parameters -> plate tilt -> ranked diagnosis -> fit ->
     selection -> observables. ``structural`` False: the nominal parameters alone (no effect is tried;
-    what a data set's clean twin is calibrated with in the stress suite)."""
+    what a data set's clean twin is calibrated with in the stress suite). ``plate_hypotheses``: the plate
+    effects fitted jointly with the nominal parameters from a grid start (``PLATE_GRIDS``; default the
+    anisotropic plate; ``arm_plate_contact`` may be added), left out of the rounds."""
+    unknown = [h for h in plate_hypotheses if h not in PLATE_GRIDS]
+    if unknown:
+        raise ValueError(f"no joint plate hypothesis {unknown[0]!r}; choose from {', '.join(PLATE_GRIDS)}")
     if not structural:
         library = ()
     say = on_step or (lambda msg: None)
@@ -419,10 +426,10 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     noise = noise_stage(trials, train, test, library, model, say)
     if noise.get("applies"):  # measured without the model: the rounds do not fit it again
         library = tuple(e for e in library if e.name != "tracking_noise")
-    nom = nominal_stage(train, test, trials, library, model, say) if nominal else None
+    nom = nominal_stage(train, test, trials, library, model, say, tuple(plate_hypotheses)) if nominal else None
     if nominal:  # the library's effects that rescale a fitted nominal parameter would fit it twice
         library = tuple(e for e in library if e.name not in NOMINAL_EFFECTS and e.name not in SERVO_HYPOTHESES
-                        and e.name not in PLATE_HYPOTHESES
+                        and e.name not in plate_hypotheses
                         and e not in model.chosen)
     if max(tr.robots for tr in trials) == 1:
         library = tuple(e for e in library if e.name != "phase_offset")  # no second robot to offset
@@ -457,7 +464,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         "nominal_findings": nominal_findings(nominal_fit) if nominal_fit else [],
         "measured": {k: list(v) for k, v in train.priors.items()},
         "before": before, "after_nominal": after_nominal, "after": after, "rounds": rounds,
-        "nominal_hypotheses": nom.hypotheses if nom else [],
+        "nominal_hypotheses": nom.hypotheses if nom else [], "plate_hypotheses": list(plate_hypotheses),
         "delay_test": nom.delay.as_dict() if nom else None,
         "added": [added_entry(e, *model.found[e.name],
                               statistical=(tilt.tilt or {}).get("interval_statistical")
