@@ -64,9 +64,9 @@ SERVO_NOMINAL = ("servo_speed", "servo_kp", "servo_torque", "servo_armature")  #
 # dragging on the plate likewise: the nominal fit mimics their turns and steps with a slipperier plate (stress
 # sets of seeds 2028-2040: mu 0.08-0.10 for a true 0.34-0.45, held-out 68-183 against the clean twins' 2-6),
 # from where the arm-plate mu fitted in the rounds gains nothing. Fitted that way it was named in 9 of 12 fresh
-# sets, but it also took 2 of the 2 clean sets of a whole fresh seed (2044), where it absorbed a robot the
-# library fits badly: so it is offered (``calibrate(plate_hypotheses=...)``, ``smx calibrate --plate-hypothesis``)
-# and not on by default (docs/calibration.md)
+# sets, but on clean sets of a whole fresh seed (2044) it absorbed a robot the library fits badly (1 of 9 fresh
+# clean sets beyond what the rounds add): so it is offered (``calibrate(plate_hypotheses=...)``,
+# ``smx calibrate --plate-hypothesis``) and not on by default (docs/calibration.md)
 PLATE_HYPOTHESES = ("anisotropic_friction",)
 OPTIONAL_PLATE_HYPOTHESES = ("arm_plate_contact",)
 NOMINAL_NFEV, HYPOTHESIS_NFEV = 15, 10  # least-squares iterations (each costs a Jacobian: one run per parameter)  # rescale parameters the nominal fit already fits
