@@ -56,6 +56,7 @@ import numpy as np
 
 from smarticle_mjx.calibrate import independent as IND
 from smarticle_mjx.calibrate.fit import PLATE_HYPOTHESES
+from smarticle_mjx.calibrate.stages import plate_hypotheses_with
 
 ROOT = pathlib.Path(__file__).resolve().parent
 RESULTS = ROOT / "results"
@@ -194,7 +195,7 @@ def source_hash() -> str:
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
 
-def run_set(s: dict, plate_hypotheses: tuple[str, ...] | None = None) -> dict:
+def run_set(s: dict, plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES) -> dict:
     from smarticle_mjx import __version__
     from smarticle_mjx.calibrate.data import load
     from smarticle_mjx.calibrate.stages import calibrate
@@ -204,7 +205,7 @@ def run_set(s: dict, plate_hypotheses: tuple[str, ...] | None = None) -> dict:
         trials = load(tmp)
         t = time.perf_counter()
         res = calibrate(trials, on_step=lambda m: print(f"    [{time.perf_counter() - t:5.0f} s] {m}", flush=True),
-                        **({} if plate_hypotheses is None else {"plate_hypotheses": plate_hypotheses})).summary
+                        plate_hypotheses=plate_hypotheses).summary
         wall = time.perf_counter() - t
     twin = None
     if s["hidden"]:
@@ -304,6 +305,10 @@ def main():
     ap.add_argument("--tag", default="", help="keep this run's results apart (calibration_stress/<seed>-<tag>/): "
                                               "sets of a reported seed run again under later rules")
     args = ap.parse_args()
+    try:
+        plates = plate_hypotheses_with(args.plate_hypothesis)
+    except ValueError as e:
+        ap.error(str(e))
     name = str(args.suite_seed) + (f"-{args.tag}" if args.tag else "")
     folder = RESULTS / "calibration_stress" / name
     folder.mkdir(parents=True, exist_ok=True)
@@ -324,8 +329,7 @@ def main():
             break
         print(f"set {i}: hidden {s['hidden']} outside {s['outside']} amplitudes {s['amplitudes']} "
               f"{s['frame_rate_hz']:g} Hz arms {s['arms_tracked']}", flush=True)
-        r = run_set(s, tuple(dict.fromkeys(PLATE_HYPOTHESES + tuple(args.plate_hypothesis)))
-                    if args.plate_hypothesis else None)
+        r = run_set(s, plates)
         tmp = path.with_suffix(".tmp")
         tmp.write_text(json.dumps(r, indent=1, default=float))
         tmp.replace(path)

@@ -4,8 +4,9 @@
 drifts point one way (``drift.directions``). A third gate was tried (November 2026, after version 0.4.0):
 that the drifts do not follow the robot's own step as a plate slipperier along one axis makes them
 (``drift.PlateDrift.follows_the_robot``); on fresh seeds it stopped as many tilts as anisotropic plates,
-so it is reported, not applied. The gates need no model, so they can be scored on many sets quickly: for every set of the given suite seeds and indices (benchmarks/calibration_stress.py, same draw,
-data written as the suite writes them) that hides ``plate_tilt`` or ``anisotropic_friction`` (or neither,
+so it is reported, not applied. The gates need no model, so they can be scored on many sets quickly:
+for every set of the given suite seeds and indices (benchmarks/calibration_stress.py, same draw, data
+written as the suite writes them) that hides ``plate_tilt`` or ``anisotropic_friction`` (or neither,
 with ``--clean``), this script runs the drift test on the data and records which gates pass. It does not
 fit the tilt (that needs the model), so "passes" here means "reaches the tilt fit"; the stress suite's
 scores are the whole calibration's.

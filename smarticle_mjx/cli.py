@@ -474,15 +474,13 @@ def calibrate(
     """Residuals of the model against measured tracks, ranked candidate effects, the fit, before/after."""
     from .calibrate import report
     from .calibrate.data import load
-    from .calibrate.fit import PLATE_HYPOTHESES
-    from .calibrate.stages import PLATE_GRIDS, calibrate as run
+    from .calibrate.stages import calibrate as run, plate_hypotheses_with
     if model is not None:
         _model(model)
-    for h in plate_hypothesis:
-        if h not in PLATE_GRIDS:
-            raise typer.BadParameter(f"no joint plate hypothesis {h!r}; choose from {', '.join(PLATE_GRIDS)}",
-                                     param_hint="--plate-hypothesis")
-    plates = tuple(dict.fromkeys(PLATE_HYPOTHESES + tuple(plate_hypothesis)))
+    try:
+        plates = plate_hypotheses_with(plate_hypothesis)
+    except ValueError as e:
+        raise typer.BadParameter(str(e), param_hint="--plate-hypothesis")
     report.check_output(out, overwrite)
     changes = _sets(set_)
     trials = load(data, model, changes)

@@ -274,19 +274,21 @@ class PlateDrift:
                 "follows_the_robot": self.follows_the_robot}
 
 
-def plate_drift_models(groups: list[tuple[list, list]]) -> PlateDrift:
+def plate_drift_models(groups: list[tuple[list, list]], fits: list[dict | None] | None = None) -> PlateDrift:
     """:class:`PlateDrift` from the tracks of each gait group [([headings per track], [steps per track,
-    mm]), ...] (groups whose headings do not separate s and v are left out, as in the drift test). Each
-    group's v is weighted by its covariance taken as isotropic (the mean of its two variances)."""
+    mm]), ...] (groups whose headings do not separate s and v are left out, as in the drift test); ``fits``:
+    their :func:`regress` results where already made. Each group's v is weighted by its covariance taken as
+    isotropic (the mean of its two variances)."""
     rows = []
-    for hs, ds in groups:
-        r = regress(list(zip(hs, ds)))
+    fits = fits if fits is not None else [regress(list(zip(hs, ds))) for hs, ds in groups]
+    for (hs, _), r in zip(groups, fits):
         if r is None:
             continue
         s_g = complex(*r["s"])
-        signal = [(np.asarray(h, float), np.column_stack([(np.conj(s_g) * np.exp(-1j * np.asarray(h, float))).real,
-                                                          (np.conj(s_g) * np.exp(-1j * np.asarray(h, float))).imag]))
-                  for h in hs]
+        signal = []
+        for h in hs:
+            z = np.conj(s_g) * np.exp(-1j * np.asarray(h, float))
+            signal.append((h, np.column_stack([z.real, z.imag])))
         w = regress(signal, noise=(r["var_step"], r["var_pos"]))
         rows.append((complex(*r["v"]), complex(*w["v"]), float(np.mean(np.diag(r["cov_v"])))))
     if not rows:
@@ -308,7 +310,9 @@ def drift_test(trials) -> dict:
       significant (p < P_DRIFT), speed_mm_per_s (pooled |v| / period).
     """
     from scipy.stats import chi2 as chi2_dist
-    res = group_drift(trials)
+    tracks = _gait_tracks(trials)
+    fits = {key: regress(list(zip(hs, ds))) for key, (hs, ds) in tracks.items()}  # as group_drift's
+    res = {key: r for key, r in fits.items() if r is not None}
     rows, total, dof = [], 0.0, 0
     for key, r in sorted(res.items()):
         c = float(r["v"] @ np.linalg.solve(r["cov_v"], r["v"]))
@@ -320,7 +324,7 @@ def drift_test(trials) -> dict:
     p = float(chi2_dist.sf(total, dof)) if dof else float("nan")
     return {"groups": rows, "chi2": total, "dof": dof, "p": p, "significant": bool(dof and p < P_DRIFT),
             "threshold_p": P_DRIFT, "directions": directions(rows),
-            "plate_models": plate_drift_models(list(_gait_tracks(trials).values())).as_dict()}
+            "plate_models": plate_drift_models(list(tracks.values()), list(fits.values())).as_dict()}
 
 
 def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -> dict:

@@ -67,8 +67,7 @@ SERVO_NOMINAL = ("servo_speed", "servo_kp", "servo_torque", "servo_armature")  #
 # sets, but on clean sets of a whole fresh seed (2044) it absorbed a robot the library fits badly (1 of 9 fresh
 # clean sets beyond what the rounds add): so it is offered (``calibrate(plate_hypotheses=...)``,
 # ``smx calibrate --plate-hypothesis``) and not on by default (docs/calibration.md)
-PLATE_HYPOTHESES = ("anisotropic_friction",)
-OPTIONAL_PLATE_HYPOTHESES = ("arm_plate_contact",)
+PLATE_HYPOTHESES = ("anisotropic_friction",)  # the others of stages.PLATE_GRIDS may be asked for
 NOMINAL_NFEV, HYPOTHESIS_NFEV = 15, 10  # least-squares iterations (each costs a Jacobian: one run per parameter)  # rescale parameters the nominal fit already fits
 MEASURED_Z = 3.0  # a fitted nominal value this many of its measurement's sd away is reported as a finding
 CONVENTION_FACTOR = 4.0  # an alternative convention this much better than the declared one is reported

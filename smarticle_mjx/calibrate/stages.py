@@ -214,6 +214,15 @@ PLATE_GRIDS = {"anisotropic_friction": ((1.0, 0.5, 0.25), (0.4, 0.63, 1.6, 2.5))
 PLATE_GRID_MU, PLATE_GRID_RATIO = PLATE_GRIDS["anisotropic_friction"]
 
 
+def plate_hypotheses_with(extra=()) -> tuple[str, ...]:
+    """The default joint plate hypotheses and ``extra`` (in that order, each once); ValueError in one line
+    for a name that has no grid in ``PLATE_GRIDS``."""
+    unknown = [h for h in extra if h not in PLATE_GRIDS]
+    if unknown:
+        raise ValueError(f"no joint plate hypothesis {unknown[0]!r}; choose from {', '.join(PLATE_GRIDS)}")
+    return tuple(dict.fromkeys(PLATE_HYPOTHESES + tuple(extra)))
+
+
 def plate_grid_start(train: Problem, nom0: dict, e: Effect) -> tuple[dict, dict]:
     """(nominal values, effect values) of the grid point with the lowest training chi^2: the plate's mu at
     the effect's factors (``PLATE_GRIDS``) times the nominal fit's (within the nominal bounds), the
@@ -404,9 +413,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     what a data set's clean twin is calibrated with in the stress suite). ``plate_hypotheses``: the plate
     effects fitted jointly with the nominal parameters from a grid start (``PLATE_GRIDS``; default the
     anisotropic plate; ``arm_plate_contact`` may be added), left out of the rounds."""
-    unknown = [h for h in plate_hypotheses if h not in PLATE_GRIDS]
-    if unknown:
-        raise ValueError(f"no joint plate hypothesis {unknown[0]!r}; choose from {', '.join(PLATE_GRIDS)}")
+    plate_hypotheses_with(plate_hypotheses)  # every name has a grid
     if not structural:
         library = ()
     say = on_step or (lambda msg: None)
