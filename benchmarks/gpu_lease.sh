@@ -15,9 +15,10 @@
 #                                         # (the one of 27 November 2026, its flagged lanes and 108 controls: results/warp_scan_h200_flagged_lanes.json)
 #   bash benchmarks/gpu_lease.sh flags2   # (after install and the second wheel half; STORE=... or that
 #                                         # store) its flagged lanes and as many controls, box pairs through
-#                                         # the analytic collider (MuJoCo C's) and again through GJK/EPA
-#   bash benchmarks/gpu_lease.sh flags3   # the same in deterministic mode, and at half the step
-#   (flags2 and flags3 not yet run: the first lease spent its time on the scan)
+#                                         # the analytic collider (MuJoCo C's); a call of its own (not yet run)
+#   bash benchmarks/gpu_lease.sh flags2convex  # the same lanes again through GJK/EPA (run 27 November 2026:
+#                                         # results/warp_flags_convex_again_h200.json)
+#   bash benchmarks/gpu_lease.sh flags3   # the same in deterministic mode, and at half the step (not yet run)
 #
 # What travels (ignored folders, prepared on a machine with pip):
 #   .whl1/  mujoco 4.0.0 (+ mujoco-core), mujoco-mjx 3.17.0, mujoco-warp 4.0.0,
@@ -62,10 +63,17 @@ flags)
 flags2)
   finish_warp
   S=${STORE:-benchmarks/results/warp_scan_h200_flagged_lanes.json}
-  # all flagged lanes and as many unflagged controls, as one batch, convex (again) and analytic: ~4 min each
-  timeout 280 python3 benchmarks/warp_flags.py --store $S --backend warp --analytic-box --controls 108 \
-    --batch-size 256 --out "$R/warp_flags_analytic_box.json" || true
-  timeout 280 python3 benchmarks/warp_flags.py --store $S --backend warp --controls 108 \
+  # all flagged lanes and as many unflagged controls, as one batch, through the analytic box-box
+  # collider: about 4.5 min of lanes after a kernel build of about 2 min (an empty kernel cache), so it
+  # takes a call of its own (27 November 2026: run beside the convex rerun in one call, it was cut at
+  # 280 s and wrote nothing; the convex rerun alone took 263 s, results/warp_flags_convex_again_h200.json)
+  timeout "${FLAG_LIMIT:-540}" python3 benchmarks/warp_flags.py --store $S --backend warp --analytic-box \
+    --controls 108 --batch-size 256 --out "$R/warp_flags_analytic_box.json" || true
+  ;;
+flags2convex)
+  finish_warp
+  S=${STORE:-benchmarks/results/warp_scan_h200_flagged_lanes.json}
+  timeout "${FLAG_LIMIT:-540}" python3 benchmarks/warp_flags.py --store $S --backend warp --controls 108 \
     --batch-size 256 --out "$R/warp_flags_convex_again.json" || true
   ;;
 flags3)
