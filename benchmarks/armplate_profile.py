@@ -4,6 +4,7 @@ the joint fit ended at, and the arm-plate mu values the fits asked the model for
 
     python benchmarks/armplate_profile.py 2042 36     # ~5 min on 2 cores; results/armplate_profile_2042_36.json
 """
+import argparse
 import json
 import pathlib
 import sys
@@ -21,8 +22,14 @@ PROFILE = (0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6)
 
 
 def main():
-    seed, idx = int(sys.argv[1]), int(sys.argv[2])
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("suite_seed", type=int)
+    ap.add_argument("index", type=int, help="the set's index in the seed (calibration_stress.py --draw-only lists them)")
+    args = ap.parse_args()
+    seed, idx = args.suite_seed, args.index
     s = draw_set(seed, idx)
+    if "arm_plate_contact" not in s["hidden"]:
+        ap.error(f"set {seed}/{idx} hides no arms on the plate (it hides {s['hidden'] or 'nothing'})")
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         write_set(s, tmp)
