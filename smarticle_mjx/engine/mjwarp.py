@@ -121,6 +121,9 @@ def _kernels():
     return k.set_ctrl, k.record, k.tick
 
 
+# constraint solvers MuJoCo Warp implements (no PGS)
+WARP_SOLVERS = ("Newton", "CG")
+
 @dataclasses.dataclass
 class _Batch:
     """Device buffers of one batch size (MuJoCo Warp data, records, control table)."""
@@ -154,6 +157,9 @@ class WarpBackend(BackendBase):
 
     def __init__(self, scene: Scene, device: str | None = None, penetration_limit: float = 0.002,
                  deterministic: bool = False, graph: bool = True):
+        if scene.params.solver not in WARP_SOLVERS:
+            raise ValueError(f"the warp backend solves constraints with {', '.join(WARP_SOLVERS)}, not "
+                             f"{scene.params.solver!r}; use the native backend")
         if not available():
             raise ValueError(MISSING)
         import warp as wp

@@ -64,6 +64,8 @@ MATMUL_PRECISION = "highest"
 
 # integrators MJX (JAX) implements in mjx.step
 MJX_INTEGRATORS = ("Euler", "RK4", "implicitfast")
+# constraint solvers MJX implements (no PGS)
+MJX_SOLVERS = ("Newton", "CG")
 
 class MjxBackend(BackendBase):
     """Batched MJX rollouts; runs on whatever device JAX chose (CPU or GPU)."""
@@ -78,6 +80,9 @@ class MjxBackend(BackendBase):
         if scene.params.integrator not in MJX_INTEGRATORS:
             raise ValueError(f"the mjx backend integrates with {', '.join(MJX_INTEGRATORS)}, not "
                              f"{scene.params.integrator!r}; use the native or warp backend")
+        if scene.params.solver not in MJX_SOLVERS:
+            raise ValueError(f"the mjx backend solves constraints with {', '.join(MJX_SOLVERS)}, not "
+                             f"{scene.params.solver!r}; use the native backend")
         self.model = mujoco.MjModel.from_xml_string(Scene.mjcf(scene.params, scene.n_robots, sensors="none"))
         # near-contact sub-stepping (SceneParams.contact_substeps): lanes here run in lock-step, so a lane
         # that skips sub-steps saves nothing; every step is split (the gate always open)
