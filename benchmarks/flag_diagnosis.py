@@ -236,6 +236,9 @@ def max_tilts(imperfections: str, phase_jitter: float, overrides: dict, teeth: f
     from smarticle_mjx.scene import compile_model
     from smarticle_mjx.specs import RelaxConfig
     config = RelaxConfig(trials=trials, periods=periods, imperfections=imperfections, phase_jitter=phase_jitter)
+    # the probe's rows were measured with MuJoCo's Newton solver, the scenes' only solver then; the default
+    # "auto" solver (CG where arms have gear play) came after them (play_probe.py)
+    overrides = {"solver": "Newton", **overrides}
     params = config.robots().scene(presets.apply(presets.params(model), overrides.items()))
     starts, phase = start_poses(config, params)
     xml = Scene.mjcf(params, config.n_robots, False)

@@ -151,16 +151,19 @@ def run(name: str, poses: np.ndarray, imperfections: str | None = None, replica:
     model = "lab-lag" + (f"+{imperfections}" if imperfections else "") + (f"_replica{replica}" if replica else "")
     if replica:
         poses = replica_poses(poses, replica)
-    path = RUNS / f"{model}_{slug}_{POOL}x{PERIODS}_s{SEED}.npz"
-    if path.exists() and np.array_equal(np.load(path)["poses"], poses):
-        print(f"reusing {path.name}", flush=True)
-        return path
     params = dataclasses.replace(presets.params("lab-lag"), timestep=dt, **changes)
-    t = time.perf_counter()
     robots = None
     if imperfections:  # the same two drawn robots in every start, as fidelity_screen.py --imperfections
         from smarticle_mjx import imperfections as imp
         robots = imp.draw(imperfections, 2, SEED)
+    # tracks solved with another solver than Newton (the "auto" solver with gear play: CG) carry its name, so
+    # that tracks made with Newton before the solver field existed are never reused for them
+    solver = (robots.scene(params) if robots is not None else params).constraint_solver(2)[0]
+    path = RUNS / f"{model}_{slug}{'' if solver == 'Newton' else '_' + solver}_{POOL}x{PERIODS}_s{SEED}.npz"
+    if path.exists() and np.array_equal(np.load(path)["poses"], poses):
+        print(f"reusing {path.name}", flush=True)
+        return path
+    t = time.perf_counter()
     gliding(params, POOL, PERIODS, SEED, BURN_IN, save=path, robots=robots, poses=poses if replica else None)
     print(f"{name}{f' replica {replica}' if replica else ''}: {POOL} starts x {PERIODS} periods in "
           f"{time.perf_counter() - t:.0f} s", flush=True)

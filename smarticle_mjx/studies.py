@@ -28,7 +28,7 @@ import numpy as np
 from .reduce import analysis, gliders as GL
 from .runner import RelaxSummary, ScanSummary, store_header
 from .scan import run_scan
-from .scene import params_json
+from .scene import params_json, predated_fields
 from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, config_from_json, with_overrides
 from .scene import SceneParams
 from .store import PACKAGE, Store, journal_path
@@ -60,7 +60,7 @@ def _normalised(config: dict, want: dict, params: SceneParams, kind: str) -> dic
         if k not in stored:
             have[kind].pop(k, None)
     defaults = params_json(params.__class__())
-    have["scene"] = {**defaults, **have.get("scene", {}),
+    have["scene"] = {**defaults, **predated_fields(have.get("scene", {})), **have.get("scene", {}),
                      "robot": {**defaults["robot"], **have.get("scene", {}).get("robot", {})}}
     return have
 

@@ -136,6 +136,14 @@ def test_mjx_refuses_an_integrator_it_does_not_implement():
         make_backend("mjx", Scene.build(P.replace(integrator="discrete"), 2))
 
 
+def test_mjx_and_warp_refuse_a_solver_they_do_not_implement():
+    """MJX and MuJoCo Warp solve with Newton or CG; PGS is refused in one line before anything compiles
+    (MJX's put_model would raise NotImplementedError from deep inside)."""
+    for name in ("mjx", "warp"):
+        with pytest.raises(ValueError, match=f"the {name} backend solves constraints with Newton, CG, not 'PGS'"):
+            make_backend(name, Scene.build(P.replace(solver="PGS"), 2))
+
+
 @pytest.mark.slow  # 50 s, mostly MJX compiling; the device-array refill itself is checked below in a second
 def test_mjx_backend_runs_the_batch_runner_with_refill(scene, mjx_backend):
     """Refilling slots works on device arrays too, and the first period's

@@ -44,6 +44,7 @@ def test_overrides_change_one_field_and_leave_the_preset_alone():
     ("robot_friction=-1", "friction coefficients must be >= 0"),
     ("robot.mass=0.001", "must exceed the two arms' mass"),
     ("quirks=1", "unknown scene field 'quirks'"),
+    ("solver=LBFGS", "solver must be one of auto, Newton, CG, PGS"),
 ])
 def test_bad_overrides_are_one_line_errors(item, says):
     with pytest.raises(ValueError) as e:
@@ -62,6 +63,22 @@ def test_an_override_reaches_the_compiled_model():
     assert np.allclose(m.geom_friction[robot, 0], 0.11)
     base = scene.compile_model(scene.build_mjcf(presets.params(), scene.standard_poses("pair", params.robot)))
     assert not np.allclose(base.geom_friction[robot, 0], 0.11)
+
+
+def test_the_solver_override_reaches_the_compiled_model():
+    # MuJoCo's constraint solver and its cap, as the compiled model holds them
+    params = presets.apply(presets.params(), presets.overrides(["solver=CG", "iterations=100"]))
+    m = scene.compile_model(scene.build_mjcf(params, scene.standard_poses("pair", params.robot)))
+    assert m.opt.solver == mujoco.mjtSolver.mjSOL_CG and m.opt.iterations == 100
+    base = scene.compile_model(scene.build_mjcf(presets.params(), scene.standard_poses("pair", params.robot)))
+    assert base.opt.solver == mujoco.mjtSolver.mjSOL_NEWTON and base.opt.iterations == 20
+    # "auto" (the default) solves arms with gear play with CG at 100 iterations, unless told otherwise
+    for sets, want in ((["robot.backlash_deg=1.5"], (mujoco.mjtSolver.mjSOL_CG, 100)),
+                       (["robot.backlash_deg=1.5", "iterations=300"], (mujoco.mjtSolver.mjSOL_CG, 300)),
+                       (["robot.backlash_deg=1.5", "solver=Newton"], (mujoco.mjtSolver.mjSOL_NEWTON, 20))):
+        p = presets.apply(presets.params(), presets.overrides(sets))
+        m = scene.compile_model(scene.build_mjcf(p, scene.standard_poses("pair", p.robot)))
+        assert (m.opt.solver, m.opt.iterations) == want, sets
 
 
 def test_scan_records_preset_and_overrides_and_bad_set_touches_nothing(tmp_path):
@@ -165,3 +182,18 @@ def test_one_staleness_rule_for_scans_and_relaxations(tmp_path, kind):
         c["scene"]["contact_dampratio"] = 0.5
         f.attrs["config"] = json.dumps(c)
     assert studies.stale_reason(cfg, out) == "made from a different study file"
+
+
+def test_a_store_from_before_the_solver_field_reads_back_as_what_made_it():
+    """Stores written before the scene recorded its solver were solved with Newton: read back (replays,
+    movies, staleness) they keep Newton where arms have gear play, and are the default ("auto", which is
+    Newton there) where none has."""
+    with_play = scene.params_json(presets.apply(presets.params(), presets.overrides(["robot.backlash_deg=1.5"])))
+    ideal = scene.params_json(presets.params())
+    for d in (with_play, ideal):
+        del d["solver"]
+    assert scene.params_from_json(with_play).constraint_solver(2) == ("Newton", 20)
+    assert scene.params_from_json(ideal) == presets.params()
+    drawn = scene.params_json(presets.params().replace(quirks=(scene.RobotQuirk(backlash_deg=(1.2, 1.7)),)))
+    del drawn["solver"]
+    assert scene.params_from_json(drawn).solver == "Newton"

@@ -326,3 +326,49 @@ def test_a_contacts_deepest_penetration_is_its_approach_speed_times_tau_over_e(t
         mujoco.mj_step(m, d)
         deepest = min(deepest, d.qpos[2] - 0.01)
     assert -deepest == pytest.approx(speed * timeconst / math.e, rel=0.02)
+
+
+def test_a_crowd_with_gear_play_is_solved_without_kicks():
+    """Seven robots with gear play (the `backlash` set), crowded from the relaxation's compressed start
+    and out of step by s.d. 0.02 period, the combination that turned robots over. An arm in its play is
+    driven by a servo turning at 8.7 rad/s and pushed by neighbours whose arms move as fast: it never
+    crosses its play at 50 rad/s, and no robot leans 2 deg from upright, when the scene is solved as its
+    default solver ("auto") solves it. With MuJoCo's Newton solver these three trials (seed 0) each
+    tipped a robot within three periods on an unconverged solve of tens of newtons, an arm kicked through
+    its play at 100-2000 rad/s (benchmarks/play_probe.py; docs/relax.md, "The solver, not the play")."""
+    from smarticle_mjx.engine import Lanes, Scene
+    from smarticle_mjx.engine.core import SceneLayout, lane_controls, on_step_grid
+    from smarticle_mjx.engine.native import NativeBackend
+    from smarticle_mjx.relax import start_poses
+    from smarticle_mjx.specs import RelaxConfig
+
+    config = RelaxConfig(trials=16, periods=3, imperfections="backlash", phase_jitter=0.02)
+    params = config.robots().scene(presets.params("lab-lag"))
+    assert params.solver == "auto" and params.constraint_solver(config.n_robots) == ("CG", 100)
+    starts, phase = start_poses(config, params)
+    xml = Scene.mjcf(params, config.n_robots, False)
+    m = S.compile_model(xml)
+    scene = Scene(params, m, SceneLayout.of(m), xml, False)
+    bodies = [m.geom(f"r{i}_body").bodyid[0] for i in range(config.n_robots)]
+    play = [m.jnt_dofadr[j] for j in range(m.njnt) if m.joint(j).name.endswith(("_k1", "_k2"))]
+    assert len(play) == 2 * config.n_robots
+    for trial in (1, 3, 15):
+        lanes = on_step_grid(config.robots().lanes(Lanes.from_gait(starts[trial], config.gait_spec(), phase[trial]),
+                                                   [trial]), m.opt.timestep)
+        be = NativeBackend(scene, nthread=1)
+        state = be.initial_state(lanes)
+        be.close()
+        d = mujoco.MjData(m)
+        mujoco.mj_setState(m, d, np.asarray(state[0]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        nstep = int(round(lanes.period / m.opt.timestep))
+        tilt, speed = 0.0, 0.0
+        for p in range(3):
+            ctrl = lane_controls(scene, lanes.at_time(p * lanes.period), m.opt.timestep * np.arange(nstep))[0]
+            d.qacc_warmstart[:] = 0.0
+            for k in range(nstep):
+                d.ctrl[:] = ctrl[k]
+                mujoco.mj_step(m, d)
+                speed = max(speed, float(np.abs(d.qvel[play]).max()))
+                tilt = max(tilt, float(np.degrees(np.arccos(np.clip(d.xmat[bodies, 8].min(), -1, 1)))))
+        assert speed < 50.0, (trial, speed)
+        assert tilt < 2.0, (trial, tilt)

@@ -157,9 +157,10 @@ class WarpBackend(BackendBase):
 
     def __init__(self, scene: Scene, device: str | None = None, penetration_limit: float = 0.002,
                  deterministic: bool = False, graph: bool = True):
-        if scene.params.solver not in WARP_SOLVERS:
+        solver = scene.params.constraint_solver(scene.n_robots)[0]
+        if solver not in WARP_SOLVERS:
             raise ValueError(f"the warp backend solves constraints with {', '.join(WARP_SOLVERS)}, not "
-                             f"{scene.params.solver!r}; use the native backend")
+                             f"{solver!r}; use the native backend")
         if not available():
             raise ValueError(MISSING)
         import warp as wp

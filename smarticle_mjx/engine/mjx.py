@@ -80,9 +80,10 @@ class MjxBackend(BackendBase):
         if scene.params.integrator not in MJX_INTEGRATORS:
             raise ValueError(f"the mjx backend integrates with {', '.join(MJX_INTEGRATORS)}, not "
                              f"{scene.params.integrator!r}; use the native or warp backend")
-        if scene.params.solver not in MJX_SOLVERS:
+        solver = scene.params.constraint_solver(scene.n_robots)[0]
+        if solver not in MJX_SOLVERS:
             raise ValueError(f"the mjx backend solves constraints with {', '.join(MJX_SOLVERS)}, not "
-                             f"{scene.params.solver!r}; use the native backend")
+                             f"{solver!r}; use the native backend")
         self.model = mujoco.MjModel.from_xml_string(Scene.mjcf(scene.params, scene.n_robots, sensors="none"))
         # near-contact sub-stepping (SceneParams.contact_substeps): lanes here run in lock-step, so a lane
         # that skips sub-steps saves nothing; every step is split (the gate always open)
