@@ -149,6 +149,42 @@ def census(args) -> tuple[str, dict]:
                   "worst_relative_error": float(max(errs.max(initial=0), capped_errs.max(initial=0)))}
 
 
+def pair_census(args) -> tuple[str, dict]:
+    """``n`` random valid pair starts (the step check's: seed 1, 90 deg) with two robots drawn from the
+    ``lab`` set (seed 1, as step_mechanism.py --imperfections lab draws them), ``periods`` periods each,
+    stepped with ``solver``: capped solves, the fastest crossing of a play, the largest tilt."""
+    solver, n, periods = args
+    import flag_diagnosis as fd
+    from smarticle_mjx import imperfections as imp
+    from smarticle_mjx import presets
+    from smarticle_mjx.bench import pair_starts
+    from smarticle_mjx.engine import Lanes, Scene
+    from smarticle_mjx.engine.core import on_step_grid
+    from smarticle_mjx.gait import GaitSpec
+    base = presets.apply(presets.params("lab-lag"), [("solver", solver)])
+    robots = imp.draw("lab", 2, 1)
+    params = robots.scene(base)
+    scene = Scene.build(params, 2)
+    m = scene.model
+    bodies = [m.geom(f"r{i}_body").bodyid[0] for i in range(2)]
+    play = np.array([m.jnt_dofadr[j] for j in range(m.njnt) if re.fullmatch(r"r\d+_k\d", m.joint(j).name)], int)
+    poses = pair_starts(base, n, 1, 90.0)
+    lanes = on_step_grid(robots.lanes(Lanes.from_gait(poses, GaitSpec(90.0)), np.arange(n)), m.opt.timestep)
+    capped, steps, speed, tilt = [], 0, [], []
+    for i in range(n):
+        c, v, t = 0, 0.0, 0.0
+        for _, _, d in fd._stepped(scene, lanes.take(np.array([i])), periods):
+            c += int(d.solver_niter[0] >= m.opt.iterations)
+            v = max(v, float(np.abs(d.qvel[play]).max()))
+            t = max(t, float(fd._tilts_deg(d, bodies).max()))
+            steps += 1
+        capped.append(c), speed.append(round(v, 1)), tilt.append(round(t, 2))
+    return solver, {"starts": n, "periods": periods, "steps": steps, "constraint_solver": list(params.constraint_solver(2)),
+                    "capped_steps": int(sum(capped)), "starts_with_capped": int(sum(c > 0 for c in capped)),
+                    "play_speed_max": max(speed), "starts_over_50_rad_s": int(sum(v > 50 for v in speed)),
+                    "tilt_max_deg": max(tilt), "per_start": {"capped": capped, "play_speed": speed, "tilt_deg": tilt}}
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=16)
@@ -158,7 +194,22 @@ def main(argv=None) -> None:
     ap.add_argument("--census", type=int, default=None, metavar="TRIAL",
                     help="instead: the solver census of rows 'newton' and 'cg-100' along this trial")
     ap.add_argument("--census-every", type=int, default=50)
+    ap.add_argument("--pairs", type=int, default=None, metavar="N",
+                    help="instead: N pairs of lab robots stepped with Newton and with the default solver")
     args = ap.parse_args(argv)
+    if args.pairs is not None:
+        if args.pairs < 1:
+            ap.error("--pairs takes a count >= 1")
+        with Pool(2) as pool:
+            got = dict(pool.map(pair_census, [(sv, args.pairs, args.periods) for sv in ("Newton", "auto")]))
+        for sv, c in got.items():
+            print(f"{sv:6s} ({c['constraint_solver'][0]}): {c['starts']} pairs x {c['periods']} periods, capped "
+                  f"{c['capped_steps']} of {c['steps']} steps in {c['starts_with_capped']} pairs; play crossed "
+                  f"> 50 rad/s in {c['starts_over_50_rad_s']} (fastest {c['play_speed_max']}); tilt max "
+                  f"{c['tilt_max_deg']} deg", flush=True)
+        out = args.out.with_name(args.out.stem + "_pairs.json")
+        out.write_text(json.dumps(got, indent=1))
+        return
     if args.census is not None:
         if args.census < 0 or args.census_every < 1:
             ap.error("--census takes a trial index >= 0 and --census-every a step count >= 1")
