@@ -11,7 +11,9 @@ near-contact sub-stepping, against the same reference, same starts),
 results/step_mechanism_lab_runs30.json (the same with the `lab` imperfection set, against its own
 reference; a glider there is a start's longest bound run of >= 30 periods, because the drawn robots'
 drifting clocks leave no pair bound from period 10 to 100 at any step, so the steady rule of the other
-sources measures nothing). Only
+sources measures nothing), and results/step_mechanism_lab_runs30_cg.json (its 0.25 ms row and reference again
+with the "auto" solver, which solves the `lab` robots' gear play with CG since November 2026; it comes before
+the Newton file, whose 0.5 ms and RK4 rows stay). Only
 measurements with no field changed from the preset but the numerics enter; an integrator switch, and
 near-contact sub-stepping, are keys of their own.
 
@@ -41,7 +43,7 @@ def collect() -> list[stepcheck.StepCheck]:
         e = stepcheck.entry(g["model"], "none", dt, base.integrator, g["reference_dt_s"], "glider_step.json", row,
                             g["runs"][ref_name])
         out[stepcheck.key_of(e)] = e
-    for source in ("step_mechanism.json", "step_mechanism_lab_runs30.json", "step_mechanism_substeps.json",
+    for source in ("step_mechanism.json", "step_mechanism_lab_runs30_cg.json", "step_mechanism_lab_runs30.json", "step_mechanism_substeps.json",
                    "step_mechanism_substeps_discrete.json", "step_mechanism_discrete_against-default.json"):
         if not (ROOT / source).exists():
             continue
