@@ -54,28 +54,9 @@ def _normal_speed(m, d, i: int) -> float:
 
 
 def _stepped(scene, lanes, periods: int):
-    """Step the one lane of ``lanes`` (already on the step grid) with ``mj_step`` as the native backend runs
-    it: its initial state, each period's controls at that period's phase, and each period started from a
-    zero warm start as the backend's rollout does (checked: it reproduces the stored flags). Yields
-    (period, step, MjData) after every step."""
-    import mujoco
-    from smarticle_mjx.engine.core import lane_controls
-    from smarticle_mjx.engine.native import NativeBackend
-    be = NativeBackend(scene, nthread=1)
-    state = be.initial_state(lanes)
-    be.close()
-    m = scene.model
-    d = mujoco.MjData(m)
-    mujoco.mj_setState(m, d, np.asarray(state[0]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    dt = m.opt.timestep
-    nstep = int(round(lanes.period / dt))
-    for p in range(periods):
-        ctrl = lane_controls(scene, lanes.at_time(p * lanes.period), dt * np.arange(nstep))[0]
-        d.qacc_warmstart[:] = 0.0
-        for k in range(nstep):
-            d.ctrl[:] = ctrl[k]
-            mujoco.mj_step(m, d)
-            yield p, k, d
+    """The lane stepped as the native backend runs it (``engine.native.step_lane``)."""
+    from smarticle_mjx.engine.native import step_lane
+    return step_lane(scene, lanes, periods)
 
 
 def _tilts_deg(d, bodies) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 Each row replays the relaxation's compressed start (``--trials`` trials x ``--periods`` periods, seed 0,
 model ``lab-lag``) step by step with ``mj_step``, as the native backend runs it
-(``flag_diagnosis._stepped``), and records per trial:
+(``engine.native.step_lane``), and records per trial:
 
 * ``tilt_deg``: the largest body tilt from upright (a robot past 2 deg is on its way over; the replay of a
   trial stops once one passes 30 deg);
@@ -61,20 +61,26 @@ ROWS = {
 PLAY_JOINT = re.compile(r'(<joint name="r\d+_k\d" type="hinge" axis="[^"]*" ref="0" )')
 
 
-def probe(args) -> tuple[str, list[dict], float]:
-    name, trials, periods = args
-    import flag_diagnosis as fd
+def _row(name: str, trials: int, periods: int):
+    """Row ``name``'s relaxation config, scene parameters, starts, phases, MJCF and play-hinge edit."""
     from smarticle_mjx import presets
-    from smarticle_mjx.engine import Lanes, Scene
-    from smarticle_mjx.engine.core import SceneLayout, on_step_grid
+    from smarticle_mjx.engine import Scene
     from smarticle_mjx.relax import start_poses
-    from smarticle_mjx.scene import compile_model
     from smarticle_mjx.specs import RelaxConfig
     imperfections, jitter, overrides, extra = ROWS[name]
     config = RelaxConfig(trials=trials, periods=periods, imperfections=imperfections, phase_jitter=jitter)
     params = config.robots().scene(presets.apply(presets.params("lab-lag"), overrides.items()))
     starts, phase = start_poses(config, params)
-    xml = Scene.mjcf(params, config.n_robots, False)
+    return config, params, starts, phase, Scene.mjcf(params, config.n_robots, False), extra
+
+
+def probe(args) -> tuple[str, list[dict], float]:
+    name, trials, periods = args
+    import flag_diagnosis as fd
+    from smarticle_mjx.engine import Lanes, Scene
+    from smarticle_mjx.engine.core import SceneLayout, on_step_grid
+    from smarticle_mjx.scene import compile_model
+    config, params, starts, phase, xml, extra = _row(name, trials, periods)
     if extra:
         xml, n = PLAY_JOINT.subn(r"\1" + extra + " ", xml)
         if not n:
@@ -110,20 +116,13 @@ def census(args) -> tuple[str, dict]:
     name, trial, periods, every = args
     import mujoco
     import flag_diagnosis as fd
-    from smarticle_mjx import presets
     from smarticle_mjx.engine import Lanes, Scene
     from smarticle_mjx.engine.core import SceneLayout, on_step_grid
     from smarticle_mjx.engine.solver_check import REL_TOL, _relative_error
-    from smarticle_mjx.relax import start_poses
-    from smarticle_mjx.specs import RelaxConfig
     from smarticle_mjx.scene import compile_model
-    imperfections, jitter, overrides, extra = ROWS[name]
+    config, params, starts, phase, xml, extra = _row(name, trial + 1, periods)
     if extra:
         raise ValueError(f"{name}: the census runs rows without play-hinge edits")
-    config = RelaxConfig(trials=trial + 1, periods=periods, imperfections=imperfections, phase_jitter=jitter)
-    params = config.robots().scene(presets.apply(presets.params("lab-lag"), overrides.items()))
-    starts, phase = start_poses(config, params)
-    xml = Scene.mjcf(params, config.n_robots, False)
     m = compile_model(xml)
     ref = compile_model(xml)
     ref.opt.solver = getattr(mujoco.mjtSolver, "mjSOL_" + REF_SOLVE[0])

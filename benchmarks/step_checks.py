@@ -43,8 +43,9 @@ def collect() -> list[stepcheck.StepCheck]:
         e = stepcheck.entry(g["model"], "none", dt, base.integrator, g["reference_dt_s"], "glider_step.json", row,
                             g["runs"][ref_name])
         out[stepcheck.key_of(e)] = e
-    for source in ("step_mechanism.json", "step_mechanism_lab_runs30_cg.json", "step_mechanism_lab_runs30.json", "step_mechanism_substeps.json",
-                   "step_mechanism_substeps_discrete.json", "step_mechanism_discrete_against-default.json"):
+    for source in ("step_mechanism.json", "step_mechanism_lab_runs30_cg.json", "step_mechanism_lab_runs30.json",
+                   "step_mechanism_substeps.json", "step_mechanism_substeps_discrete.json",
+                   "step_mechanism_discrete_against-default.json"):
         if not (ROOT / source).exists():
             continue
         m = json.loads((ROOT / source).read_text())

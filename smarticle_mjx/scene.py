@@ -728,14 +728,20 @@ def write_reference_models(out, params: SceneParams = SceneParams(), check: bool
     return stale
 
 
+def _quirks_from_json(d: dict) -> tuple[RobotQuirk, ...]:
+    return tuple(RobotQuirk(backlash_deg=None if q.get("backlash_deg") is None else tuple(q["backlash_deg"]),
+                            com_offset=tuple(q.get("com_offset", (0.0, 0.0)))) for q in d.get("quirks", ()))
+
+
 def predated_fields(d: dict) -> dict:
     """Scene fields a store's recorded scene ``d`` (``config["scene"]``) predates whose value then was not
     today's default: the solver, "auto" since it was added (November 2026, after version 0.4.0), was
     Newton before, which "auto" still is for robots without gear play."""
     if "solver" in d:
         return {}
-    play = (d.get("robot", {}).get("backlash_deg", 0) or 0) > 0 or any(
-        b > 0 for q in d.get("quirks", ()) for b in (q.get("backlash_deg") or ()))
+    quirks = _quirks_from_json(d)
+    robot = RobotParams(**{k: v for k, v in d.get("robot", {}).items() if k == "backlash_deg"})
+    play = SceneParams(robot=robot, quirks=quirks).has_play(max(1, len(quirks)))
     return {"solver": "Newton" if play else "auto"}
 
 
@@ -745,9 +751,7 @@ def params_from_json(d: dict) -> SceneParams:
     robot = RobotParams(**d["robot"])
     d = {**predated_fields(d), **d}
     rest = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k not in ("robot", "quirks")}
-    quirks = tuple(RobotQuirk(backlash_deg=None if q.get("backlash_deg") is None else tuple(q["backlash_deg"]),
-                              com_offset=tuple(q.get("com_offset", (0.0, 0.0)))) for q in d.get("quirks", ()))
-    return SceneParams(robot=robot, quirks=quirks, **rest)
+    return SceneParams(robot=robot, quirks=_quirks_from_json(d), **rest)
 
 
 def params_json(params: SceneParams) -> dict:

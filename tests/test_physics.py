@@ -337,8 +337,8 @@ def test_a_crowd_with_gear_play_is_solved_without_kicks():
     tipped a robot within three periods on an unconverged solve of tens of newtons, an arm kicked through
     its play at 100-2000 rad/s (benchmarks/play_probe.py; docs/relax.md, "The solver, not the play")."""
     from smarticle_mjx.engine import Lanes, Scene
-    from smarticle_mjx.engine.core import SceneLayout, lane_controls, on_step_grid
-    from smarticle_mjx.engine.native import NativeBackend
+    from smarticle_mjx.engine.core import SceneLayout, on_step_grid
+    from smarticle_mjx.engine.native import step_lane
     from smarticle_mjx.relax import start_poses
     from smarticle_mjx.specs import RelaxConfig
 
@@ -355,20 +355,9 @@ def test_a_crowd_with_gear_play_is_solved_without_kicks():
     for trial in (1, 3, 15):
         lanes = on_step_grid(config.robots().lanes(Lanes.from_gait(starts[trial], config.gait_spec(), phase[trial]),
                                                    [trial]), m.opt.timestep)
-        be = NativeBackend(scene, nthread=1)
-        state = be.initial_state(lanes)
-        be.close()
-        d = mujoco.MjData(m)
-        mujoco.mj_setState(m, d, np.asarray(state[0]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
-        nstep = int(round(lanes.period / m.opt.timestep))
         tilt, speed = 0.0, 0.0
-        for p in range(3):
-            ctrl = lane_controls(scene, lanes.at_time(p * lanes.period), m.opt.timestep * np.arange(nstep))[0]
-            d.qacc_warmstart[:] = 0.0
-            for k in range(nstep):
-                d.ctrl[:] = ctrl[k]
-                mujoco.mj_step(m, d)
-                speed = max(speed, float(np.abs(d.qvel[play]).max()))
-                tilt = max(tilt, float(np.degrees(np.arccos(np.clip(d.xmat[bodies, 8].min(), -1, 1)))))
+        for _, _, d in step_lane(scene, lanes, 3):
+            speed = max(speed, float(np.abs(d.qvel[play]).max()))
+            tilt = max(tilt, float(np.degrees(np.arccos(np.clip(d.xmat[bodies, 8].min(), -1, 1)))))
         assert speed < 50.0, (trial, speed)
         assert tilt < 2.0, (trial, tilt)

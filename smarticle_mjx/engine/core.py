@@ -478,3 +478,12 @@ class BackendBase:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def check_solver(scene: Scene, backend: str, solvers) -> None:
+    """ValueError (one line) when the constraint solver ``scene`` resolves to (``SceneParams.constraint_solver``)
+    is not among the backend's ``solvers``."""
+    solver = scene.params.constraint_solver(scene.n_robots)[0]
+    if solver not in solvers:
+        raise ValueError(f"the {backend} backend solves constraints with {', '.join(solvers)}, not "
+                         f"{solver!r}; use the native backend")

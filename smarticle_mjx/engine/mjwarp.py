@@ -29,7 +29,7 @@ import time
 import mujoco
 import numpy as np
 
-from .core import (BackendBase, Lanes, PeriodRecords, Record, Scene, Status, distinct_gaits, lane_controls,
+from .core import (BackendBase, Lanes, check_solver, PeriodRecords, Record, Scene, Status, distinct_gaits, lane_controls,
                    on_step_grid, steps_per_period)
 
 MISSING = "the warp backend needs MuJoCo Warp: pip install -e '.[gpu]'"
@@ -157,10 +157,7 @@ class WarpBackend(BackendBase):
 
     def __init__(self, scene: Scene, device: str | None = None, penetration_limit: float = 0.002,
                  deterministic: bool = False, graph: bool = True):
-        solver = scene.params.constraint_solver(scene.n_robots)[0]
-        if solver not in WARP_SOLVERS:
-            raise ValueError(f"the warp backend solves constraints with {', '.join(WARP_SOLVERS)}, not "
-                             f"{solver!r}; use the native backend")
+        check_solver(scene, "warp", WARP_SOLVERS)
         if not available():
             raise ValueError(MISSING)
         import warp as wp

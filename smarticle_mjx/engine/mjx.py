@@ -24,7 +24,7 @@ from mujoco import mjx
 
 from .. import gait as gait_mod
 from . import mjx_collision
-from .core import BackendBase, Lanes, PeriodRecords, Record, Scene, Status, on_step_grid, steps_per_period
+from .core import BackendBase, Lanes, check_solver, PeriodRecords, Record, Scene, Status, on_step_grid, steps_per_period
 
 
 def strip_sensors(xml: str) -> str:
@@ -80,10 +80,7 @@ class MjxBackend(BackendBase):
         if scene.params.integrator not in MJX_INTEGRATORS:
             raise ValueError(f"the mjx backend integrates with {', '.join(MJX_INTEGRATORS)}, not "
                              f"{scene.params.integrator!r}; use the native or warp backend")
-        solver = scene.params.constraint_solver(scene.n_robots)[0]
-        if solver not in MJX_SOLVERS:
-            raise ValueError(f"the mjx backend solves constraints with {', '.join(MJX_SOLVERS)}, not "
-                             f"{solver!r}; use the native backend")
+        check_solver(scene, "mjx", MJX_SOLVERS)
         self.model = mujoco.MjModel.from_xml_string(Scene.mjcf(scene.params, scene.n_robots, sensors="none"))
         # near-contact sub-stepping (SceneParams.contact_substeps): lanes here run in lock-step, so a lane
         # that skips sub-steps saves nothing; every step is split (the gate always open)

@@ -287,3 +287,25 @@ class NativeBackend(BackendBase):
         ctrl = lane_controls(self.scene, lanes, dt * np.arange(nsteps))
         states, _ = self.pool.rollout(self.model, self.datas, self.initial_state(lanes), ctrl, nstep=nsteps)
         return states[:, :, self.qpos_at:self.qpos_at + self.model.nq]
+
+
+def step_lane(scene: Scene, lanes: Lanes, periods: int):
+    """Step the one lane of ``lanes`` (already on the step grid) with ``mj_step``, one step at a time, as
+    :class:`NativeBackend` runs it: its initial state, each period's controls at that period's phase, and
+    each period started from a zero warm start as the backend's rollout does (a replay of a stored lane
+    crosses its stored flags). Yields (period, step, MjData) after every step; the MjData is reused."""
+    be = NativeBackend(scene, nthread=1)
+    state = be.initial_state(lanes)
+    be.close()
+    m = scene.model
+    d = mujoco.MjData(m)
+    mujoco.mj_setState(m, d, np.asarray(state[0]), mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    dt = m.opt.timestep
+    nstep = int(round(lanes.period / dt))
+    for p in range(periods):
+        ctrl = lane_controls(scene, lanes.at_time(p * lanes.period), dt * np.arange(nstep))[0]
+        d.qacc_warmstart[:] = 0.0
+        for k in range(nstep):
+            d.ctrl[:] = ctrl[k]
+            mujoco.mj_step(m, d)
+            yield p, k, d
