@@ -66,6 +66,7 @@ def setpoints(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0
     a = jnp.asarray(amplitude, dtype=float)
     T = jnp.asarray(period, dtype=float)
     u = jnp.mod(t / T + phase, 1.0)  # gait phase in [0, 1)
+    u = jnp.where(u >= 1.0, 0.0, u)  # float32 mod of a value just below 0 rounds to 1.0: that is phase 0
     tm1 = move_time(a, speed * jnp.asarray(ratio1, dtype=float), kind)
     tm2 = move_time(a, speed * jnp.asarray(ratio2, dtype=float), kind)
 

@@ -82,6 +82,9 @@ class ImperfectionSet:
         if backend == "mjx" and self.speed_sd:
             raise ValueError(f"imperfections {self.name!r}: the mjx backend runs arms at the model's servo "
                              "speed; per-arm speeds run on the native, warp and dart backends")
+        if backend in ("mjx", "warp", "dart") and self.phase_sd:
+            raise ValueError(f"imperfections {self.name!r}: the {backend} backend starts every robot's gait at "
+                             "t = 0; robots with start offsets start one after another on the native backend")
         if backend == "dart" and self.clock_halfwidth:
             raise ValueError(f"imperfections {self.name!r}: the dart backend runs robots that share one gait "
                              "period; clock drift runs on the MuJoCo backends")
@@ -104,7 +107,8 @@ _COM = ("centre-of-mass offset per robot ~ N(0, 1 mm) along and across the body"
 _CLOCK = ("gait period per robot x (1 + e), e ~ U(-0.5 %, 0.5 %)",
           "the +-0.5 % frequency tolerance of the ceramic resonators of Arduino-class boards "
           "(the lab firmware: wsavoie/ArduinoSmarticle)")
-_PHASE = ("gait start per robot and trial ~ N(0, 0.02) periods (32 ms at 90 deg)",
+_PHASE = ("gait start per robot and trial ~ N(0, 0.02) periods (32 ms at 90 deg), each robot started that much "
+          "after the earliest from its gait's first corner",
           "chosen: robots started by one command within a 20 ms servo frame or two")
 
 _RESYNC = ("no clock drift between cycles: every robot is re-started each gait cycle and keeps its start offset",
@@ -186,8 +190,14 @@ class Draw:
         return np.stack([np.random.default_rng([self.seed, int(r), _LANE_TAG]).normal(0.0, self.set.phase_sd, n)
                          for r in rows]) if len(rows) else np.zeros((0, n))
 
-    def lanes(self, lanes, rows):
-        """``lanes`` (engine ``Lanes`` of rows ``rows``) with these robots' speeds, clocks and phases."""
+    def lanes(self, lanes, rows, start_delays: bool = True):
+        """``lanes`` (engine ``Lanes`` of rows ``rows``) with these robots' speeds, clocks and phases.
+
+        A set's gait-start offsets are start delays (``start_delays``, since version 0.4.1): in each lane
+        the robot furthest ahead starts at t = 0, each other one its offset later, all from the gait's
+        first corner (``Lanes.with_start_delays``). ``start_delays=False`` gives what versions up to 0.4.0
+        ran (every robot's clock started at t = 0 at its offset, so a robot ahead began part of a move
+        away from its arms), to replay their stores."""
         b, n = lanes.poses.shape[:2]
         if n != len(self.clock):
             raise ValueError(f"imperfections drawn for {len(self.clock)} robots, lanes have {n}")
@@ -198,7 +208,8 @@ class Draw:
             changes["arm_speed"] = np.broadcast_to(self.arm_speed, (b, n, 2)).copy()
         if self.set.clock_halfwidth:
             changes["robot_period"] = lanes.period * np.broadcast_to(self.clock, (b, n)).copy()
-        return dataclasses.replace(lanes, **changes)
+        lanes = dataclasses.replace(lanes, **changes)
+        return lanes.with_start_delays() if self.set.phase_sd and start_delays else lanes
 
     def to_json(self) -> dict:
         return {"name": self.set.name, "seed": int(self.seed), "priors": self.set.priors(),

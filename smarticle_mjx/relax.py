@@ -204,6 +204,8 @@ class RelaxJob:
         lanes = Lanes(self.starts[idx], np.full(len(idx), g.amplitude), np.full(len(idx), g.chirality_sign, np.int32),
                       np.full(len(idx), g.kind_code, np.int32), self.phase[idx], g.period())
         lanes = c.robots().lanes(lanes, c.first_trial + idx)
+        if lanes.phase.any():  # robots out of phase start one after another, each from its first corner
+            lanes = lanes.with_start_delays()
         if c.retrigger_sd > 0:
             lanes = dataclasses.replace(lanes, retrigger=retrigger_of(c, c.first_trial + idx))
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import pathlib
+import re
 
 import numpy as np
 
@@ -13,6 +14,13 @@ from .scan import RunInputs
 from .scene import params_from_json
 from .specs import config_from_json, relax_config_from_json
 
+
+def made_with_start_delays(st) -> bool:
+    """Whether store ``st`` ran robots out of phase as start delays (package 0.4.1 on; ``Lanes.with_start_delays``)
+    rather than as clocks all started at t = 0 (up to 0.4.0), so that a replay runs what made it."""
+    version = str(st.attrs.get("package", "0"))
+    parts = tuple(int(x) for x in re.findall(r"\d+", version)[:3])
+    return parts >= (0, 4, 1)
 
 def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 40,
                     frame_interval: float | None = None):
@@ -47,7 +55,7 @@ def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 
     robots = config.robots(int(config.lane_draw([lane])[0]))  # the lane's robot pair
     params = robots.scene(params)
     res = simulate(params, inputs.poses[lane], inputs.gait, int(config.periods), track_stride=track_stride,
-                   imperfections=robots, row=lane)
+                   imperfections=robots, row=lane, start_delays=made_with_start_delays(st))
     # the track starts after its first stride: put the start in front
     t = np.concatenate([[0.0], res.track_t])
     track = np.concatenate([inputs.poses[lane][None], res.track], 0)
@@ -143,7 +151,7 @@ def resimulate_trial(store_path, trial: int, frame_interval: float):
     gait = config.gait_spec()
     stride = max(1, int(round(frame_interval / params.timestep)))
     res = simulate(params, start[0], gait, max(int(rows["periods_run"]), 1), phase=phase[0], track_stride=stride,
-                   imperfections=config.robots(), row=trial,
+                   imperfections=config.robots(), row=trial, start_delays=made_with_start_delays(st),
                    retrigger=retrigger_of(config, trial)[0] if config.retrigger_sd > 0 else None)
     t = np.concatenate([[0.0], res.track_t])
     return t, np.concatenate([start[0][None], res.track], 0), res, params, gait, rows

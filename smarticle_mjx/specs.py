@@ -269,6 +269,9 @@ class RelaxConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name.replace('_', '-')} must be a finite number >= 0, got {v}")
+        if self.phase_jitter > 0 and self.backend != "native":
+            raise ValueError(f"the {self.backend} backend starts every robot's gait at t = 0; robots out of phase "
+                             "(--phase-jitter) start one after another on the native backend")
         if not self.plate_m > 0:
             raise ValueError(f"plate side must be positive, got {self.plate_m}")
         if self.start not in ("lattice", "hex"):

@@ -186,10 +186,11 @@ def run_lanes(backend, lanes: Lanes, periods: int, *, batch_size: int = 256, chu
     buf_coll = blank_collisions(b, periods, p, record.collision_bins) if record.collisions else None
     wall = 0.0
 
-    # robots with their own gait period (clock drift) keep their phase across chunks, and retriggered
-    # robots their cycle count: each chunk starts at the time its lane has run, not at 0 (backends
-    # without such robots take no start time)
-    if lanes.varies:
+    # robots with their own gait period (clock drift) keep their phase across chunks, retriggered
+    # robots their cycle count, and robots started at different times wait only in their lane's first
+    # chunk: each chunk starts at the time its lane has run, not at 0 (backends without such robots
+    # take no start time)
+    if lanes.timed:
         from .core import on_step_grid
         grid = on_step_grid(lanes, backend.scene.params.timestep).period
 

@@ -183,6 +183,11 @@ class Lanes:
         gait is started again each cycle with a delay drawn afresh per robot and cycle,
         Normal(0, s.d.) periods from the stream (seed, key, cycle), as the lab's firmware
         re-synchronised its robots on an external trigger every cycle (on top of ``phase``).
+      hold: [B, N] seconds, or None: each robot waits that long at the run's start, holding the
+        setpoint its gait has when it starts (rate 0), then runs its gait; it applies in the run's
+        first period only (the backends drop it after, :meth:`started`). Robots started at different
+        times are lanes whose phases are all <= 0 with ``hold = -phase * T``
+        (:meth:`with_start_delays`): each begins at its gait's first corner, as a robot triggered late does.
     """
 
     poses: np.ndarray
@@ -194,6 +199,7 @@ class Lanes:
     robot_period: np.ndarray | None = None
     arm_speed: np.ndarray | None = None
     retrigger: np.ndarray | None = None
+    hold: np.ndarray | None = None
 
     def __post_init__(self):
         b, n = self.poses.shape[:2]
@@ -211,6 +217,11 @@ class Lanes:
             if self.retrigger.shape != (b, 3) or not (np.isfinite(self.retrigger).all() and
                                                       (self.retrigger[:, 0] >= 0).all()):
                 raise ValueError(f"lanes.retrigger must be [{b}, 3] (s.d. >= 0, seed, key)")
+        if self.hold is not None:
+            if self.hold.shape != (b, n) or not (np.isfinite(self.hold).all() and (self.hold >= 0).all()):
+                raise ValueError(f"lanes.hold must be [{b}, {n}] seconds >= 0")
+            if (self.hold >= self.robot_gait()[3]).any():
+                raise ValueError("a robot's start delay must be shorter than its gait period")
         if self.arm_speed is not None:
             if self.arm_speed.shape != (b, n, 2):
                 raise ValueError(f"lanes.arm_speed must have shape ({b}, {n}, 2)")
@@ -302,6 +313,36 @@ class Lanes:
             phase = phase + self.retrigger_delays(cycle)
         return dataclasses.replace(self, phase=np.mod(phase, 1.0))
 
+    def with_start_delays(self) -> "Lanes":
+        """These lanes with their robots' phase offsets read as start delays: in each lane the robot
+        furthest ahead starts at t = 0 and every other one ``(its lead - its phase)`` periods later,
+        holding its gait's first corner until then (``hold``). The phases between robots stay as they
+        were; no robot starts in the middle of a move (a phase ahead of t = 0 would put its setpoint
+        part of a move away from the arms it starts with, and the servo would catch up at its stall
+        torque). Idempotent."""
+        shifted = self.phase - self.phase.max(axis=1, keepdims=True)
+        hold = -shifted * self.robot_gait()[3]
+        if (hold >= self.robot_gait()[3]).any():
+            raise ValueError("robots' phase offsets span a whole period or more: they cannot be start delays")
+        return dataclasses.replace(self, phase=shifted, hold=None if not hold.any() else hold)
+
+    def started(self, t) -> "Lanes":
+        """The lanes at run time ``t`` (one time, or [B]) as far as their start delays go: ``hold`` kept
+        for lanes at the run's start (t = 0) and dropped for the others."""
+        if self.hold is None:
+            return self
+        at_start = np.broadcast_to(np.asarray(t, float) == 0.0, (self.size,))
+        if at_start.all():
+            return self
+        hold = np.where(at_start[:, None], self.hold, 0.0)
+        return dataclasses.replace(self, hold=hold if hold.any() else None)
+
+    @property
+    def timed(self) -> bool:
+        """Whether a backend must know each lane's run time: its phases move on (:attr:`varies`) or its
+        robots start at different times (``hold``)."""
+        return self.varies or self.hold is not None
+
     def retrigger_delays(self, cycle) -> np.ndarray:
         """[B, N] each robot's delay (periods) in cycle ``cycle`` ([B] or one int) of its lane."""
         cycle = np.broadcast_to(np.asarray(cycle, np.int64), (self.size,))
@@ -323,7 +364,8 @@ class Lanes:
         return Lanes(self.poses[idx], self.amplitude[idx], self.chirality[idx], self.kind[idx],
                      self.phase[idx], self.period, None if self.robot_period is None else self.robot_period[idx],
                      None if self.arm_speed is None else self.arm_speed[idx],
-                     None if self.retrigger is None else self.retrigger[idx])
+                     None if self.retrigger is None else self.retrigger[idx],
+                     None if self.hold is None else self.hold[idx])
 
     def arm_ratios(self) -> np.ndarray:
         """[B, N, 2] each arm's speed ratio (1 where the lanes give none)."""
@@ -361,8 +403,9 @@ def distinct_gaits(lanes: Lanes) -> tuple[np.ndarray, np.ndarray]:
     """(first, row): a lane index for each distinct gait among the lanes (amplitude,
     chirality, kind, period and phase of every robot), and each lane's gait as
     an index into ``first``."""
-    key = np.concatenate([*lanes.robot_gait(), lanes.phase,
-                          lanes.arm_ratios().reshape(lanes.size, -1)], axis=1)  # [B, 7N]
+    hold = lanes.hold if lanes.hold is not None else np.zeros(lanes.phase.shape)
+    key = np.concatenate([*lanes.robot_gait(), lanes.phase, hold,
+                          lanes.arm_ratios().reshape(lanes.size, -1)], axis=1)  # [B, 8N]
     _, first, row = np.unique(key, axis=0, return_index=True, return_inverse=True)
     return first, np.asarray(row).reshape(-1)
 
@@ -388,9 +431,15 @@ def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
     speed = scene.params.robot.servo_speed
     if u.arm_speed is not None:
         gait_mod.check_fit(amp, period, speed, kind, ratios)
-    sp = _controls(t[None, :, None], amp, period, speed, chi, kind, u.phase[:, None, :],
-                   ratios[..., 0], ratios[..., 1])
-    sp = np.asarray(sp)  # [U, T, N, 4]
+    if u.hold is None:
+        sp = _controls(t[None, :, None], amp, period, speed, chi, kind, u.phase[:, None, :],
+                       ratios[..., 0], ratios[..., 1])
+        sp = np.asarray(sp)  # [U, T, N, 4]
+    else:  # a robot not yet started holds the setpoint it starts with, at rate 0
+        hold = u.hold[:, None, :]
+        sp = np.array(_controls(np.maximum(t[None, :, None], hold), amp, period, speed, chi, kind,
+                                u.phase[:, None, :], ratios[..., 0], ratios[..., 1]))
+        sp[..., 2:] *= (t[None, :, None] >= hold)[..., None]
     return sp.reshape(sp.shape[0], sp.shape[1], -1)[row]
 
 
@@ -478,6 +527,15 @@ class BackendBase:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def check_start_delays(lanes: Lanes, backend: str) -> None:
+    """ValueError (one line) for lanes whose robots start at different times (``Lanes.hold``), which
+    only the native backend runs."""
+    if lanes.hold is not None:
+        raise ValueError(f"the {backend} backend starts every robot's gait at t = 0; robots started at "
+                         "different times (imperfections' start offsets, a relaxation's phase jitter) run on "
+                         "the native backend")
 
 
 def check_solver(scene: Scene, backend: str, solvers) -> None:

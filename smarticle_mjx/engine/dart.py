@@ -38,8 +38,8 @@ from typing import Sequence
 import numpy as np
 
 from ..gait import GaitSpec
-from .core import (BackendBase, PeriodRecords, Status, blank_collisions, collision_bin_of, lane_controls,
-                   on_step_grid, steps_per_period)
+from .core import (BackendBase, check_start_delays, PeriodRecords, Status, blank_collisions, collision_bin_of,
+                   lane_controls, on_step_grid, steps_per_period)
 from ..scene import RobotQuirk, SceneParams
 
 MISSING = "the dart backend needs DART's Python package: pip install -e '.[dart]'"
@@ -477,6 +477,7 @@ class DartBackend(BackendBase):
         contact impulse on robot i (DART's contact force, normal and friction,
         times the step) and its component along r = c_j - c_i, with the body
         centres taken after the step (they move ~1e-6 of |r| in one step)."""
+        check_start_delays(lanes, "dart")
         if lanes.varies:
             raise ValueError("the dart backend runs robots that share one gait period and start it once "
                              "(clock drift and per-cycle retriggering run on the MuJoCo backends)")

@@ -29,8 +29,8 @@ import time
 import mujoco
 import numpy as np
 
-from .core import (BackendBase, Lanes, check_solver, PeriodRecords, Record, Scene, Status, distinct_gaits, lane_controls,
-                   on_step_grid, steps_per_period)
+from .core import (BackendBase, Lanes, check_solver, check_start_delays, PeriodRecords, Record, Scene, Status,
+                   distinct_gaits, lane_controls, on_step_grid, steps_per_period)
 
 MISSING = "the warp backend needs MuJoCo Warp: pip install -e '.[gpu]'"
 
@@ -303,6 +303,7 @@ class WarpBackend(BackendBase):
 
     def advance(self, state, lanes: Lanes, n_periods: int, *, t0: float = 0.0, record: Record | None = None):
         """Advance ``state`` [B, nstate] by ``n_periods`` gait periods; same contract as the native backend."""
+        check_start_delays(lanes, "warp")
         if record is not None and (record.track_stride or record.collisions):
             raise ValueError("full-rate tracks and the collision record are recorded by the native backend only")
         wp = self._wp

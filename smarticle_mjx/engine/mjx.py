@@ -24,7 +24,8 @@ from mujoco import mjx
 
 from .. import gait as gait_mod
 from . import mjx_collision
-from .core import BackendBase, Lanes, check_solver, PeriodRecords, Record, Scene, Status, on_step_grid, steps_per_period
+from .core import (BackendBase, Lanes, check_solver, check_start_delays, PeriodRecords, Record, Scene, Status,
+                   on_step_grid, steps_per_period)
 
 
 def strip_sensors(xml: str) -> str:
@@ -173,6 +174,7 @@ class MjxBackend(BackendBase):
 
     def advance(self, state, lanes: Lanes, n_periods: int, *, t0: float = 0.0, record: Record | None = None):
         """Advance batched ``state`` by ``n_periods``; same contract as the native backend."""
+        check_start_delays(lanes, "mjx")
         if record is not None and (record.track_stride or record.collisions):
             raise ValueError("full-rate tracks and the collision record are recorded by the native backend only")
         lanes = on_step_grid(lanes, float(self.model.opt.timestep))

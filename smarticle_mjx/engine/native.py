@@ -123,8 +123,8 @@ class NativeBackend(BackendBase):
         ctrl_all = None
         for k in range(n_periods):
             t_start = t0 + k * lanes.period
-            lanes_k = lanes.at_time(t_start)
-            if b <= slice_size and (k == 0 or lanes.varies):
+            lanes_k = lanes.at_time(t_start).started(t_start)
+            if b <= slice_size and (k == 0 or lanes.varies or (k == 1 and lanes.hold is not None)):
                 ctrl_all = lane_controls(self.scene, lanes_k, t_rel)
             out_q = []
             for lo in range(0, b, slice_size):
@@ -189,8 +189,9 @@ class NativeBackend(BackendBase):
         ctrl_all = None
         for k in range(n_periods):
             t_start = t0 + k * lanes.period
-            lanes_k = lanes.at_time(t_start)
-            if b <= slice_size and (k == 0 or lanes.varies):  # one period's controls serve every period
+            lanes_k = lanes.at_time(t_start).started(t_start)
+            # one period's controls serve every period (after a first one with start delays)
+            if b <= slice_size and (k == 0 or lanes.varies or (k == 1 and lanes.hold is not None)):
                 ctrl_all = lane_controls(self.scene, lanes_k, t_rel), lane_controls(self.scene, lanes_k, t_fine)
             out_q = []
             for lo in range(0, b, slice_size):
@@ -303,7 +304,8 @@ def step_lane(scene: Scene, lanes: Lanes, periods: int):
     dt = m.opt.timestep
     nstep = int(round(lanes.period / dt))
     for p in range(periods):
-        ctrl = lane_controls(scene, lanes.at_time(p * lanes.period), dt * np.arange(nstep))[0]
+        ctrl = lane_controls(scene, lanes.at_time(p * lanes.period).started(p * lanes.period),
+                             dt * np.arange(nstep))[0]
         d.qacc_warmstart[:] = 0.0
         for k in range(nstep):
             d.ctrl[:] = ctrl[k]

@@ -49,7 +49,7 @@ class SimResult:
 def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=None,
              track_stride: int | None = None, backend: str = "native", nthread: int | None = None,
              record: Record | None = None, imperfections=None, row: int = 0,
-             retrigger=None) -> SimResult:
+             retrigger=None, start_delays: bool = True) -> SimResult:
     """Simulate N robots on the plate for ``periods`` gait periods.
 
     Args:
@@ -67,6 +67,10 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
         whose phase jitter applies.
       retrigger: optional [3] (s.d. in periods, seed, key): every robot re-started each cycle with a
         fresh delay (``Lanes.retrigger``).
+      start_delays: read ``phase`` and the imperfections' start offsets as start delays
+        (``Lanes.with_start_delays``: the robot furthest ahead starts at t = 0, the others later, each
+        from its gait's first corner), as relaxation trials and scans run them since version 0.4.1;
+        False: every robot's clock starts at t = 0 at its offset (versions up to 0.4.0).
 
     Raises:
       ValueError: bad parameters, or robots overlapping at the start.
@@ -87,7 +91,9 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
     scene = Scene.build(params, len(poses), collisions=record.collisions)
     lanes = Lanes.from_gait(poses, gait, phase)
     if imperfections is not None:
-        lanes = imperfections.lanes(lanes, [row])
+        lanes = imperfections.lanes(lanes, [row], start_delays=start_delays)
+    if start_delays and lanes.phase.any():
+        lanes = lanes.with_start_delays()
     if retrigger is not None:
         lanes = dataclasses.replace(lanes, retrigger=np.asarray(retrigger, float).reshape(1, 3))
     lanes = on_step_grid(lanes, params.timestep)
