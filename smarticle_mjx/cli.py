@@ -266,7 +266,8 @@ def relax(
                                               "of the centres (e.g. 0.4-0.6; default: spaced by --gap-mm)"),
     jitter_mm: float = typer.Option(1.0, help="s.d. of each robot's start position per axis (mm)"),
     jitter_deg: float = typer.Option(2.0, help="s.d. of each robot's start heading (deg)"),
-    phase_jitter: float = typer.Option(0.0, help="s.d. of each robot's gait phase (periods; 0: in phase)"),
+    phase_jitter: float = typer.Option(0.0, help="s.d. of each robot's gait phase (periods; 0: in phase); "
+                                                 "robots out of phase start one after another, each from its first corner"),
     retrigger_sd: float = typer.Option(0.0, help="re-start every robot's gait each cycle with a delay drawn "
                                        "afresh per robot and cycle, this s.d. (periods; 0: started once)"),
     plate: float = typer.Option(0.6, help="side of the square plate (m); robots past its edge are recorded"),
