@@ -126,3 +126,14 @@ def test_imperfections_with_start_offsets_run_as_start_delays_and_other_backends
     from smarticle_mjx.specs import RelaxConfig
     with pytest.raises(ValueError, match="robots out of phase"):
         RelaxConfig(phase_jitter=0.02, backend="mjx").validate(presets.params())
+
+
+def test_a_store_made_before_start_delays_replays_with_the_old_start():
+    """Stores record the package that made them: up to 0.4.0 robots out of phase started their clocks at
+    t = 0, since 0.4.1 one after another; a replay runs what made the store."""
+    from types import SimpleNamespace
+    from smarticle_mjx.replay import made_with_start_delays
+    from smarticle_mjx.store import PACKAGE
+    for package, delays in (("smarticle-mjx 0.3.5", False), ("smarticle-mjx 0.4.0", False),
+                            ("smarticle-mjx 0.4.1", True), ("smarticle-mjx 0.10.0", True), (PACKAGE, True)):
+        assert made_with_start_delays(SimpleNamespace(attrs={"package": package})) is delays, package
