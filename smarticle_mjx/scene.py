@@ -256,6 +256,11 @@ class SceneParams:
     robot_friction: float = 0.3
     contact_timeconst: float = 0.005  # s; solref[0] for every contact
     contact_dampratio: float = 1.0
+    # damping ratio of contacts that do not involve the plate (robot on robot, robot on a wall); None: as
+    # every contact, contact_dampratio. Below 1 they bounce: a linear contact of damping ratio z returns
+    # e = exp(-pi z / sqrt(1 - z^2)) of the approach speed (MuJoCo has no bounce threshold: a contact
+    # bounces at every speed). The plate keeps contact_dampratio (its solmix outweighs the robots')
+    robot_dampratio: float | None = None
     # solimp (dmin, dmax, width): stiff enough that a stalled servo pressing an
     # arm into a neighbour penetrates ~0.1 mm, not the ~2 mm of the defaults
     contact_solimp: tuple[float, float, float] = (0.95, 0.99, 0.001)
@@ -326,6 +331,8 @@ class SceneParams:
             raise ValueError(
                 f"contact_timeconst {self.contact_timeconst} < 2 * timestep {self.timestep}: "
                 "MuJoCo would silently stiffen nothing and soften contacts; lower the timestep")
+        if self.robot_dampratio is not None and not (math.isfinite(self.robot_dampratio) and self.robot_dampratio > 0):
+            raise ValueError(f"robot_dampratio must be a positive number (or unset), got {self.robot_dampratio!r}")
         dmin, dmax, width = self.contact_solimp
         if not (0 < dmin <= dmax < 1 and width > 0):
             raise ValueError("contact_solimp must satisfy 0 < dmin <= dmax < 1 and width > 0")
@@ -583,7 +590,13 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
         qpos += [x, y, rp.body_height / 2, math.cos(heading / 2), 0, 0, math.sin(heading / 2), *arms[i]]
     ctrl = [c for pair in arms for c in (*pair, 0.0, 0.0)]
     act = f' act="{_fmt(*ctrl)}"' if rp.servo_timeconst > 0 else ""
-    solref = _fmt(params.contact_timeconst, params.contact_dampratio)
+    # contacts not involving the plate take the default class's solref; the plate's own solref and a solmix
+    # that outweighs the robots' (MuJoCo mixes two geoms' solref by solmix) keep robot-plate contacts at
+    # contact_dampratio when robot_dampratio differs
+    robot_dr = params.contact_dampratio if params.robot_dampratio is None else params.robot_dampratio
+    solref = _fmt(params.contact_timeconst, robot_dr)
+    plate_sol = ("" if params.robot_dampratio is None else
+                 f' solref="{_fmt(params.contact_timeconst, params.contact_dampratio)}" solmix="1e9"')
     solver, iterations = params.constraint_solver(len(poses))
     plate = 2.0 if params.boundary_radius is None else params.boundary_radius + 0.1
     return f"""<mujoco model="{name}">
@@ -598,7 +611,7 @@ def build_mjcf(params: SceneParams, poses: Sequence[Sequence[float]], name: str 
   <worldbody>
     <light pos="0 0 1" dir="0 0 -1"/>
     <geom name="plate" type="plane" size="{plate:.9g} {plate:.9g} 0.01" priority="1"
-          friction="{params.plate_friction:.9g} 0.005 0.0001" contype="{_PLATE_BIT}" conaffinity="{_PLATE_BIT}"
+          friction="{params.plate_friction:.9g} 0.005 0.0001" contype="{_PLATE_BIT}" conaffinity="{_PLATE_BIT}"{plate_sol}
           rgba="0.8 0.8 0.8 1"/>
 {_boundary_xml(params)}{''.join(bodies)}
   </worldbody>
