@@ -107,8 +107,8 @@ _COM = ("centre-of-mass offset per robot ~ N(0, 1 mm) along and across the body"
 _CLOCK = ("gait period per robot x (1 + e), e ~ U(-0.5 %, 0.5 %)",
           "the +-0.5 % frequency tolerance of the ceramic resonators of Arduino-class boards "
           "(the lab firmware: wsavoie/ArduinoSmarticle)")
-_PHASE = ("gait start per robot and trial ~ N(0, 0.02) periods (32 ms at 90 deg), each robot started that much "
-          "after the earliest from its gait's first corner",
+_PHASE = ("gait start per robot and trial ~ N(0, 0.02) periods (32 ms at 90 deg): the robots start one after "
+          "another by these offsets, each from its gait's first corner",
           "chosen: robots started by one command within a 20 ms servo frame or two")
 
 _RESYNC = ("no clock drift between cycles: every robot is re-started each gait cycle and keeps its start offset",
