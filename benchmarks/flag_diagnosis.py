@@ -80,21 +80,17 @@ class Trial:
 def trial_of(st, trial: int) -> Trial:
     """Trial ``trial`` of the relaxation store ``st``: its start, phases, drawn robots and re-triggers."""
     import mujoco
-    from smarticle_mjx.engine import Lanes, Scene
+    from smarticle_mjx.engine import Scene
     from smarticle_mjx.engine.core import on_step_grid
-    from smarticle_mjx.relax import start_poses
+    from smarticle_mjx.relax import start_poses, trial_lanes
+    from smarticle_mjx.replay import made_with_start_delays
     from smarticle_mjx.scene import params_from_json
     from smarticle_mjx.specs import relax_config_from_json
     config, params = relax_config_from_json(st.config["relax"]), params_from_json(st.config["scene"])
     start, phase = start_poses(dataclasses.replace(config, first_trial=trial, trials=1), params)
     scene = Scene.build(params, len(start[0]))
-    lanes = Lanes.from_gait(start[0], config.gait_spec(), phase[0])
-    if config.robots() is not None:
-        lanes = config.robots().lanes(lanes, [trial])
-    if config.retrigger_sd > 0:
-        from smarticle_mjx.relax import retrigger_of
-        lanes = dataclasses.replace(lanes, retrigger=retrigger_of(config, trial))
-    lanes = on_step_grid(lanes, params.timestep)
+    lanes = on_step_grid(trial_lanes(config, start, phase, [trial], start_delays=made_with_start_delays(st)),
+                         params.timestep)
     m = scene.model
     gname = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, i) for i in range(m.ngeom)]
     robot_of = [int(n[1:].split("_")[0]) if n and n.startswith("r") and "_" in n else -1 for n in gname]
@@ -211,14 +207,15 @@ def max_tilts(imperfections: str, phase_jitter: float, overrides: dict, teeth: f
     """Each trial's largest body tilt (degrees from upright) over ``periods`` periods from the relaxation's
     compressed start (seed 0), ``teeth`` replacing the gear-teeth stops' time constant (2 dt) when given."""
     from smarticle_mjx import presets
-    from smarticle_mjx.engine import Lanes, Scene
+    from smarticle_mjx.engine import Scene
     from smarticle_mjx.engine.core import SceneLayout, on_step_grid
-    from smarticle_mjx.relax import start_poses
+    from smarticle_mjx.relax import start_poses, trial_lanes
     from smarticle_mjx.scene import compile_model
     from smarticle_mjx.specs import RelaxConfig
     config = RelaxConfig(trials=trials, periods=periods, imperfections=imperfections, phase_jitter=phase_jitter)
-    # the probe's rows were measured with MuJoCo's Newton solver, the scenes' only solver then; the default
-    # "auto" solver (CG where arms have gear play) came after them (play_probe.py)
+    # the probe's rows were measured with MuJoCo's Newton solver, the scenes' only solver then, and with the
+    # start of versions up to 0.4.0 (clocks started at t = 0 at their offsets); the default "auto" solver
+    # (CG where arms have gear play) and start delays came after them (play_probe.py)
     overrides = {"solver": "Newton", **overrides}
     params = config.robots().scene(presets.apply(presets.params(model), overrides.items()))
     starts, phase = start_poses(config, params)
@@ -233,8 +230,7 @@ def max_tilts(imperfections: str, phase_jitter: float, overrides: dict, teeth: f
     bodies = [m.geom(f"r{i}_body").bodyid[0] for i in range(config.n_robots)]
     out = []
     for t in range(trials):
-        lanes = config.robots().lanes(Lanes.from_gait(starts[t], config.gait_spec(), phase[t]), [t])
-        lanes = on_step_grid(lanes, m.opt.timestep)
+        lanes = on_step_grid(trial_lanes(config, starts[t], phase[t], [t], start_delays=False), m.opt.timestep)
         tilt = 0.0
         for _, _, d in _stepped(scene, lanes, periods):
             tilt = max(tilt, float(_tilts_deg(d, bodies).max()))

@@ -58,6 +58,9 @@ ROWS = {
     "newton, play armature 1e-5": (*BASE, {"solver": "Newton"}, 'armature="1e-05"'),
     "newton, play armature 5e-5": (*BASE, {"solver": "Newton"}, 'armature="5e-05"'),
 }
+# the rows were measured with the start of versions up to 0.4.0 (each robot's clock started at t = 0 at its
+# phase offset); since 0.4.1 a relaxation starts robots out of phase one after another (relax.trial_lanes)
+OLD_START = False
 PLAY_JOINT = re.compile(r'(<joint name="r\d+_k\d" type="hinge" axis="[^"]*" ref="0" )')
 
 
@@ -77,8 +80,9 @@ def _row(name: str, trials: int, periods: int):
 def probe(args) -> tuple[str, list[dict], float]:
     name, trials, periods = args
     import flag_diagnosis as fd
-    from smarticle_mjx.engine import Lanes, Scene
+    from smarticle_mjx.engine import Scene
     from smarticle_mjx.engine.core import SceneLayout, on_step_grid
+    from smarticle_mjx.relax import trial_lanes
     from smarticle_mjx.scene import compile_model
     config, params, starts, phase, xml, extra = _row(name, trials, periods)
     if extra:
@@ -92,8 +96,7 @@ def probe(args) -> tuple[str, list[dict], float]:
     t0 = time.perf_counter()
     out = []
     for t in range(trials):
-        lanes = config.robots().lanes(Lanes.from_gait(starts[t], config.gait_spec(), phase[t]), [t])
-        lanes = on_step_grid(lanes, m.opt.timestep)
+        lanes = on_step_grid(trial_lanes(config, starts[t], phase[t], [t], start_delays=OLD_START), m.opt.timestep)
         tilt, speed, capped = 0.0, 0.0, 0
         for _, _, d in fd._stepped(scene, lanes, periods):
             tilt = max(tilt, float(fd._tilts_deg(d, bodies).max()))
@@ -116,9 +119,10 @@ def census(args) -> tuple[str, dict]:
     name, trial, periods, every = args
     import mujoco
     import flag_diagnosis as fd
-    from smarticle_mjx.engine import Lanes, Scene
+    from smarticle_mjx.engine import Scene
     from smarticle_mjx.engine.core import SceneLayout, on_step_grid
     from smarticle_mjx.engine.solver_check import REL_TOL, _relative_error
+    from smarticle_mjx.relax import trial_lanes
     from smarticle_mjx.scene import compile_model
     config, params, starts, phase, xml, extra = _row(name, trial + 1, periods)
     if extra:
@@ -129,8 +133,8 @@ def census(args) -> tuple[str, dict]:
     ref.opt.iterations, ref.opt.tolerance = REF_SOLVE[1], REF_SOLVE[2]
     dref = mujoco.MjData(ref)
     scene = Scene(params, m, SceneLayout.of(m), xml, False)
-    lanes = on_step_grid(config.robots().lanes(Lanes.from_gait(starts[trial], config.gait_spec(), phase[trial]),
-                                               [trial]), m.opt.timestep)
+    lanes = on_step_grid(trial_lanes(config, starts[trial], phase[trial], [trial], start_delays=OLD_START),
+                         m.opt.timestep)
     errs, capped_errs, prev = [], [], mujoco.MjData(m)
     for n, (_, _, d) in enumerate(fd._stepped(scene, lanes, periods)):
         # the solve of this step was made from prev's state: redo it with the reference solver

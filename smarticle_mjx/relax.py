@@ -165,6 +165,23 @@ def retrigger_of(config: RelaxConfig, trials) -> np.ndarray:
                     ).astype(float)
 
 
+def trial_lanes(config: RelaxConfig, starts: np.ndarray, phase: np.ndarray, trials,
+                start_delays: bool = True) -> Lanes:
+    """The engine lanes of trials ``trials`` (study trial indices) from their starts [T, N, 5] and phases
+    [T, N] (``start_poses``): the study's gait, its drawn robots' speeds, clocks and start offsets, and
+    the per-cycle retrigger. Robots out of phase start one after another, each from its gait's first
+    corner (``Lanes.with_start_delays``); ``start_delays=False`` runs them as versions up to 0.4.0 did,
+    every clock started at t = 0 at its offset (to replay their stores)."""
+    trials = np.atleast_1d(np.asarray(trials))
+    lanes = config.robots().lanes(Lanes.from_gait(starts, config.gait_spec(), phase), trials,
+                                  start_delays=start_delays)
+    if start_delays and lanes.phase.any():
+        lanes = lanes.with_start_delays()
+    if config.retrigger_sd > 0:
+        lanes = dataclasses.replace(lanes, retrigger=retrigger_of(config, trials))
+    return lanes
+
+
 def left_plate(poses: np.ndarray, centre: np.ndarray, half: float) -> np.ndarray:
     """[T, N] first period (1-based) ending with the robot's centre off the
     square plate of half-side ``half`` around ``centre``; 0: never."""
@@ -199,15 +216,9 @@ class RelaxJob:
                             **self.config.backend_options())
 
     def rows(self, backend, run: str, lo: int, hi: int, on_rows) -> dict:
-        c, g = self.config, self.config.gait_spec()
+        c = self.config
         idx = np.arange(lo, hi)
-        lanes = Lanes(self.starts[idx], np.full(len(idx), g.amplitude), np.full(len(idx), g.chirality_sign, np.int32),
-                      np.full(len(idx), g.kind_code, np.int32), self.phase[idx], g.period())
-        lanes = c.robots().lanes(lanes, c.first_trial + idx)
-        if lanes.phase.any():  # robots out of phase start one after another, each from its first corner
-            lanes = lanes.with_start_delays()
-        if c.retrigger_sd > 0:
-            lanes = dataclasses.replace(lanes, retrigger=retrigger_of(c, c.first_trial + idx))
+        lanes = trial_lanes(c, self.starts[idx], self.phase[idx], c.first_trial + idx)
 
         def on_lanes(res):
             on_rows(idx[res.index], _rows(self.starts[idx[res.index]], res, c))

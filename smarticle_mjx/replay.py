@@ -22,6 +22,7 @@ def made_with_start_delays(st) -> bool:
     parts = tuple(int(x) for x in re.findall(r"\d+", version)[:3])
     return parts >= (0, 4, 1)
 
+
 def resimulate_lane(store_path, run: str | None, lane: int, track_stride: int = 40,
                     frame_interval: float | None = None):
     """Simulate lane ``lane`` of a scan store again, from its stored start, amplitude, gait and model.

@@ -320,9 +320,10 @@ class Lanes:
         were; no robot starts in the middle of a move (a phase ahead of t = 0 would put its setpoint
         part of a move away from the arms it starts with, and the servo would catch up at its stall
         torque). Idempotent."""
+        period = self.robot_gait()[3]
         shifted = self.phase - self.phase.max(axis=1, keepdims=True)
-        hold = -shifted * self.robot_gait()[3]
-        if (hold >= self.robot_gait()[3]).any():
+        hold = -shifted * period
+        if (hold >= period).any():
             raise ValueError("robots' phase offsets span a whole period or more: they cannot be start delays")
         return dataclasses.replace(self, phase=shifted, hold=None if not hold.any() else hold)
 
@@ -431,15 +432,14 @@ def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
     speed = scene.params.robot.servo_speed
     if u.arm_speed is not None:
         gait_mod.check_fit(amp, period, speed, kind, ratios)
-    if u.hold is None:
-        sp = _controls(t[None, :, None], amp, period, speed, chi, kind, u.phase[:, None, :],
-                       ratios[..., 0], ratios[..., 1])
-        sp = np.asarray(sp)  # [U, T, N, 4]
-    else:  # a robot not yet started holds the setpoint it starts with, at rate 0
-        hold = u.hold[:, None, :]
-        sp = np.array(_controls(np.maximum(t[None, :, None], hold), amp, period, speed, chi, kind,
-                                u.phase[:, None, :], ratios[..., 0], ratios[..., 1]))
-        sp[..., 2:] *= (t[None, :, None] >= hold)[..., None]
+    t = t[None, :, None]
+    hold = None if u.hold is None else u.hold[:, None, :]
+    # a robot not yet started holds the setpoint it starts with, at rate 0
+    sp = np.asarray(_controls(t if hold is None else np.maximum(t, hold), amp, period, speed, chi, kind,
+                              u.phase[:, None, :], ratios[..., 0], ratios[..., 1]))  # [U, T, N, 4]
+    if hold is not None:
+        sp = np.array(sp)
+        sp[..., 2:] *= (t >= hold)[..., None]
     return sp.reshape(sp.shape[0], sp.shape[1], -1)[row]
 
 

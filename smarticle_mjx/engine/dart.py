@@ -108,9 +108,9 @@ def check_model(params: SceneParams, numerics: DartNumerics) -> None:
 # numerics, ``dart_numerics``) and plate departures it does not build. ``--set`` on one of them is
 # refused on the twin rather than silently ignored.
 NOT_BUILT = ("timestep", "integrator", "contact_substeps", "substep_gate", "solver", "iterations", "ls_iterations",
-             "tolerance", "contact_timeconst", "contact_dampratio", "robot_dampratio", "contact_solimp", "boundary_radius",
-             "boundary_segments",
-             "plate_friction_y_ratio", "arm_plate_friction", "robot.backlash_friction", "robot.backlash_stop_timeconst")
+             "tolerance", "contact_timeconst", "contact_dampratio", "robot_dampratio", "contact_solimp",
+             "boundary_radius", "boundary_segments", "plate_friction_y_ratio", "arm_plate_friction",
+             "robot.backlash_friction", "robot.backlash_stop_timeconst")
 
 
 def check_study(backend: str, spec, params: SceneParams | None = None, overrides=()) -> None:
