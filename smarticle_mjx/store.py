@@ -192,9 +192,9 @@ class Writer:
             if not journal:
                 raise StoreError(f"nothing to resume at {self.path} (no journal {self.parts.name})")
             saved = json.loads((self.parts / "config.json").read_text())
-            if _data_keys(saved) != _data_keys(self.config):
-                mine = _data_keys(self.config)
-                saved = _data_keys(saved)
+            if data_keys(saved) != data_keys(self.config):
+                mine = data_keys(self.config)
+                saved = data_keys(saved)
                 diff = sorted(k for k in set(saved) | set(mine) if saved.get(k) != mine.get(k))
                 raise StoreError(f"{self.path} was started with a different configuration ({', '.join(diff)}); "
                                  "refusing to append")
@@ -350,7 +350,8 @@ class Writer:
 EXECUTOR_KEYS = ("executor",)
 
 
-def _data_keys(config: dict) -> dict:
+def data_keys(config: dict) -> dict:
+    """A store's configuration without how it was run (the executor): what decides whether two runs are one study."""
     return {k: v for k, v in config.items() if k not in EXECUTOR_KEYS}
 
 

@@ -31,7 +31,7 @@ from .scan import run_scan
 from .scene import params_json, predated_fields
 from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, config_from_json, with_overrides
 from .scene import SceneParams
-from .store import PACKAGE, Store, journal_path
+from .store import PACKAGE, Store, data_keys, journal_path
 
 def _stamp(text) -> str:
     return "".join(c for c in str(text) if c.isdigit())[:14] or "unknown"
@@ -108,6 +108,45 @@ def _check_journal(cfg: ScanConfig | RelaxConfig, path: pathlib.Path, notes: lis
     if meta.get("package") != PACKAGE or _normalised(meta.get("config", {}), want, params, _kind(cfg)) != want:
         _move_aside(path, journal, "an interrupted run of another configuration or version", meta.get("created"),
                     notes)
+        return
+    _adopt(journal, want, params, _kind(cfg), notes)
+
+
+def _adopt(journal: pathlib.Path, want: dict, params: SceneParams, kind: str, notes: list | None) -> None:
+    """Let a journal that the staleness rule calls current be resumed although its configuration was
+    written before some key existed: the writer resumes only an identical configuration, so the journal's
+    ``config.json`` is rewritten in this version's form (the keys added since, at the values they
+    implicitly had) and the one it was started with is kept beside it as ``config.started.json``."""
+    saved_path = journal / "config.json"
+    if not saved_path.exists():
+        return
+    saved = json.loads(saved_path.read_text())
+    now = json.loads(json.dumps(want))
+    kept = {k: v for k, v in saved.items() if k not in now}  # executor keys and the like: not the study's
+    if {**now, **kept} == saved or _normalised(data_keys(saved), now, params, kind) != data_keys(now):
+        return  # resumable as it is, or another study: the writer refuses it in one line
+    first = journal / "config.started.json"
+    if not first.exists():
+        first.write_text(saved_path.read_text())
+    tmp = saved_path.with_name(saved_path.name + ".tmp")
+    tmp.write_text(json.dumps({**now, **kept}, indent=1, sort_keys=True))
+    tmp.replace(saved_path)
+    if notes is not None:
+        notes.append(f"{journal.name}: started before some configuration keys existed; resumed with them at "
+                     f"the values they had (the original kept as {first.name})")
+
+
+def adopt_journal(cfg: ScanConfig | RelaxConfig, path: pathlib.Path, notes: list | None = None) -> None:
+    """Before ``--resume``: a journal of study ``cfg`` at ``path`` that the staleness rule calls current
+    (same package version, configuration equal once keys added since are filled in) is made resumable
+    (:func:`_adopt`); any other journal is left for the writer to refuse in one line."""
+    journal = journal_path(path)
+    if not (journal / "meta.json").exists():
+        return
+    meta = json.loads((journal / "meta.json").read_text())
+    params, want = _recorded(cfg)
+    if meta.get("package") == PACKAGE:
+        _adopt(journal, want, params, _kind(cfg), notes)
 
 
 def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict], None] | None = None,
@@ -261,6 +300,8 @@ def run_study(spec: ScanConfig | RelaxConfig, out, mode: str = "new", executor=N
     Raises:
       ValueError: a spec that is not one store's study (one line).
     """
+    if mode == "resume" and isinstance(spec, (ScanConfig, RelaxConfig)):
+        adopt_journal(spec, pathlib.Path(out))
     if isinstance(spec, ScanConfig):
         return run_scan(spec, out, mode=mode, executor=executor, on_progress=on_progress, **options)
     if isinstance(spec, RelaxConfig):

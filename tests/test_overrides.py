@@ -197,3 +197,42 @@ def test_a_store_from_before_the_solver_field_reads_back_as_what_made_it():
     drawn = scene.params_json(presets.params().replace(quirks=(scene.RobotQuirk(backlash_deg=(1.2, 1.7)),)))
     del drawn["solver"]
     assert scene.params_from_json(drawn).solver == "Newton"
+
+
+def test_a_journal_started_before_a_scene_field_existed_resumes(tmp_path):
+    """An interrupted run whose journal predates a scene field (robot_dampratio, added with the default that
+    leaves every contact as it was) is the same study by the staleness rule, so --resume continues it to the
+    store an uninterrupted run writes; the configuration it was started with is kept beside it. A journal
+    whose recorded value differs from the study's is still refused in one line."""
+    from smarticle_mjx.store import StoreError, read_relax
+    cfg = specs.RelaxConfig(n_robots=3, trials=3, periods=2, batch_size=1)
+    whole = tmp_path / "whole.h5"
+    studies.run_study(cfg, whole)
+
+    class Killed(Exception):
+        pass
+
+    def die(p):
+        if p["done"] >= 1:
+            raise Killed
+
+    def cut_journal(name, edit):
+        out = tmp_path / name
+        with pytest.raises(Killed):
+            studies.run_study(cfg, out, on_progress=die)
+        saved = out.with_name(out.name + ".parts") / "config.json"
+        c = json.loads(saved.read_text())
+        edit(c["scene"])
+        saved.write_text(json.dumps(c))
+        return out
+
+    old = cut_journal("old.h5", lambda sc: sc.pop("robot_dampratio"))
+    studies.run_study(cfg, old, mode="resume")
+    a, b = read_relax(whole), read_relax(old)
+    for k in ("poses", "touched", "start_poses", "periods_run"):
+        assert np.array_equal(getattr(a, k), getattr(b, k)), k
+    assert studies.stale_reason(cfg, old) is None
+    other = cut_journal("other.h5", lambda sc: sc.update(robot_dampratio=0.05))
+    with pytest.raises(StoreError, match="different configuration"):
+        studies.run_study(cfg, other, mode="resume")
+    assert (tmp_path / "other.h5.parts").exists() and not other.exists()
