@@ -540,3 +540,55 @@ def test_smx_calibrate_refuses_an_unknown_plate_hypothesis_in_one_line_and_write
     from smarticle_mjx.calibrate.stages import calibrate
     with pytest.raises(ValueError, match="no joint plate hypothesis"):
         calibrate([], plate_hypotheses=("friction_scale",))
+
+
+class _TwoEffects:
+    """A fake problem whose residuals are linear in a dead time and a phase offset: 30 residuals
+    (dead time - truth) / 1 ms and 30 of (offset - truth) / 0.002 period, each plus unit noise; the
+    nominal parameters move nothing. What the fit and the rule see of two effects, without a model run."""
+
+    def __init__(self, params, dead, phase, seed):
+        self.trials = [types.SimpleNamespace(params=params)]
+        self.priors = {}
+        self.noise = np.random.default_rng(seed).normal(0.0, 1.0, 60)
+        self.dead, self.phase = dead, phase
+
+    def vector_with(self, values, eff):
+        d = eff.as_dict()
+        dt = d.get("servo_dead_time", {}).get("dead_time_s", 0.0)
+        ph = d.get("phase_offset", {}).get("phase_offset", 0.0)
+        return np.concatenate([np.full(30, (dt - self.dead) / 0.001), np.full(30, (ph - self.phase) / 0.002)]) + self.noise
+
+    def prior_chi2(self, nominal):
+        return 0.0
+
+
+@pytest.mark.parametrize("phase", [0.1, 0.0])
+def test_a_second_joint_hypothesis_beside_the_accepted_one_is_named_only_where_it_is_there(phase):
+    """calibrate.stages.second_hypothesis: after a dead time was accepted in the nominal stage, a phase
+    offset that is in the data (0.1 period) is fitted jointly with it and added, both sizes recovered; where
+    the data have none, it is tried and not added. A lag is never tried beside a dead time (two readings of
+    one servo's timing). fit_nominal takes the two effects at once."""
+    from smarticle_mjx import presets
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.stages import second_hypothesis
+
+    params = presets.params()
+    train, test = _TwoEffects(params, 0.02, phase, 1), _TwoEffects(params, 0.02, phase, 2)
+    dead, lag, off = BY_NAME["servo_dead_time"], BY_NAME["servo_lag"], BY_NAME["phase_offset"]
+    fe1 = fit_nominal(train, effect=dead, max_nfev=10)
+    assert fe1.values["servo_dead_time"]["dead_time_s"] == pytest.approx(0.02, abs=1e-3)
+    nom0 = {p.name: p.preset(params) for p in NOMINAL}
+    nom1 = {k: fe1.values[k] for k in fe1.preset}
+    best = (fe1, 0.5, dead, nom1, {"dead_time_s": fe1.interval["dead_time_s"]})
+    tasks = [("servo_lag", lag, nom0, None), ("phase_offset", off, nom0, {"phase_offset": 0.05})]
+    second = second_hypothesis(train, test, tasks, best, nom0, 60, types.SimpleNamespace(constant_delay=True), (),
+                               lambda msg: None)
+    assert [t["effect"] for t in second.tried] == ["phase_offset"]
+    assert second.tried[0]["beside"] == "servo_dead_time"
+    if phase:
+        assert second.effect is off
+        assert second.fit.values["phase_offset"]["phase_offset"] == pytest.approx(0.1, abs=0.002)
+        assert second.fit.values["servo_dead_time"]["dead_time_s"] == pytest.approx(0.02, abs=1e-3)
+    else:
+        assert second.effect is None and not second.tried[0]["accepted"]

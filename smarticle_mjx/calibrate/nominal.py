@@ -122,10 +122,10 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     """Fit ``params`` on ``problem`` (a ``fit.Problem`` of training trials).
 
     Args:
-      effect: optionally a structural effect (``effects.Effect``) fitted
-        jointly with the nominal parameters, its values then in
-        ``values[effect.name]`` (a servo lag must be fitted with the servo's
-        speed and gain, or those absorb it).
+      effect: optionally a structural effect (``effects.Effect``), or a
+        tuple of them, fitted jointly with the nominal parameters, the
+        values of each then in ``values[effect.name]`` (a servo lag must be
+        fitted with the servo's speed and gain, or those absorb it).
       start: nominal values to start from (default: the preset's).
       effect_start: the effect's values to start from (default: its probe).
 
@@ -136,7 +136,8 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     from .effects import EffectSet, unit_to_value, value_to_unit
     ref = problem.trials[0].params
     start = start or {}
-    eparams = tuple(effect.params) if effect is not None else ()
+    effs = () if effect is None else tuple(effect) if isinstance(effect, (tuple, list)) else (effect,)
+    eparams = tuple(q for e in effs for q in e.params)
     u0 = np.array([min(max(p.to_u(ref, start.get(p.name, p.preset(ref))), 0.0), 1.0) for p in params]
                   + [min(max(value_to_unit(q, (effect_start or {}).get(q.name, q.probe)), 0.0), 1.0) for q in eparams])
     calls = {"n": 0}
@@ -146,9 +147,11 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
         return {p.name: p.from_u(ref, x) for p, x in zip(params, u[:kn])}
 
     def effects(u):
-        if effect is None:
-            return EffectSet()
-        return EffectSet.of({effect.name: {q.name: unit_to_value(q, x) for q, x in zip(eparams, u[kn:])}})
+        out, j = {}, kn
+        for e in effs:
+            out[e.name] = {q.name: unit_to_value(q, x) for q, x in zip(e.params, u[j:j + len(e.params)])}
+            j += len(e.params)
+        return EffectSet.of(out)
 
     # measured values (the sidecar's "measured", calibrate.data.priors) enter as Gaussian priors: one
     # residual (fitted - measured) / sd each, beside the data's
@@ -228,8 +231,7 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     corr = [(names[a], names[b], float(cc[a, b])) for a in range(k) for b in range(a + 1, k)
             if np.isfinite(cc[a, b]) and abs(cc[a, b]) > 0.9]
     vals = values(u)
-    if effect is not None:
-        vals[effect.name] = effects(u).as_dict()[effect.name]
+    vals.update(effects(u).as_dict())
     nd = len(r) - len(priors)  # the data's residuals (the priors' come last)
     return NominalFit(vals, {p.name: p.preset(ref) for p in params}, interval, at_bound, corr,
                       float(np.mean(r0[:nd] ** 2)), float(np.mean(r[:nd] ** 2)), calls["n"],
