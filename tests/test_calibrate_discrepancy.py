@@ -108,3 +108,20 @@ def test_a_reported_effect_carries_both_intervals():
     iv, st = {"tilt_x_deg": (0.1, 3.0), "tilt_y_deg": (-1.0, 1.0)}, {"tilt_x_deg": (0.8, 1.2), "tilt_y_deg": (-0.2, 0.2)}
     got = added_entry(t, {"tilt_x_deg": 1.0, "tilt_y_deg": 0.0}, iv, statistical=st)
     assert got["interval"]["tilt_x_deg"] == [0.1, 3.0] and got["interval_statistical"]["tilt_x_deg"] == [0.8, 1.2]
+
+
+def test_the_report_lists_the_joint_hypotheses_and_what_each_was_fitted_beside():
+    """The nominal stage's hypotheses, as calibrate() records them, are a table of the report: one tried
+    alone and added, one fitted beside it and refused, one not tried with its reason."""
+    from smarticle_mjx.calibrate.report import hypotheses_markdown
+    hyps = [{"effect": "servo_dead_time", "tried": True, "values": {"dead_time_s": 0.031}, "heldout_gain": 0.68,
+             "bic_gain": 380.2, "rule": "delay test", "accepted": True},
+            {"effect": "phase_offset", "beside": "servo_dead_time", "tried": True, "values": {"phase_offset": 0.004},
+             "heldout_gain": 0.03, "bic_gain": -2.0, "rule": "held-out gain", "accepted": False},
+            {"effect": "servo_lag", "tried": False, "accepted": False, "reason": "no arm angles were tracked"}]
+    md = hypotheses_markdown(hyps)
+    rows = [x for x in md if x.startswith("| ") and not x.startswith("| effect")]
+    assert rows[0].startswith("| servo_dead_time | – | dead_time_s 0.031 | +68% |") and rows[0].endswith("**yes** |")
+    assert rows[1].startswith("| phase_offset | servo_dead_time | phase_offset 0.004 | +3% |") and rows[1].endswith("| no |")
+    assert "not tried: no arm angles were tracked" in rows[2]
+    assert hypotheses_markdown([]) == []

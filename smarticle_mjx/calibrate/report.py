@@ -177,6 +177,7 @@ def markdown(r: dict) -> str:
         else:
             lines += [f"Not applicable (arm delays on fewer than two amplitudes at least 1.5× apart): {HELDOUT_RULE}."]
         lines.append("")
+    lines += hypotheses_markdown(r.get("nominal_hypotheses") or [])
     dr = r.get("drift")
     if dr and dr.get("dof"):
         tf = dr.get("tilt_fit") or {}
@@ -289,6 +290,27 @@ def markdown(r: dict) -> str:
         "frame; step = per-cycle step in the plate frame; increments = frame-to-frame jitter.", ""]
     lines += [f"![{n}]({n})" for n in r["figures"]]
     return "\n".join(lines) + "\n"
+
+
+def hypotheses_markdown(hyps: list) -> list[str]:
+    """The nominal stage's joint hypotheses: each fitted with the nominal parameters (and, in the second pass,
+    with the effect accepted first), its values, gains and whether it was added; or why it was not tried."""
+    if not hyps:
+        return []
+    lines = ["## Joint hypotheses (fitted with the nominal parameters)", "",
+             "Effects that a nominal fit alone would absorb, each fitted jointly with the nominal parameters; the "
+             "one accepted with the largest held-out gain is added, then each other one is fitted beside it and "
+             "judged against it the same way (docs/calibration.md, \"Two joint hypotheses at once\").", "",
+             "| effect | fitted beside | fitted | held-out gain | BIC gain | rule | added |", "|---|---|---|---|---|---|---|"]
+    for h in hyps:
+        beside = h.get("beside") or "–"
+        if not h.get("tried", True):
+            lines.append(f"| {h['effect']} | {beside} | not tried: {h.get('reason', '')} | – | – | – | no |")
+            continue
+        vals = ", ".join(f"{k} {_num(v, '.3g')}" for k, v in (h.get("values") or {}).items())
+        lines.append(f"| {h['effect']} | {beside} | {vals} | {h['heldout_gain']:+.0%} | {h['bic_gain']:.1f} | "
+                     f"{h.get('rule', '')} | {'**yes**' if h['accepted'] else 'no'} |")
+    return lines + [""]
 
 
 def observables_markdown(obs: dict | None) -> list[str]:
