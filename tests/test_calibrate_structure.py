@@ -592,3 +592,57 @@ def test_a_second_joint_hypothesis_beside_the_accepted_one_is_named_only_where_i
         assert second.fit.values["servo_dead_time"]["dead_time_s"] == pytest.approx(0.02, abs=1e-3)
     else:
         assert second.effect is None and not second.tried[0]["accepted"]
+
+
+def _servo_tracks(gait, speed, frame_hz, dead_s=0.0, lag_s=0.0, periods=5):
+    """Arm angles [F, 2] at ``frame_hz`` of a servo that follows the gait's slewed setpoints at ``speed``,
+    late by ``dead_s`` or through a first-order lag ``lag_s`` (integrated exactly on a 10 us grid) — built
+    with numpy, not by any model of the package."""
+    fine = np.arange(0.0, periods * gait.period(), 1e-5)
+    sp = np.asarray(gait.setpoints(fine - dead_s, speed))
+    if lag_s:  # y[i] = sp[i] + (y[i-1] - sp[i]) exp(-dt / lag), from y[0] = sp[0]
+        from scipy.signal import lfilter
+        keep = math.exp(-1e-5 / lag_s)
+        sp = lfilter([1.0 - keep], [1.0, -keep], sp, axis=0, zi=keep * sp[:1])[0]
+    t = np.arange(0.0, periods * gait.period(), 1.0 / frame_hz)
+    return t, np.stack([np.interp(t, fine, sp[:, k]) for k in range(2)], 1)
+
+
+def test_the_arm_rise_tells_a_lag_from_a_dead_time_and_from_a_slower_servo():
+    """observables.swing_rise_groups: the time from a quarter to three quarters of a swing. On a slewed
+    ramp it is the amplitude over the speed; a dead time leaves it so; a first-order lag lengthens it, by
+    what the closed form of a ramp through a lag gives, and the more the shorter the swing (11 ms at 15 deg,
+    under 1 ms at 90 deg for 30 ms); a slower servo lengthens it in proportion to the amplitude."""
+    from scipy.optimize import brentq
+    from smarticle_mjx.calibrate.observables import swing_rise_groups
+    from smarticle_mjx.gait import GaitSpec
+
+    w, tau = 8.7, 0.03
+
+    def rise(g, **kw):
+        x, grp = swing_rise_groups(*_servo_tracks(g, kw.pop("speed", w), 120.0, **kw), g)
+        assert len(x) >= 12 and set(grp) == {0, 1, 2, 3}
+        return float(np.mean(x))
+
+    # closed form on a swing from rest (a long dwell): -a + w (t - tau (1 - exp(-t/tau))) while the ramp runs
+    # (2a / w), then an exponential approach to +a
+    slow_gait = GaitSpec(amplitude_deg=15, period_s=1.6)
+    a = slow_gait.amplitude
+    tm = 2 * a / w
+    y_tm = -a + w * (tm - tau * (1 - math.exp(-tm / tau)))
+
+    def y(t):
+        return -a + w * (t - tau * (1 - math.exp(-t / tau))) if t <= tm else a - (a - y_tm) * math.exp(-(t - tm) / tau)
+
+    closed = brentq(lambda t: y(t) - a / 2, 0, 1) - brentq(lambda t: y(t) + a / 2, 0, 1)
+    assert rise(slow_gait, lag_s=tau) == pytest.approx(closed, abs=0.5e-3)
+    assert rise(slow_gait) == pytest.approx(a / w, abs=1e-6)
+    excess = {}
+    for amp in (15, 90):
+        g = GaitSpec(amplitude_deg=amp)
+        ramp = rise(g)
+        assert ramp == pytest.approx(g.amplitude / w, abs=1e-6)
+        assert rise(g, dead_s=tau) == pytest.approx(ramp, abs=1e-6)
+        excess[amp] = (rise(g, lag_s=tau) - ramp, rise(g, speed=7.0) - ramp)
+    assert excess[15][0] > 0.008 and excess[90][0] < 0.001  # a lag: long at 15 deg, nearly none at 90
+    assert excess[90][1] / excess[15][1] == pytest.approx(6.0, rel=0.01)  # a slower servo: in proportion

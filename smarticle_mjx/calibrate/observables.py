@@ -26,7 +26,14 @@ effect moves, and how much of each the effect itself accounts for:
   step taken out (:mod:`calibrate.drift`); it moves with a plate tilt;
 * **body step** (mm/cycle): the length of that body-frame step, and the
   **rotation** (deg/cycle) of lone robots: they move with friction, masses
-  and the arms' shape.
+  and the arms' shape;
+* **arm rise** (ms; since November 2026, after version 0.4.1): the time an
+  arm takes from a quarter to three quarters of its swing, no command
+  matched. A dead time leaves it; a first-order lag lengthens it, most on
+  short swings; a slower servo lengthens it in proportion to the amplitude.
+  It is reported beside the arm delay so that a lag and a dead time (which
+  delay the midpoint alike) can be told apart on the tracks; no rule of the
+  selection reads it yet.
 
 All are computed the same way on measured tracks and on model tracks masked
 like them (numpy only), each with a standard error from the spread over
@@ -47,7 +54,8 @@ _GRID = 4096  # samples per period of the commanded (instant) gait, for its swit
 SETTLE = 0.5  # periods at the start of a track whose swings are left out
 LABELS = {"arm_delay_ms": "arm delay (ms)", "phase_lead": "phase lead (periods)",
           "drift_mm_per_s": "plate drift (mm/s)", "body_step_mm": "body-frame step (mm/cycle)",
-          "rotation_deg": "rotation (deg/cycle)"}  # each observable's name in tables
+          "rotation_deg": "rotation (deg/cycle)",
+          "arm_rise_ms": "arm rise, quarter to three quarters (ms)"}  # each observable's name in tables
 
 
 def _command_switches(gait) -> list[tuple[int, int, float]]:
@@ -114,6 +122,37 @@ def swing_delay_groups(t: np.ndarray, arms: np.ndarray, gait, settle: float = SE
     return np.concatenate(out), np.concatenate(grp)
 
 
+def swing_rise_groups(t: np.ndarray, arms: np.ndarray, gait, settle: float = SETTLE
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Rise times (s) of one robot's arm swings [F frames, 2 arms]: from the arm crossing a quarter of its
+    commanded swing to its crossing three quarters (angles -a/2 then +a/2 on the way up, the reverse on the
+    way down, a the gait's amplitude), and each swing's group, 2 arm + (1 if up). Model-free: no command
+    is matched. A dead time leaves the rise as it was; a first-order lag lengthens it, the more the shorter
+    the swing (a lag as long as the move smears it); a slower servo lengthens it in proportion to the
+    amplitude. Swings that do not reach both levels, or that start within ``settle`` periods of the first
+    frame, give none."""
+    T = gait.period()
+    half = 0.5 * gait.amplitude
+    out, grp = [], []
+    for k in range(2):
+        lo_t, lo_d = crossings(t, arms[:, k] + half)  # the arm crosses -a/2
+        hi_t, hi_d = crossings(t, arms[:, k] - half)  # ... and +a/2
+        for d in (1, -1):
+            first, last = (lo_t[lo_d == 1], hi_t[hi_d == 1]) if d > 0 else (hi_t[hi_d == -1], lo_t[lo_d == -1])
+            first = first[first >= t[0] + settle * T]
+            if not len(first) or not len(last):
+                continue
+            j = np.searchsorted(first, last) - 1  # the latest first-level crossing before each second one
+            ok = j >= 0
+            rise = last[ok] - first[j[ok]]
+            rise = rise[(rise > 0) & (rise < 0.5 * T)]
+            out.append(rise)
+            grp.append(np.full(len(rise), 2 * k + (d > 0)))
+    if not out:
+        return np.zeros(0), np.zeros(0, int)
+    return np.concatenate(out), np.concatenate(grp)
+
+
 def grouped_mean_se(x, groups) -> dict:
     """The mean of per-group means (every group weighted alike) and its standard error from the spread
     within groups (pooled), for values ``x`` [S] in groups ``groups`` [S] (any hashable labels).
@@ -172,11 +211,14 @@ def observables(trials, tracks=None) -> dict:
       swing by swing; ``drift_mm_per_s`` (gait, v [2], se [2]) from the
       plate-frame drift regression; ``body_step_mm`` (gait, mean, se, n
       cycles): the body-frame step's length from the same regression;
-      ``rotation_deg`` (gait, mean, se, n cycles) per cycle of lone robots.
+      ``rotation_deg`` (gait, mean, se, n cycles) per cycle of lone robots; ``arm_rise_ms`` (gait,
+      amplitude, mean, se, n swings) of every robot's swings (:func:`swing_rise_groups`), grouped like
+      the delays.
     """
     delays: dict = {}
     lead: dict = {}
     rot: dict = {}
+    rises: dict = {}
     for k, tr in enumerate(trials):
         pose, arms = (tr.pose, tr.arms) if tracks is None else masked(tracks[k], tr)
         for i, g in enumerate(tr.gaits):  # lone robots' rotation per cycle
@@ -189,6 +231,9 @@ def observables(trials, tracks=None) -> dict:
         # each swing's group: (trial, robot, arm, direction), so that one arm's constant misreading cancels
         per = [swing_delay_groups(tr.t, arms[:, i], tr.gaits[i]) for i in range(tr.robots)]
         label = [np.column_stack([np.full(len(gr), k), np.full(len(gr), i), gr]) for i, (_, gr) in enumerate(per)]
+        for i, g in enumerate(tr.gaits):  # every robot's rise, grouped like its delays
+            x, gr = swing_rise_groups(tr.t, arms[:, i], g)
+            rises.setdefault(g, []).append((x, np.column_stack([np.full(len(gr), k), np.full(len(gr), i), gr])))
         d0 = grouped_mean_se(per[0][0], label[0])["mean"]
         for i, g in enumerate(tr.gaits):
             if i == 0 or g != tr.gaits[0]:
@@ -196,7 +241,8 @@ def observables(trials, tracks=None) -> dict:
             elif len(per[i][0]) and np.isfinite(d0):
                 # robot 0's mean delay minus this robot's: how far ahead it swings (periods)
                 lead.setdefault((g, i), []).append(((d0 - per[i][0]) / g.period(), label[i]))
-    out: dict = {"arm_delay_ms": [], "phase_lead": [], "drift_mm_per_s": [], "body_step_mm": [], "rotation_deg": []}
+    out: dict = {"arm_delay_ms": [], "phase_lead": [], "drift_mm_per_s": [], "body_step_mm": [], "rotation_deg": [],
+                 "arm_rise_ms": []}
 
     def pooled(parts, scale=1.0):
         return grouped_mean_se(np.concatenate([p[0] for p in parts]) * scale,
@@ -218,6 +264,10 @@ def observables(trials, tracks=None) -> dict:
         out["body_step_mm"].append({"gait": _key_label(key), "mean": n, "se": se, "n": r["cycles"]})
     for g, parts in rot.items():
         out["rotation_deg"].append({"gait": _gait_label(g), **_mean_se(np.concatenate(parts))})
+    for g, parts in rises.items():
+        if sum(len(p[0]) for p in parts):
+            out["arm_rise_ms"].append({"gait": _gait_label(g), "amplitude_deg": float(g.amplitude_deg),
+                                       **pooled(parts, 1e3)})
     return out
 
 

@@ -323,7 +323,8 @@ def observables_markdown(obs: dict | None) -> list[str]:
              "delay** from the command's switch to the arm crossing its midpoint (ms, mean over swings after the "
              "first half period), the **phase lead** of a robot's swings over robot 0's (periods), the **plate "
              "drift** with the body-frame step taken out (mm/s, x and y), the length of that **body-frame step** "
-             "(mm/cycle) and the lone robots' **rotation** (deg/cycle). A structural effect's share is the "
+             "(mm/cycle), the lone robots' **rotation** (deg/cycle) and the **arm rise** from a quarter to three "
+             "quarters of a swing (ms: a lag lengthens it, a dead time does not). A structural effect's share is the "
              "final model minus the final model without it. ± is one standard error; ✓: the model agrees with "
              "the measured value within 95 %.", "",
              "| observable | gait | measured | " + " | ".join(stages) + " |", "|---|---|---|" + "---|" * len(stages)]
