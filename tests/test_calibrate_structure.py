@@ -646,3 +646,37 @@ def test_the_arm_rise_tells_a_lag_from_a_dead_time_and_from_a_slower_servo():
         excess[amp] = (rise(g, lag_s=tau) - ramp, rise(g, speed=7.0) - ramp)
     assert excess[15][0] > 0.008 and excess[90][0] < 0.001  # a lag: long at 15 deg, nearly none at 90
     assert excess[90][1] / excess[15][1] == pytest.approx(6.0, rel=0.01)  # a slower servo: in proportion
+
+
+def test_the_arm_rise_reads_a_lag_or_a_dead_time_and_chooses_between_two_that_passed():
+    """observables.servo_reading on the rise's excess split as constant + slope x amplitude: a constant
+    above RISE_LAG_MS (a lag lengthening the short swings' rise) reads a lag, one below it (a servo law
+    unlike the model's growing with the amplitude) a dead time, one amplitude nothing. stages.servo_choice
+    keeps the reading's hypothesis where both passed, marks the other refused, and leaves a lone servo
+    hypothesis or a set without a reading to the held-out gain."""
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.observables import RISE_LAG_MS, servo_reading
+    from smarticle_mjx.calibrate.stages import servo_choice
+
+    def rise(amps, excess):
+        meas = {"arm_rise_ms": [{"gait": f"{a}", "amplitude_deg": float(a), "mean": 50.0 + e, "se": 0.1, "n": 30}
+                                for a, e in zip(amps, excess)]}
+        model = {"arm_rise_ms": [{"gait": f"{a}", "amplitude_deg": float(a), "mean": 50.0, "se": 0.1, "n": 30}
+                                 for a in amps]}
+        return delay_test(meas, model, "arm_rise_ms")
+
+    amps = [15, 40, 75]
+    slope = [20.0 * math.radians(a) for a in amps]  # a servo slower than the model's: in proportion
+    lag = rise(amps, [RISE_LAG_MS + 6.0 + s_ for s_ in slope])
+    assert lag.constant_ms == pytest.approx(RISE_LAG_MS + 6.0) and servo_reading(lag) == "servo_lag"
+    assert servo_reading(rise(amps, [1.0 + s_ for s_ in slope])) == "servo_dead_time"
+    assert servo_reading(rise([40], [12.0])) is None
+    lag_e, dead_e, off_e = BY_NAME["servo_lag"], BY_NAME["servo_dead_time"], BY_NAME["phase_offset"]
+    passed = [("fit-lag", 0.30, lag_e), ("fit-dead", 0.35, dead_e), ("fit-off", 0.2, off_e)]
+    hyps = [{"effect": "servo_lag", "accepted": True}, {"effect": "servo_dead_time", "accepted": True},
+            {"effect": "phase_offset", "accepted": True}]
+    kept = servo_choice(passed, hyps, "servo_lag", lambda m: None)
+    assert [c[2].name for c in kept] == ["servo_lag", "phase_offset"]
+    assert hyps[1]["accepted"] is False and "reads a lag" in hyps[1]["reason"] and hyps[0]["accepted"]
+    assert servo_choice(passed, [dict(h) for h in hyps], None, lambda m: None) == passed
+    assert servo_choice(passed[1:], [dict(h) for h in hyps], "servo_lag", lambda m: None) == passed[1:]

@@ -327,12 +327,13 @@ class DelayTest:
         return dataclasses.asdict(self)
 
 
-def delay_test(measured: dict, model: dict) -> DelayTest:
+def delay_test(measured: dict, model: dict, key: str = "arm_delay_ms") -> DelayTest:
     """:class:`DelayTest` from the ``arm_delay_ms`` rows of :func:`observables` of the data and of a model
-    (rows matched by gait)."""
+    (rows matched by gait); ``key`` "arm_rise_ms": the same split of the arm rise's excess
+    (:func:`servo_reading` reads it)."""
     rows = []
-    for r in measured.get("arm_delay_ms", []):
-        m = next((x for x in model.get("arm_delay_ms", []) if x["gait"] == r["gait"]), None)
+    for r in measured.get(key, []):
+        m = next((x for x in model.get(key, []) if x["gait"] == r["gait"]), None)
         if m is None or not (np.isfinite(r["mean"]) and np.isfinite(m["mean"])):
             continue
         se = math.sqrt(np.nan_to_num(r["se"]) ** 2 + np.nan_to_num(m["se"]) ** 2 + DELAY_FLOOR_MS ** 2)
@@ -352,3 +353,23 @@ def delay_test(measured: dict, model: dict) -> DelayTest:
     sc, sb = math.sqrt(cov[0, 0]), math.sqrt(cov[1, 1])
     return DelayTest(tuple(amps.tolist()), tuple(y.tolist()), tuple(x[2] for x in rows), float(c), sc, float(b), sb,
                      True, bool(c > DELAY_MIN_MS and c > DELAY_Z * sc), bool(c + DELAY_Z * sc < DELAY_MIN_MS))
+
+
+# The arm rise's reading of a servo's timing (added after version 0.4.1; thresholds set on development
+# sets of suite seeds 2040-2044, benchmarks/arm_rise_dev.py). A dead time moves a swing whole and leaves its
+# rise (a quarter to three quarters) as the servo makes it; a first-order lag smears the swing, and most the
+# shortest swings, so the rise's excess over the preset model, split as constant + slope x amplitude (the
+# delay test's split, :func:`delay_test` with key "arm_rise_ms"), has a constant above what a servo law
+# unlike the model's leaves there. On the development sets: lags 6.0-26.4 ms (where two amplitudes at least
+# 1.5x apart include one below 30 deg; 3.8 +- 7.2 ms from 60 and 90 deg alone), dead times -0.1 to 2.3 ms,
+# clean robots -5.0 to 1.4 ms. RISE_LAG_MS sits between the two groups.
+RISE_LAG_MS = 4.0
+
+
+def servo_reading(rise: DelayTest) -> str | None:
+    """Which servo timing the arm rise reads: "servo_lag" (the rise's constant above ``RISE_LAG_MS``),
+    "servo_dead_time" (below it), or None where the split does not apply (one amplitude, or amplitudes
+    less than ``DELAY_SPAN`` apart). Read only to choose between a lag and a dead time that both passed."""
+    if not rise.applicable or not math.isfinite(rise.constant_ms):
+        return None
+    return "servo_lag" if rise.constant_ms > RISE_LAG_MS else "servo_dead_time"

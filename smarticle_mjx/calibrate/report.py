@@ -176,6 +176,14 @@ def markdown(r: dict) -> str:
                                                                              dt["se_ms"])]
         else:
             lines += [f"Not applicable (arm delays on fewer than two amplitudes at least 1.5× apart): {HELDOUT_RULE}."]
+        rt = r.get("rise_test") or {}
+        if rt.get("reading"):
+            lines += ["", "The arm rise (a quarter to three quarters of a swing) beyond the preset model's, split the "
+                      f"same way: constant {rt['constant_ms']:+.1f} ± {rt['constant_se_ms']:.1f} ms, slope "
+                      f"{rt['per_rad_ms']:+.1f} ± {rt['per_rad_se_ms']:.1f} ms/rad. A lag smears a swing and "
+                      "lengthens the short ones' rise; a dead time moves it whole. It reads a **"
+                      + ("lag" if rt["reading"] == "servo_lag" else "dead time")
+                      + "**, which is kept should a lag and a dead time both pass."]
         lines.append("")
     lines += hypotheses_markdown(r.get("nominal_hypotheses") or [])
     dr = r.get("drift")

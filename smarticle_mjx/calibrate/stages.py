@@ -26,7 +26,7 @@ from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN
                   UNEXPLAINED, Fit,
                   Problem, conventions, fit_effects, is_present, nominal_findings, observable_stages, signatures,
                   split, stage_tracks, where_residual)
-from .observables import DelayTest, delay_test, observables
+from .observables import DelayTest, delay_test, observables, servo_reading
 from .nominal import BY_NAME as NOMINAL_BY_NAME, apply as apply_nominal, fit_nominal
 from .phase import estimate_offset
 from .residuals import CONTACT_W
@@ -77,6 +77,7 @@ class NominalStage:
     errors: dict  # with the nominal values alone
     hypotheses: list
     delay: DelayTest  # the measured arm delay against the preset model's, by amplitude
+    rise: DelayTest | None = None  # the arm rise's excess over the preset model's, split the same way
 
 
 def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, model: Model, say,
@@ -94,12 +95,19 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     alone = errors(train, test, null)
     # structure before numbers: does the measured arm delay exceed the preset model's by a constant (a lag
     # or dead time) or by a part growing with the amplitude (a slower servo, which the nominal fit covers)?
-    dtest = delay_test(observables(trials), observables(trials, stage_tracks(train, test, trials, {}, null)))
+    data_obs, preset_obs = observables(trials), observables(trials, stage_tracks(train, test, trials, {}, null))
+    dtest = delay_test(data_obs, preset_obs)
+    # and which servo timing the arm's rise reads, to choose between a lag and a dead time that both pass
+    rtest = delay_test(data_obs, preset_obs, "arm_rise_ms")
+    reading = servo_reading(rtest)
     if dtest.applicable:
         say(f"arm delay beyond the preset model's: {dtest.constant_ms:.1f} +- {dtest.constant_se_ms:.1f} ms constant, "
             f"{dtest.per_rad_ms:.1f} +- {dtest.per_rad_se_ms:.1f} ms per rad of amplitude: "
             + ("a constant delay" if dtest.constant_delay else "no constant delay" if dtest.no_constant_delay
                else "undecided"))
+    if reading is not None:
+        say(f"arm rise beyond the preset model's: {rtest.constant_ms:.1f} +- {rtest.constant_se_ms:.1f} ms constant: "
+            f"reads a {'lag' if reading == 'servo_lag' else 'dead time'}, should both pass")
     # a servo lag or dead time changes the arms like a slower, softer servo does at one amplitude:
     # each is fitted jointly with the nominal parameters and kept only if it beats them alone.
     # With several robots, a gait phase offset between them moves the arms of all but the first
@@ -116,7 +124,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     if servo_skip == NO_ARMS:
         say("no arm angles tracked: a servo lag or dead time is not tried (body motion alone cannot tell a "
             "servo's timing from its law)")
-    hypotheses, best, tasks = [], None, []
+    hypotheses, passed, tasks = [], [], []
     for name in joint:
         if name not in {e.name for e in library}:
             continue
@@ -192,8 +200,10 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
                            "baseline_err_heldout": base_err,
                            "evaluations": fe.evaluations})
         say(f"  nominal + {name}: held-out error {err_e:.2f} ({j.heldout_gain:+.0%}), BIC gain {j.bic_gain:.1f}")
-        if j.accepted and (best is None or j.heldout_gain > best[1]):
-            best = (fe, j.heldout_gain, e, nom_e, interval)
+        if j.accepted:
+            passed.append((fe, j.heldout_gain, e, nom_e, interval))
+    passed = servo_choice(passed, hypotheses, reading, say)
+    best = max(passed, key=lambda c: c[1], default=None)
     if best is not None:
         fe, _, e, nom_e, interval = best
         model.add(e, fe.values[e.name], interval)
@@ -201,7 +211,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         train.nominal = test.nominal = dict(nom_e)
         nominal_fit = dataclasses.replace(fe, values=dict(nom_e))
         say(f"added {e.name} (fitted with the nominal parameters)")
-        second = second_hypothesis(train, test, tasks, best, nom0, n, dtest, plate_hypotheses, say)
+        second = second_hypothesis(train, test, tasks, best, nom0, n, dtest, plate_hypotheses, say, reading)
         hypotheses += second.tried
         if second.fit is not None:
             fe2, e2 = second.fit, second.effect
@@ -212,7 +222,23 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             train.nominal = test.nominal = dict(nom_2)
             nominal_fit = dataclasses.replace(fe2, values=dict(nom_2))
             say(f"added {e2.name} beside {e.name} (both fitted with the nominal parameters)")
-    return NominalStage(nominal_fit, nom0, alone, hypotheses, dtest)
+    return NominalStage(nominal_fit, nom0, alone, hypotheses, dtest, rtest)
+
+
+def servo_choice(passed: list, hypotheses: list, reading: str | None, say) -> list:
+    """Where a lag and a dead time both passed (two readings of one servo's timing), keep the one the arm
+    rise reads (``observables.servo_reading``) and mark the other refused in ``hypotheses``; without a
+    reading, or with one servo hypothesis passed, leave them to the held-out gain (added after 0.4.1)."""
+    names = {c[2].name for c in passed}
+    if reading is None or not set(SERVO_HYPOTHESES) <= names:
+        return passed
+    other = next(x for x in SERVO_HYPOTHESES if x != reading)
+    for h in hypotheses:
+        if h["effect"] == other and h.get("accepted"):
+            h["accepted"] = False
+            h["reason"] = f"the arm rise reads a {'lag' if reading == 'servo_lag' else 'dead time'}"
+    say(f"  both servo timings passed: kept {reading}, which the arm rise reads")
+    return [c for c in passed if c[2].name != other]
 
 
 @dataclasses.dataclass
@@ -223,7 +249,7 @@ class SecondHypothesis:
 
 
 def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, nom0: dict, n: int,
-                      dtest: DelayTest, plate_hypotheses, say) -> SecondHypothesis:
+                      dtest: DelayTest, plate_hypotheses, say, reading: str | None = None) -> SecondHypothesis:
     """A second joint hypothesis beside the accepted one (added after version 0.4.1).
 
     The joint hypotheses are alternatives in the first pass: the best accepted one is kept. But two can be
@@ -259,7 +285,7 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
             nulls[name] = fe
         else:
             done.setdefault(name, (e, []))[1].append(fe)
-    tried, pick = [], None
+    tried, passed = [], []
     for name, (e, fes) in done.items():
         fe = min(fes, key=lambda f: f.err_after)
         fe = dataclasses.replace(fe, evaluations=sum(f.evaluations for f in fes))
@@ -291,8 +317,10 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
                       "evaluations": fe.evaluations})
         say(f"  nominal + {e1.name} + {name}: held-out error {err:.2f} ({j.heldout_gain:+.0%} over "
             f"{e1.name} alone), BIC gain {j.bic_gain:.1f}" + ("" if first_present else f"; {e1.name} no longer shown"))
-        if ok and (pick is None or j.heldout_gain > pick[1]):
-            pick = (fe, j.heldout_gain, e)
+        if ok:
+            passed.append((fe, j.heldout_gain, e))
+    passed = servo_choice(passed, tried, reading, say)
+    pick = max(passed, key=lambda c: c[1], default=None)
     if pick is None:
         return SecondHypothesis(None, None, tried)
     return SecondHypothesis(pick[0], pick[2], tried)
@@ -569,6 +597,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         "before": before, "after_nominal": after_nominal, "after": after, "rounds": rounds,
         "nominal_hypotheses": nom.hypotheses if nom else [], "plate_hypotheses": list(plate_hypotheses),
         "delay_test": nom.delay.as_dict() if nom else None,
+        "rise_test": ({**nom.rise.as_dict(), "reading": servo_reading(nom.rise)} if nom and nom.rise else None),
         "added": [added_entry(e, *model.found[e.name],
                               statistical=(tilt.tilt or {}).get("interval_statistical")
                               if e.name == "plate_tilt" and "plate_tilt" in model.fixed else None)
