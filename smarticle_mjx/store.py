@@ -550,8 +550,12 @@ def read_relax(paths) -> RelaxRecord:
         d["trial"] = int(cfg.get("first_trial", 0)) + np.arange(len(d["valid"]))
         parts.append(d)
         stores.append(st)
+    from .scene import params_from_json, params_json
+
+    # the scene as its parameters read back: a field a store predates takes the value it had (so a stage
+    # written before a scene field existed pools with one written after, where the field is at that value)
     same = lambda st: ({k: v for k, v in st.config["relax"].items() if k not in _STAGE_KEYS},  # noqa: E731
-                       st.model, st.config["scene"])
+                       st.model, params_json(params_from_json(st.config["scene"])))
     for st in stores[1:]:
         if same(st) != same(stores[0]):
             raise StoreError(f"{st.path} and {stores[0].path} are not stages of one study (settings or model differ)")

@@ -236,3 +236,25 @@ def test_a_journal_started_before_a_scene_field_existed_resumes(tmp_path):
     with pytest.raises(StoreError, match="different configuration"):
         studies.run_study(cfg, other, mode="resume")
     assert (tmp_path / "other.h5.parts").exists() and not other.exists()
+
+
+def test_stages_written_before_and_after_a_scene_field_existed_pool(tmp_path):
+    """read_relax pools stages of one study; a stage whose recorded scene predates a field (robot_dampratio,
+    at the default that changes nothing) is the same study as one that records it, as the staleness rule
+    says; a stage recording another value is not."""
+    from smarticle_mjx.store import StoreError, read_relax
+    s0, s1 = tmp_path / "s0.h5", tmp_path / "s1.h5"
+    studies.run_study(specs.RelaxConfig(n_robots=3, trials=1, periods=2, batch_size=1), s0)
+    studies.run_study(specs.RelaxConfig(n_robots=3, trials=1, first_trial=1, periods=2, batch_size=1), s1)
+
+    def edit(path, change):
+        with h5py.File(path, "r+") as f:
+            c = json.loads(f.attrs["config"])
+            change(c["scene"])
+            f.attrs["config"] = json.dumps(c)
+
+    edit(s0, lambda sc: sc.pop("robot_dampratio"))  # as written before the field existed
+    assert list(read_relax([s0, s1]).trial) == [0, 1]
+    edit(s0, lambda sc: sc.update(robot_dampratio=0.05))
+    with pytest.raises(StoreError, match="not stages of one study"):
+        read_relax([s0, s1])
