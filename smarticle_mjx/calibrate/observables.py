@@ -32,8 +32,9 @@ effect moves, and how much of each the effect itself accounts for:
   matched. A dead time leaves it; a first-order lag lengthens it, most on
   short swings; a slower servo lengthens it in proportion to the amplitude.
   It is reported beside the arm delay so that a lag and a dead time (which
-  delay the midpoint alike) can be told apart on the tracks; no rule of the
-  selection reads it yet.
+  delay the midpoint alike) can be told apart on the tracks; the selection
+  reads it only to choose between a lag and a dead time that both passed
+  (:func:`servo_reading`).
 
 All are computed the same way on measured tracks and on model tracks masked
 like them (numpy only), each with a standard error from the spread over
