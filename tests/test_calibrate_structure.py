@@ -582,19 +582,19 @@ def test_a_second_joint_hypothesis_beside_the_accepted_one_is_named_only_where_i
     nom1 = {k: fe1.values[k] for k in fe1.preset}
     best = (fe1, 0.5, dead, nom1, {"dead_time_s": fe1.interval["dead_time_s"]})
     tasks = [("servo_lag", lag, nom0, None), ("phase_offset", off, nom0, {"phase_offset": 0.05})]
-    # from the first pass's starts, and from where the first pass's own fits ended (the offset fitted alone)
+    # started from where the first pass's own fits ended (the offset fitted alone, from 0.05)
     fe_off = fit_nominal(train, effect=off, max_nfev=10, effect_start={"phase_offset": 0.05})
-    for first in (None, {"servo_dead_time": fe1, "phase_offset": fe_off}):
-        second = second_hypothesis(train, test, tasks, best, nom0, 60, types.SimpleNamespace(constant_delay=True),
-                                   (), lambda msg: None, None, first)
-        assert [t["effect"] for t in second.tried] == ["phase_offset"]
-        assert second.tried[0]["beside"] == "servo_dead_time"
-        if phase:
-            assert second.effect is off
-            assert second.fit.values["phase_offset"]["phase_offset"] == pytest.approx(0.1, abs=0.002)
-            assert second.fit.values["servo_dead_time"]["dead_time_s"] == pytest.approx(0.02, abs=1e-3)
-        else:
-            assert second.effect is None and not second.tried[0]["accepted"]
+    first = {"servo_dead_time": fe1, "phase_offset": fe_off, "servo_lag": fe1}
+    second = second_hypothesis(train, test, tasks, best, nom0, 60, types.SimpleNamespace(constant_delay=True),
+                               lambda msg: None, None, first)
+    assert [t["effect"] for t in second.tried] == ["phase_offset"]
+    assert second.tried[0]["beside"] == "servo_dead_time"
+    if phase:
+        assert second.effect is off
+        assert second.fit.values["phase_offset"]["phase_offset"] == pytest.approx(0.1, abs=0.002)
+        assert second.fit.values["servo_dead_time"]["dead_time_s"] == pytest.approx(0.02, abs=1e-3)
+    else:
+        assert second.effect is None and not second.tried[0]["accepted"]
 
 
 def _servo_tracks(gait, speed, frame_hz, dead_s=0.0, lag_s=0.0, periods=5):

@@ -230,11 +230,14 @@ def observables(trials, tracks=None) -> dict:
         if arms is None:
             continue
         # each swing's group: (trial, robot, arm, direction), so that one arm's constant misreading cancels
+        def labelled(i, gr):
+            return np.column_stack([np.full(len(gr), k), np.full(len(gr), i), gr])
+
         per = [swing_delay_groups(tr.t, arms[:, i], tr.gaits[i]) for i in range(tr.robots)]
-        label = [np.column_stack([np.full(len(gr), k), np.full(len(gr), i), gr]) for i, (_, gr) in enumerate(per)]
+        label = [labelled(i, gr) for i, (_, gr) in enumerate(per)]
         for i, g in enumerate(tr.gaits):  # every robot's rise, grouped like its delays
             x, gr = swing_rise_groups(tr.t, arms[:, i], g)
-            rises.setdefault(g, []).append((x, np.column_stack([np.full(len(gr), k), np.full(len(gr), i), gr])))
+            rises.setdefault(g, []).append((x, labelled(i, gr)))
         d0 = grouped_mean_se(per[0][0], label[0])["mean"]
         for i, g in enumerate(tr.gaits):
             if i == 0 or g != tr.gaits[0]:

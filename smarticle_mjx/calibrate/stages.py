@@ -52,6 +52,26 @@ def judge(effect: Effect, interval: dict, chi2_before: float, chi2_after: float,
     return Judgement(bic_gain, gain, present, bic_gain > 0 and gain >= MIN_HELDOUT_GAIN and present)
 
 
+def judged(effect: Effect, interval: dict, chi2_before: float, chi2_after: float, n: int, err_before: float,
+           err_after: float, dtest: DelayTest) -> tuple[Judgement, str]:
+    """:func:`judge` for a joint hypothesis of the nominal stage, and the rule that decided: where the delay
+    test has shown a constant delay, a servo hypothesis is not asked for ``MIN_HELDOUT_GAIN`` over a nominal
+    fit that has bent the servo to mimic it, only not to lose held out."""
+    j = judge(effect, interval, chi2_before, chi2_after, n, err_before, err_after)
+    if effect.name in SERVO_HYPOTHESES and dtest.constant_delay:
+        return dataclasses.replace(j, accepted=j.bic_gain > 0 and j.present and j.heldout_gain >= 0), "delay test"
+    return j, "held-out gain"
+
+
+def scores(train: Problem, test: Problem, fe, names=()) -> tuple[dict, EffectSet, float, float]:
+    """A joint fit's nominal values, its effects ``names`` (their fitted values), its training chi^2 with
+    the priors, and its held-out error."""
+    nom = {k: fe.values[k] for k in fe.preset}
+    eff = EffectSet.of({k: fe.values[k] for k in names})
+    v = train.vector_with(nom, eff)
+    return nom, eff, float(v @ v) + train.prior_chi2(nom), float(np.mean(test.vector_with(nom, eff) ** 2))
+
+
 def errors(train: Problem, test: Problem, eff: EffectSet) -> dict:
     return {"err_train": train.error(eff), "err_heldout": test.error(eff), "where_heldout": where_residual(test, eff)}
 
@@ -174,27 +194,16 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             runs = fe.evaluations + fe2.evaluations
             fe = dataclasses.replace(fe2 if fe2.err_after < fe.err_after else fe, evaluations=runs)
         first[name] = fe
-        nom_e = {k: fe.values[k] for k in fe.preset}
-        eff_e = EffectSet.of({name: fe.values[name]})
-        v_e = train.vector_with(nom_e, eff_e)
-        err_e = float(np.mean(test.vector_with(nom_e, eff_e) ** 2))
+        nom_e, _, chi2_e, err_e = scores(train, test, fe, (name,))
         interval = {p.name: fe.interval[p.name] for p in e.params}
         base_chi2, base_err = chi2_0, err0
         if name in nulls:  # the better of the nominal fit and its restart at the grid's mu is the baseline
-            nom_n = {k: nulls[name].values[k] for k in nulls[name].preset}
-            v_n = train.vector_with(nom_n, null)
-            chi2_n = float(v_n @ v_n) + train.prior_chi2(nom_n)
+            nom_n, _, chi2_n, err_n = scores(train, test, nulls[name])
             if chi2_n < chi2_0:
-                base_chi2, base_err = chi2_n, float(np.mean(test.vector_with(nom_n, null) ** 2))
+                base_chi2, base_err = chi2_n, err_n
                 say(f"  nominal parameters restarted at plate_friction {nom_n['plate_friction']:.3g}: held-out "
                     f"error {base_err:.2f}, the baseline for {name}")
-        j = judge(e, fe.interval, base_chi2, float(v_e @ v_e) + train.prior_chi2(nom_e), n, base_err, err_e)
-        rule = "held-out gain"
-        if name in SERVO_HYPOTHESES and dtest.constant_delay:
-            # the delay test has shown the structure; the nominal fit alone has bent the servo to mimic it, so
-            # the held-out gain over that fit is not asked to reach MIN_HELDOUT_GAIN, only not to be a loss
-            j = dataclasses.replace(j, accepted=j.bic_gain > 0 and j.present and j.heldout_gain >= 0)
-            rule = "delay test"
+        j, rule = judged(e, fe.interval, base_chi2, chi2_e, n, base_err, err_e, dtest)
         hypotheses.append({"effect": name, "tried": True, "values": fe.values[name], "interval": interval,
                            "err_heldout": err_e, "heldout_gain": j.heldout_gain, "bic_gain": j.bic_gain,
                            "present": j.present, "accepted": j.accepted, "rule": rule,
@@ -212,7 +221,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         train.nominal = test.nominal = dict(nom_e)
         nominal_fit = dataclasses.replace(fe, values=dict(nom_e))
         say(f"added {e.name} (fitted with the nominal parameters)")
-        second = second_hypothesis(train, test, tasks, best, nom0, n, dtest, plate_hypotheses, say, reading, first)
+        second = second_hypothesis(train, test, tasks, best, nom0, n, dtest, say, reading, first)
         hypotheses += second.tried
         if second.fit is not None:
             fe2, e2 = second.fit, second.effect
@@ -250,45 +259,40 @@ class SecondHypothesis:
 
 
 def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, nom0: dict, n: int,
-                      dtest: DelayTest, plate_hypotheses, say, reading: str | None = None,
-                      first: dict | None = None) -> SecondHypothesis:
+                      dtest: DelayTest, say, reading: str | None, first: dict) -> SecondHypothesis:
     """A second joint hypothesis beside the accepted one (added after version 0.4.1).
 
     The joint hypotheses are alternatives in the first pass: the best accepted one is kept. But two can be
     there at once (a dead time and a phase offset, a lag and an anisotropic plate), and the rounds after
     the nominal stage never try the others again (they rescale what the nominal fit fits). So each other
-    joint hypothesis is fitted once more, jointly with the nominal parameters *and* the accepted one, from
-    the starts of its first-pass fits moved to the accepted fit's values, and judged by the same rule
+    joint hypothesis is fitted once more, jointly with the nominal parameters *and* the accepted one, and
+    judged by the same rule
     against the accepted model (the nominal parameters with the first effect) as its baseline: BIC gain,
     held-out gain >= ``MIN_HELDOUT_GAIN`` (a servo hypothesis after a positive delay test: not a loss),
     present; and the first effect must stay present. A second servo hypothesis beside a first is not tried
-    (a lag and a dead time are two readings of one servo's timing)."""
+    (a lag and a dead time are two readings of one servo's timing).
+
+    Each starts from where its own first-pass fit (``first``: name -> that fit) ended, its own value with
+    the accepted effect's: once at the accepted fit's nominal values, once at its own fit's (the two basins
+    the first pass found). Started from the first pass's starts instead, a dead time beside an anisotropic
+    plate stayed in the nominal fit's valley (fresh seed 2045, set 6: held-out -28 %, where alone it had
+    reached +83 %). A plate hypothesis's null restart (``tasks`` without an effect) is run again with the
+    accepted effect, moved to its values like the first pass's start, as that hypothesis's baseline."""
     fe1, _, e1, nom_e1, _ = best
     v1 = dict(fe1.values[e1.name])
-    eff1 = EffectSet.of({e1.name: v1})
-    vec1 = train.vector_with(nom_e1, eff1)
-    chi2_1 = float(vec1 @ vec1) + train.prior_chi2(nom_e1)
-    err_1 = float(np.mean(test.vector_with(nom_e1, eff1) ** 2))
-    todo, first = [], first or {}
-    for name, e, st, e_start in tasks:
-        if name == e1.name or (name in SERVO_HYPOTHESES and e1.name in SERVO_HYPOTHESES):
-            continue
-        if e is not None and name in first:
-            continue  # started from its own first-pass fit, below
-        # the first pass's start, its departures from the nominal fit kept (a servo restarted at the
-        # preset, a plate's grid mu), the rest at the accepted fit's values
-        start = {k: (st[k] if st[k] != nom0.get(k) else nom_e1[k]) for k in st}
-        todo.append((name, e, start, {**v1, **(e_start or {})}))
-    # a hypothesis fitted in the first pass starts from where that fit ended, its own value with the accepted
-    # effect's: once at the accepted fit's nominal values, once at its own fit's (the two basins the first pass
-    # found); started from the first pass's starts instead, a dead time beside an anisotropic plate stayed
-    # in the nominal fit's valley (fresh seed 2045, set 6: held-out -28 %, where alone it had reached +83 %)
+    _, _, chi2_1, err_1 = scores(train, test, fe1, (e1.name,))
+
+    def other(name):
+        return name != e1.name and not (name in SERVO_HYPOTHESES and e1.name in SERVO_HYPOTHESES)
+
+    # the null restarts: their departures from the nominal fit kept (a plate's grid mu), the rest at the
+    # accepted fit's values
+    todo = [(name, None, {k: (st[k] if st[k] != nom0.get(k) else nom_e1[k]) for k in st}, v1)
+            for name, e, st, _ in tasks if e is None and other(name)]
     for name, fe2 in first.items():
-        if name == e1.name or (name in SERVO_HYPOTHESES and e1.name in SERVO_HYPOTHESES):
-            continue
-        e2, own = BY_NAME[name], {k: fe2.values[k] for k in fe2.preset}
-        todo.append((name, e2, dict(nom_e1), {**v1, **fe2.values[name]}))
-        todo.append((name, e2, own, {**v1, **fe2.values[name]}))
+        if other(name):
+            for start in (dict(nom_e1), {k: fe2.values[k] for k in fe2.preset}):
+                todo.append((name, BY_NAME[name], start, {**v1, **fe2.values[name]}))
     if not todo:
         return SecondHypothesis(None, None, [])
     fits = pmap(lambda t: fit_nominal(train, effect=(e1,) if t[1] is None else (e1, t[1]), start=t[2],
@@ -303,27 +307,16 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
     for name, (e, fes) in done.items():
         fe = min(fes, key=lambda f: f.err_after)
         fe = dataclasses.replace(fe, evaluations=sum(f.evaluations for f in fes))
-        nom = {k: fe.values[k] for k in fe.preset}
-        both = EffectSet.of({e1.name: fe.values[e1.name], name: fe.values[name]})
-        v = train.vector_with(nom, both)
-        err = float(np.mean(test.vector_with(nom, both) ** 2))
+        _, _, chi2, err = scores(train, test, fe, (e1.name, name))
         base_chi2, base_err = chi2_1, err_1
         if name in nulls:  # the accepted model restarted at the grid's mu: the baseline if it fits better
-            fn = nulls[name]
-            nom_n = {k: fn.values[k] for k in fn.preset}
-            eff_n = EffectSet.of({e1.name: fn.values[e1.name]})
-            vn = train.vector_with(nom_n, eff_n)
-            chi2_n = float(vn @ vn) + train.prior_chi2(nom_n)
+            _, _, chi2_n, err_n = scores(train, test, nulls[name], (e1.name,))
             if chi2_n < chi2_1:
-                base_chi2, base_err = chi2_n, float(np.mean(test.vector_with(nom_n, eff_n) ** 2))
+                base_chi2, base_err = chi2_n, err_n
         interval = {p.name: fe.interval[p.name] for p in e.params}
-        j = judge(e, interval, base_chi2, float(v @ v) + train.prior_chi2(nom), n, base_err, err)
+        j, rule = judged(e, interval, base_chi2, chi2, n, base_err, err, dtest)
         first_present = is_present(e1, {p.name: fe.interval[p.name] for p in e1.params})
-        rule = "held-out gain"
-        ok = j.accepted
-        if name in SERVO_HYPOTHESES and dtest.constant_delay:
-            ok, rule = j.bic_gain > 0 and j.present and j.heldout_gain >= 0, "delay test"
-        ok = ok and first_present
+        ok = j.accepted and first_present
         tried.append({"effect": name, "beside": e1.name, "tried": True, "values": fe.values[name],
                       "interval": interval, "err_heldout": err, "heldout_gain": j.heldout_gain,
                       "bic_gain": j.bic_gain, "present": j.present, "first_present": first_present,
