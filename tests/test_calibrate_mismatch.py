@@ -242,7 +242,7 @@ def test_the_phase_offset_between_two_robots_is_read_from_their_arms_without_the
     """Two robots of one build trace the same arm curves; the second running
     0.1 period ahead traces the first's shifted by 0.1 period (at 15 deg the
     servo's slew shortens the visible shift a little), and in phase by none."""
-    from smarticle_mjx.calibrate.phase import estimate_offset
+    from smarticle_mjx.calibrate.phase import estimate_offset, offset_test
     for off, lo, hi in ((0.1, 0.085, 0.105), (0.0, -0.004, 0.004)):
         d = tmp_path / f"o{off}"
         for a in (15.0, 60.0):
@@ -250,6 +250,9 @@ def test_the_phase_offset_between_two_robots_is_read_from_their_arms_without_the
                          phase_offset=off)
         est = estimate_offset(load(d))
         assert est["pairs"] == 4 and lo < est["offset"] < hi, est
+        # and the test that gates the offset's fit (calibrate.phase.offset_test): present only where it is
+        ot = offset_test(load(d))
+        assert ot.source == "arms" and lo < ot.mean < hi and ot.present == bool(off) and ot.absent == (not off), ot
 
 
 @pytest.mark.slow

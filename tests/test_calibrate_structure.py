@@ -683,3 +683,66 @@ def test_the_arm_rise_reads_a_lag_or_a_dead_time_and_chooses_between_two_that_pa
     assert hyps[1]["accepted"] is False and "reads a lag" in hyps[1]["reason"] and hyps[0]["accepted"]
     assert servo_choice(passed, [dict(h) for h in hyps], None, lambda m: None) == passed
     assert servo_choice(passed[1:], [dict(h) for h in hyps], "servo_lag", lambda m: None) == passed[1:]
+
+
+def _wobbling_pair(offset, seed, amplitude_deg=40.0, frame_hz=60.0, periods=5, noise_deg=0.3):
+    """A two-robot trial built with numpy: each robot turns steadily and wobbles with the gait (two
+    harmonics of the period), robot 1 running ``offset`` periods ahead; headings read with Gaussian noise."""
+    from smarticle_mjx import presets
+    from smarticle_mjx.calibrate.data import Trial
+    from smarticle_mjx.gait import GaitSpec
+    g = GaitSpec(amplitude_deg=amplitude_deg, period_s=1.6 * amplitude_deg / 90.0)
+    T = g.period()
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, periods * T, 1.0 / frame_hz)
+    pose = np.zeros((len(t), 2, 3))
+    for i, rate in enumerate((0.11, -0.07)):  # different steady rotations (rad/s): taken out
+        ph = 2 * np.pi * (t / T + i * offset)
+        pose[:, i, 0], pose[:, i, 1] = 0.3 * i, 0.0
+        pose[:, i, 2] = rate * t + 0.05 * np.sin(ph) + 0.02 * np.sin(2 * ph + 0.7) + rng.normal(
+            0.0, math.radians(noise_deg), len(t))
+    return Trial(f"pair{seed}", t, pose, None, g, presets.params(), frame_hz)
+
+
+@pytest.mark.parametrize("offset", [0.08, 0.0, -0.15])
+def test_a_phase_offset_is_read_off_the_robots_own_heading_wobble_and_tested_against_none(offset):
+    """calibrate.phase.offset_test: robots of one build on one gait wobble alike in time, each with its own
+    steady rotation; a robot whose gait runs ahead wobbles ahead by as much. Read pair by pair from the
+    heading alone (no arm tracked), the offset is recovered within 0.005 period and called present; in phase,
+    the pairs' mean is within its t interval of zero and the offset is called absent (not fitted)."""
+    from smarticle_mjx.calibrate.phase import offset_test
+    trials = [_wobbling_pair(offset, s) for s in range(4)]
+    ot = offset_test(trials)
+    assert ot.source == "heading" and ot.n == 4
+    assert ot.mean == pytest.approx(offset, abs=0.005)
+    if offset:
+        assert ot.present and not ot.absent
+        assert ot.sd >= 0.005  # the prior never narrower than what the two readings of an offset may differ by
+    else:
+        assert ot.absent and not ot.present
+    assert offset_test([_wobbling_pair(offset, 0)]).applicable is False  # one pair: no spread, no verdict
+
+
+def test_a_measured_effect_value_enters_the_joint_fit_as_a_prior():
+    """nominal.fit_nominal with ``problem.effect_priors``: where the data barely see a phase offset (30
+    residuals of (offset - 0.1) / 0.2 period), a value measured without the model (0.07 +- 0.002) holds it
+    there and narrows its interval; without the prior the fit follows the weak data, with a wide interval."""
+    from smarticle_mjx import presets
+    from smarticle_mjx.calibrate.effects import BY_NAME
+
+    class Weak(_TwoEffects):
+        def vector_with(self, values, eff):
+            ph = eff.as_dict().get("phase_offset", {}).get("phase_offset", 0.0)
+            return np.full(30, (ph - self.phase) / 0.2) + self.noise[:30]
+
+    params = presets.params()
+    off = BY_NAME["phase_offset"]
+    free, held = Weak(params, 0.0, 0.1, 3), Weak(params, 0.0, 0.1, 3)
+    held.effect_priors = {"phase_offset": (0.07, 0.002)}
+    f0 = fit_nominal(free, effect=off, max_nfev=10, effect_start={"phase_offset": 0.05})
+    f1 = fit_nominal(held, effect=off, max_nfev=10, effect_start={"phase_offset": 0.05})
+    lo0, hi0 = f0.interval["phase_offset"]
+    lo1, hi1 = f1.interval["phase_offset"]
+    assert abs(f1.values["phase_offset"]["phase_offset"] - 0.07) < 0.002
+    assert hi1 - lo1 < 0.2 * (hi0 - lo0)
+    assert abs(f0.values["phase_offset"]["phase_offset"] - 0.1) < 0.05

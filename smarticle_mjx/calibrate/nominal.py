@@ -156,13 +156,19 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     # measured values (the sidecar's "measured", calibrate.data.priors) enter as Gaussian priors: one
     # residual (fitted - measured) / sd each, beside the data's
     priors = {k: v for k, v in getattr(problem, "priors", {}).items() if k in {p.name for p in params}}
+    # an effect's value measured without the model (``problem.effect_priors``: a phase offset read off the
+    # robots' own curves, calibrate.phase) enters the same way, one residual each after the nominal priors
+    epriors = {q.name: v for q in eparams for k, v in getattr(problem, "effect_priors", {}).items() if k == q.name}
 
     def vec(u):
         vals = values(u)
-        data = problem.vector_with(vals, effects(u))
-        if not priors:
+        eff = effects(u)
+        data = problem.vector_with(vals, eff)
+        if not priors and not epriors:
             return data
-        return np.concatenate([data, [(vals[k] - m) / sd for k, (m, sd) in priors.items()]])
+        ev = {q: x for d in eff.as_dict().values() for q, x in d.items()}
+        return np.concatenate([data, [(vals[k] - m) / sd for k, (m, sd) in priors.items()],
+                               [(ev[k] - m) / sd for k, (m, sd) in epriors.items()]])
 
     last: dict = {}
     step = 0.02  # of each normalised range
@@ -232,7 +238,7 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
             if np.isfinite(cc[a, b]) and abs(cc[a, b]) > 0.9]
     vals = values(u)
     vals.update(effects(u).as_dict())
-    nd = len(r) - len(priors)  # the data's residuals (the priors' come last)
+    nd = len(r) - len(priors) - len(epriors)  # the data's residuals (the priors' come last)
     return NominalFit(vals, {p.name: p.preset(ref) for p in params}, interval, at_bound, corr,
                       float(np.mean(r0[:nd] ** 2)), float(np.mean(r[:nd] ** 2)), calls["n"],
                       {k: list(v) for k, v in priors.items()})

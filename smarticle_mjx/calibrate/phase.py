@@ -13,6 +13,8 @@ objective (0.05 for a true 0.1).
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 
@@ -57,3 +59,107 @@ def estimate_offset(trials, step: float = 0.0025, max_offset: float = 0.25) -> d
     if not est:
         return None
     return {"offset": float(np.median(est)), "per_robot": est, "pairs": len(est)}
+
+
+def _detrended_heading(t, theta):
+    """A robot's heading with its steady rotation (a straight line through its tracked frames) taken out:
+    what is left is the wobble the arms drive, whose timing follows the robot's gait."""
+    ok = np.isfinite(theta)
+    out = np.full_like(theta, np.nan)
+    if ok.sum() < 4:
+        return out
+    a, b = np.polyfit(t[ok], theta[ok], 1)
+    out[ok] = theta[ok] - (a * t[ok] + b)
+    return out
+
+
+def pair_offsets(trials, step: float = 0.0025, max_offset: float = 0.25) -> dict | None:
+    """Every pair's phase offset (periods: robot i runs i * offset ahead of robot 0), measured without the
+    model: from the arm curves where arms are tracked (as :func:`estimate_offset`), else from the body's
+    heading wobble with each robot's steady rotation taken out. Robots of one build on one gait wobble
+    alike in time; a robot whose gait runs ahead wobbles ahead by the same time.
+
+    Returns:
+      dict: source ("arms" or "heading"), per_pair estimates, mean, se (the spread over pairs / sqrt n),
+      n; None without a multi-robot trial on one gait.
+    """
+    shifts = np.arange(-max_offset, max_offset + step / 2, step)
+    est, sources = [], set()
+    for tr in trials:
+        if tr.robots < 2 or not tr.one_gait:
+            continue
+        period = tr.gait.period()
+        if tr.arms is not None and np.isfinite(tr.arms).any():
+            curves, sources = [tr.arms[:, i] for i in range(tr.robots)], sources | {"arms"}
+        else:
+            curves = [_detrended_heading(tr.t, tr.pose[:, i, 2])[:, None] for i in range(tr.robots)]
+            sources |= {"heading"}
+        for i in range(1, tr.robots):
+            cost = np.array([_misfit(tr.t, curves[0], curves[i], i * s * period) for s in shifts])
+            if not np.isfinite(cost).any():
+                continue
+            j = int(np.nanargmin(cost))
+            s = shifts[j]
+            if 0 < j < len(shifts) - 1 and np.isfinite(cost[j - 1:j + 2]).all():
+                c_m, c_0, c_p = cost[j - 1:j + 2]
+                den = c_m - 2 * c_0 + c_p
+                if den > 0:
+                    s = s + 0.5 * step * (c_m - c_p) / den
+            est.append(float(s))
+    if not est:
+        return None
+    x = np.asarray(est)
+    se = float(x.std(ddof=1) / np.sqrt(len(x))) if len(x) > 1 else float("nan")
+    return {"source": "+".join(sorted(sources)), "per_pair": est, "mean": float(x.mean()), "se": se, "n": len(x)}
+
+
+# what the offset read off the robots' curves may miss by beyond its spread over pairs: on development sets
+# (seeds 2026-2045, seen) it missed the hidden offset by up to 0.004 period at 60 Hz and above, 0.006 at 30 Hz
+OFFSET_SYSTEMATIC = 0.005
+
+
+@dataclasses.dataclass
+class OffsetTest:
+    """Is there a phase offset between the robots, on their own curves (:func:`pair_offsets`)?
+
+    ``present``: the mean over pairs differs from zero at 95 % (Student's t over pairs); ``absent``: it
+    does not, so a phase offset fitted with the model would be the model's mismatch between the robots'
+    trials, not a timing between them; neither with fewer than two pairs (the model decides, as before).
+    ``sd``: the prior's width the joint fit gets, the spread's standard error and ``OFFSET_SYSTEMATIC``
+    together."""
+
+    source: str | None
+    mean: float
+    se: float
+    n: int
+    t95: float
+
+    @property
+    def applicable(self) -> bool:
+        return self.n >= 2 and np.isfinite(self.se)
+
+    @property
+    def present(self) -> bool:
+        return self.applicable and abs(self.mean) > self.t95 * self.se
+
+    @property
+    def absent(self) -> bool:
+        return self.applicable and not self.present
+
+    @property
+    def sd(self) -> float:
+        return float(np.hypot(self.se, OFFSET_SYSTEMATIC))
+
+    def as_dict(self) -> dict:
+        return {"source": self.source, "mean": self.mean, "se": self.se, "n": self.n, "t95": self.t95,
+                "present": self.present, "absent": self.absent, "prior_sd": self.sd if self.present else None}
+
+
+def offset_test(trials) -> OffsetTest | None:
+    """The model-free offset test of ``trials`` (None without a multi-robot trial on one gait)."""
+    from scipy.stats import t as student
+    po = pair_offsets(trials)
+    if po is None:
+        return None
+    t95 = float(student.ppf(0.975, po["n"] - 1)) if po["n"] > 1 else float("inf")
+    return OffsetTest(po["source"], po["mean"], po["se"], po["n"], t95)

@@ -185,6 +185,16 @@ def markdown(r: dict) -> str:
                       + ("lag" if rt["reading"] == "servo_lag" else "dead time")
                       + "**, which is kept should a lag and a dead time both pass."]
         lines.append("")
+    ot = r.get("offset_test")
+    if ot and ot["n"] >= 2:
+        src = "arm curves" if ot["source"] == "arms" else "curves (arms where tracked, else the heading's wobble)"
+        lines += ["## Phase offset between the robots, without the model", "",
+                  f"The shift that aligns each robot's {src} with robot 0's, pair by pair: "
+                  f"{ot['mean']:+.4f} ± {ot['se']:.4f} periods over {ot['n']} pairs (Student's t at 95 %: "
+                  f"{ot['t95']:.2f}). "
+                  + (f"**An offset between the robots**: every fit of a phase offset starts there, with that value "
+                     f"as a prior of sd {ot['prior_sd']:.4f} periods." if ot["present"] else
+                     "No offset between the robots: a phase offset is not fitted."), ""]
     lines += hypotheses_markdown(r.get("nominal_hypotheses") or [])
     dr = r.get("drift")
     if dr and dr.get("dof"):

@@ -28,7 +28,7 @@ from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN
                   split, stage_tracks, where_residual)
 from .observables import DelayTest, delay_test, observables, servo_reading
 from .nominal import BY_NAME as NOMINAL_BY_NAME, apply as apply_nominal, fit_nominal
-from .phase import estimate_offset
+from .phase import OffsetTest, estimate_offset, offset_test
 from .residuals import CONTACT_W
 from .sim import pmap, simulate_trials
 
@@ -100,8 +100,14 @@ class NominalStage:
     rise: DelayTest | None = None  # the arm rise's excess over the preset model's, split the same way
 
 
+def offset_absent_reason(otest: OffsetTest) -> str:
+    return (f"the robots' own {'arm curves' if otest.source == 'arms' else 'curves'} align at "
+            f"{otest.mean:+.4f} +- {otest.se:.4f} periods ({otest.n} pairs): no phase offset between them")
+
+
 def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, model: Model, say,
-                  plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES) -> NominalStage:
+                  plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES,
+                  otest: OffsetTest | None = None) -> NominalStage:
     """Fit the robot's nominal parameters, then each joint hypothesis (a servo lag or dead time, a phase
     offset between robots) with them; keep the best accepted hypothesis."""
     null = EffectSet()
@@ -152,7 +158,13 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         if name in SERVO_HYPOTHESES and servo_skip is not None:
             hypotheses.append({"effect": name, "tried": False, "accepted": False, "reason": servo_skip})
             continue
-        if name == "phase_offset":  # started where the robots' arm curves align (model-free)
+        if name == "phase_offset" and otest is not None and otest.absent:
+            hypotheses.append({"effect": name, "tried": False, "accepted": False,
+                               "reason": offset_absent_reason(otest)})
+            continue
+        if name == "phase_offset" and otest is not None and otest.present:
+            e_start = {"phase_offset": otest.mean}  # measured on the robots' own curves (and a prior: calibrate)
+        elif name == "phase_offset":  # started where the robots' arm curves align (model-free)
             est = estimate_offset(train.trials)
             e_start = {"phase_offset": est["offset"]} if est else None
             if est:
@@ -562,13 +574,25 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     noise = noise_stage(trials, train, test, library, model, say)
     if noise.get("applies"):  # measured without the model: the rounds do not fit it again
         library = tuple(e for e in library if e.name != "tracking_noise")
-    nom = nominal_stage(train, test, trials, library, model, say, tuple(plate_hypotheses)) if nominal else None
+    # is there a phase offset between the robots? Read off their own curves before any fit (after version
+    # 0.4.1): where it is absent, no fit tries one (on fresh seeds a model fit named offsets of 0.006-0.008
+    # period in clean sets with two robots, the model's mismatch between their trials)
+    otest = offset_test(train.trials) if max(tr.robots for tr in trials) > 1 else None
+    if otest is not None and otest.applicable:
+        say(f"phase offset on the robots' own {otest.source}: {otest.mean:+.4f} +- {otest.se:.4f} periods "
+            f"({otest.n} pairs): " + ("present" if otest.present else "absent, not fitted"))
+    if otest is not None and otest.present:
+        # a timing between robots of one build, measured: the start and a prior of every fit of the offset,
+        # which the model's mismatch should not bend (it sized offsets 0.5-0.8x on development sets)
+        train.effect_priors = {"phase_offset": (otest.mean, otest.sd)}
+    nom = (nominal_stage(train, test, trials, library, model, say, tuple(plate_hypotheses), otest) if nominal
+           else None)
     if nominal:  # the library's effects that rescale a fitted nominal parameter would fit it twice
         library = tuple(e for e in library if e.name not in NOMINAL_EFFECTS and e.name not in SERVO_HYPOTHESES
                         and e.name not in plate_hypotheses
                         and e not in model.chosen)
-    if max(tr.robots for tr in trials) == 1:
-        library = tuple(e for e in library if e.name != "phase_offset")  # no second robot to offset
+    if max(tr.robots for tr in trials) == 1 or (otest is not None and otest.absent):
+        library = tuple(e for e in library if e.name != "phase_offset")  # no second robot, or no offset to fit
     if "plate_tilt" in {e.name for e in library}:
         tilt = tilt_stage(trials, train, model, say)
         library = tuple(x for x in library if not (x.name == "plate_tilt" and "plate_tilt" in model.fixed))
@@ -604,6 +628,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         "before": before, "after_nominal": after_nominal, "after": after, "rounds": rounds,
         "nominal_hypotheses": nom.hypotheses if nom else [], "plate_hypotheses": list(plate_hypotheses),
         "delay_test": nom.delay.as_dict() if nom else None,
+        "offset_test": otest.as_dict() if otest is not None else None,
         "rise_test": ({**nom.rise.as_dict(), "reading": servo_reading(nom.rise)} if nom and nom.rise else None),
         "added": [added_entry(e, *model.found[e.name],
                               statistical=(tilt.tilt or {}).get("interval_statistical")
