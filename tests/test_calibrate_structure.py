@@ -717,32 +717,28 @@ def test_a_phase_offset_is_read_off_the_robots_own_heading_wobble_and_tested_aga
     assert ot.mean == pytest.approx(offset, abs=0.005)
     if offset:
         assert ot.present and not ot.absent
-        assert ot.sd >= 0.005  # the prior never narrower than what the two readings of an offset may differ by
+        assert ot.sd >= 0.005  # never narrower than what a reading of an offset missed the truth by
+        assert ot.interval[0] < offset < ot.interval[1]
     else:
         assert ot.absent and not ot.present
     assert offset_test([_wobbling_pair(offset, 0)]).applicable is False  # one pair: no spread, no verdict
 
 
-def test_a_measured_effect_value_enters_the_joint_fit_as_a_prior():
-    """nominal.fit_nominal with ``problem.effect_priors``: where the data barely see a phase offset (30
-    residuals of (offset - 0.1) / 0.2 period), a value measured without the model (0.07 +- 0.002) holds it
-    there and narrows its interval; without the prior the fit follows the weak data, with a wide interval."""
+def test_a_measured_effect_value_is_held_in_the_joint_fit():
+    """nominal.fit_nominal with ``problem.effect_fixed``: a phase offset measured without the model (0.07,
+    interval [0.06, 0.08]) is held at that value and reported with that interval, beside a dead time that
+    is still fitted; without it the fit follows the data (offset 0.1, dead time 20 ms)."""
     from smarticle_mjx import presets
     from smarticle_mjx.calibrate.effects import BY_NAME
 
-    class Weak(_TwoEffects):
-        def vector_with(self, values, eff):
-            ph = eff.as_dict().get("phase_offset", {}).get("phase_offset", 0.0)
-            return np.full(30, (ph - self.phase) / 0.2) + self.noise[:30]
-
     params = presets.params()
-    off = BY_NAME["phase_offset"]
-    free, held = Weak(params, 0.0, 0.1, 3), Weak(params, 0.0, 0.1, 3)
-    held.effect_priors = {"phase_offset": (0.07, 0.002)}
-    f0 = fit_nominal(free, effect=off, max_nfev=10, effect_start={"phase_offset": 0.05})
-    f1 = fit_nominal(held, effect=off, max_nfev=10, effect_start={"phase_offset": 0.05})
-    lo0, hi0 = f0.interval["phase_offset"]
-    lo1, hi1 = f1.interval["phase_offset"]
-    assert abs(f1.values["phase_offset"]["phase_offset"] - 0.07) < 0.002
-    assert hi1 - lo1 < 0.2 * (hi0 - lo0)
-    assert abs(f0.values["phase_offset"]["phase_offset"] - 0.1) < 0.05
+    both = (BY_NAME["servo_dead_time"], BY_NAME["phase_offset"])
+    free, held = _TwoEffects(params, 0.02, 0.1, 3), _TwoEffects(params, 0.02, 0.1, 3)
+    held.effect_fixed = {"phase_offset": (0.07, (0.06, 0.08))}
+    f0 = fit_nominal(free, effect=both, max_nfev=10, effect_start={"phase_offset": 0.05})
+    f1 = fit_nominal(held, effect=both, max_nfev=10, effect_start={"phase_offset": 0.05})
+    assert f0.values["phase_offset"]["phase_offset"] == pytest.approx(0.1, abs=0.002)
+    assert f1.values["phase_offset"]["phase_offset"] == 0.07
+    assert tuple(f1.interval["phase_offset"]) == (0.06, 0.08)
+    for f in (f0, f1):
+        assert f.values["servo_dead_time"]["dead_time_s"] == pytest.approx(0.02, abs=1e-3)

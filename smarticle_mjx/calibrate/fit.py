@@ -95,9 +95,9 @@ class Problem:
         self.runs = 0
         self.nominal: dict = {}
         self.priors: dict = {}  # {name: (measured value, sd)}: priors of the nominal fit (calibrate.data.priors)
-        # {effect parameter: (value, sd)} measured without the model (a phase offset read off the robots' own
-        # curves, calibrate.phase): priors of every joint fit of that effect
-        self.effect_priors: dict = {}
+        # {effect parameter: (value, (lo, hi))} measured without the model (a phase offset read off the robots'
+        # own curves, calibrate.phase): held at that value in every joint fit of its effect (calibrate.nominal)
+        self.effect_fixed: dict = {}
         # tracking noise (xy mm, theta deg) measured without the model (calibrate.noise): what every model's
         # frame increments are compared with, unless the effects fitted set their own
         self.noise: tuple[float, float] = (0.0, 0.0)

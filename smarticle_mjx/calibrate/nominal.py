@@ -137,7 +137,10 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     ref = problem.trials[0].params
     start = start or {}
     effs = () if effect is None else tuple(effect) if isinstance(effect, (tuple, list)) else (effect,)
-    eparams = tuple(q for e in effs for q in e.params)
+    # an effect's value measured without the model (``problem.effect_fixed``: {parameter: (value, interval)},
+    # a phase offset read off the robots' own curves, calibrate.phase) is held there, not fitted
+    fixed = getattr(problem, "effect_fixed", {})
+    eparams = tuple(q for e in effs for q in e.params if q.name not in fixed)
     u0 = np.array([min(max(p.to_u(ref, start.get(p.name, p.preset(ref))), 0.0), 1.0) for p in params]
                   + [min(max(value_to_unit(q, (effect_start or {}).get(q.name, q.probe)), 0.0), 1.0) for q in eparams])
     calls = {"n": 0}
@@ -149,26 +152,25 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     def effects(u):
         out, j = {}, kn
         for e in effs:
-            out[e.name] = {q.name: unit_to_value(q, x) for q, x in zip(e.params, u[j:j + len(e.params)])}
-            j += len(e.params)
+            out[e.name] = {}
+            for q in e.params:
+                if q.name in fixed:
+                    out[e.name][q.name] = fixed[q.name][0]
+                else:
+                    out[e.name][q.name] = unit_to_value(q, u[j])
+                    j += 1
         return EffectSet.of(out)
 
     # measured values (the sidecar's "measured", calibrate.data.priors) enter as Gaussian priors: one
     # residual (fitted - measured) / sd each, beside the data's
     priors = {k: v for k, v in getattr(problem, "priors", {}).items() if k in {p.name for p in params}}
-    # an effect's value measured without the model (``problem.effect_priors``: a phase offset read off the
-    # robots' own curves, calibrate.phase) enters the same way, one residual each after the nominal priors
-    epriors = {q.name: v for q in eparams for k, v in getattr(problem, "effect_priors", {}).items() if k == q.name}
 
     def vec(u):
         vals = values(u)
-        eff = effects(u)
-        data = problem.vector_with(vals, eff)
-        if not priors and not epriors:
+        data = problem.vector_with(vals, effects(u))
+        if not priors:
             return data
-        ev = {q: x for d in eff.as_dict().values() for q, x in d.items()}
-        return np.concatenate([data, [(vals[k] - m) / sd for k, (m, sd) in priors.items()],
-                               [(ev[k] - m) / sd for k, (m, sd) in epriors.items()]])
+        return np.concatenate([data, [(vals[k] - m) / sd for k, (m, sd) in priors.items()]])
 
     last: dict = {}
     step = 0.02  # of each normalised range
@@ -234,11 +236,12 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
             interval[nm] = (conv(j, x - 1.96 * s_), conv(j, x + 1.96 * s_))
         else:  # on a bound: no Gauss-Newton interval
             interval[nm] = (float("nan"), float("nan"))
+    interval.update({q.name: tuple(fixed[q.name][1]) for e in effs for q in e.params if q.name in fixed})
     corr = [(names[a], names[b], float(cc[a, b])) for a in range(k) for b in range(a + 1, k)
             if np.isfinite(cc[a, b]) and abs(cc[a, b]) > 0.9]
     vals = values(u)
     vals.update(effects(u).as_dict())
-    nd = len(r) - len(priors) - len(epriors)  # the data's residuals (the priors' come last)
+    nd = len(r) - len(priors)  # the data's residuals (the priors' come last)
     return NominalFit(vals, {p.name: p.preset(ref) for p in params}, interval, at_bound, corr,
                       float(np.mean(r0[:nd] ** 2)), float(np.mean(r[:nd] ** 2)), calls["n"],
                       {k: list(v) for k, v in priors.items()})

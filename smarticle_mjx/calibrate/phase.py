@@ -125,8 +125,9 @@ class OffsetTest:
     ``present``: the mean over pairs differs from zero at 95 % (Student's t over pairs); ``absent``: it
     does not, so a phase offset fitted with the model would be the model's mismatch between the robots'
     trials, not a timing between them; neither with fewer than two pairs (the model decides, as before).
-    ``sd``: the prior's width the joint fit gets, the spread's standard error and ``OFFSET_SYSTEMATIC``
-    together."""
+    ``sd``: the measurement's standard uncertainty, the spread's standard error and ``OFFSET_SYSTEMATIC``
+    together; ``interval``: the mean +- 1.96 sd, what the calibration reports for an offset it holds at the
+    measured mean."""
 
     source: str | None
     mean: float
@@ -150,9 +151,14 @@ class OffsetTest:
     def sd(self) -> float:
         return float(np.hypot(self.se, OFFSET_SYSTEMATIC))
 
+    @property
+    def interval(self) -> tuple[float, float]:
+        return (self.mean - 1.96 * self.sd, self.mean + 1.96 * self.sd)
+
     def as_dict(self) -> dict:
         return {"source": self.source, "mean": self.mean, "se": self.se, "n": self.n, "t95": self.t95,
-                "present": self.present, "absent": self.absent, "prior_sd": self.sd if self.present else None}
+                "present": self.present, "absent": self.absent, "sd": self.sd,
+                "interval": list(self.interval) if self.present else None}
 
 
 def offset_test(trials) -> OffsetTest | None:

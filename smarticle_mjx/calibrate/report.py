@@ -13,6 +13,7 @@ from .data import Trial
 from .effects import BY_NAME, EffectSet
 from .nominal import apply as apply_nominal
 from .observables import LABELS, reproduced
+from .phase import OFFSET_SYSTEMATIC
 from .residuals import BINS, DEG, metrics
 from .sim import simulate_trials
 
@@ -192,8 +193,9 @@ def markdown(r: dict) -> str:
                   f"The shift that aligns each robot's {src} with robot 0's, pair by pair: "
                   f"{ot['mean']:+.4f} ± {ot['se']:.4f} periods over {ot['n']} pairs (Student's t at 95 %: "
                   f"{ot['t95']:.2f}). "
-                  + (f"**An offset between the robots**: every fit of a phase offset starts there, with that value "
-                     f"as a prior of sd {ot['prior_sd']:.4f} periods." if ot["present"] else
+                  + (f"**An offset between the robots**: every fit of a phase offset holds it there, reported with "
+                     f"[{ot['interval'][0]:+.4f}, {ot['interval'][1]:+.4f}] (the spread and "
+                     f"{OFFSET_SYSTEMATIC} period the reading may miss by)." if ot["present"] else
                      "No offset between the robots: a phase offset is not fitted."), ""]
     lines += hypotheses_markdown(r.get("nominal_hypotheses") or [])
     dr = r.get("drift")

@@ -163,7 +163,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
                                "reason": offset_absent_reason(otest)})
             continue
         if name == "phase_offset" and otest is not None and otest.present:
-            e_start = {"phase_offset": otest.mean}  # measured on the robots' own curves (and a prior: calibrate)
+            e_start = {"phase_offset": otest.mean}  # measured on the robots' own curves (and held: calibrate)
         elif name == "phase_offset":  # started where the robots' arm curves align (model-free)
             est = estimate_offset(train.trials)
             e_start = {"phase_offset": est["offset"]} if est else None
@@ -582,17 +582,20 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         say(f"phase offset on the robots' own {otest.source}: {otest.mean:+.4f} +- {otest.se:.4f} periods "
             f"({otest.n} pairs): " + ("present" if otest.present else "absent, not fitted"))
     if otest is not None and otest.present:
-        # a timing between robots of one build, measured: the start and a prior of every fit of the offset,
-        # which the model's mismatch should not bend (it sized offsets 0.5-0.8x on development sets)
-        train.effect_priors = {"phase_offset": (otest.mean, otest.sd)}
+        # a timing between robots of one build, measured: held there in every joint fit of the offset, which
+        # the model's mismatch would bend (it sized offsets 0.5-0.8x on development sets; as a prior of the
+        # measured width, 0.84x on one of them)
+        train.effect_fixed = {"phase_offset": (otest.mean, otest.interval)}
     nom = (nominal_stage(train, test, trials, library, model, say, tuple(plate_hypotheses), otest) if nominal
            else None)
     if nominal:  # the library's effects that rescale a fitted nominal parameter would fit it twice
         library = tuple(e for e in library if e.name not in NOMINAL_EFFECTS and e.name not in SERVO_HYPOTHESES
                         and e.name not in plate_hypotheses
                         and e not in model.chosen)
-    if max(tr.robots for tr in trials) == 1 or (otest is not None and otest.absent):
-        library = tuple(e for e in library if e.name != "phase_offset")  # no second robot, or no offset to fit
+    if max(tr.robots for tr in trials) == 1 or (otest is not None and otest.applicable):
+        # no second robot; or the offset was read off the robots' curves: none to fit, or one held at its
+        # reading and judged by the nominal stage
+        library = tuple(e for e in library if e.name != "phase_offset")
     if "plate_tilt" in {e.name for e in library}:
         tilt = tilt_stage(trials, train, model, say)
         library = tuple(x for x in library if not (x.name == "plate_tilt" and "plate_tilt" in model.fixed))
@@ -630,9 +633,12 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         "delay_test": nom.delay.as_dict() if nom else None,
         "offset_test": otest.as_dict() if otest is not None else None,
         "rise_test": ({**nom.rise.as_dict(), "reading": servo_reading(nom.rise)} if nom and nom.rise else None),
-        "added": [added_entry(e, *model.found[e.name],
-                              statistical=(tilt.tilt or {}).get("interval_statistical")
-                              if e.name == "plate_tilt" and "plate_tilt" in model.fixed else None)
+        "added": [added_entry(e, *model.found[e.name], statistical=(
+                              (tilt.tilt or {}).get("interval_statistical")
+                              if e.name == "plate_tilt" and "plate_tilt" in model.fixed
+                              # an offset held at its model-free reading: its interval is the reading's
+                              else model.found[e.name][1] if e.name == "phase_offset" and train.effect_fixed
+                              else None))
                   for e in model.chosen],
         "verdict": verdict(after["err_heldout"], model.chosen), "model_runs": train.runs + test.runs + tilt.runs,
         "drift": {**tilt.drift, "tilt_fit": tilt.tilt}, "noise_test": noise, "observables": obs,
