@@ -125,3 +125,19 @@ def test_the_report_lists_the_joint_hypotheses_and_what_each_was_fitted_beside()
     assert rows[1].startswith("| phase_offset | servo_dead_time | phase_offset 0.004 | +3% |") and rows[1].endswith("| no |")
     assert "not tried: no arm angles were tracked" in rows[2]
     assert hypotheses_markdown([]) == []
+
+
+def test_the_report_says_whether_the_robots_own_curves_show_a_phase_offset():
+    """calibrate.report.offset_markdown, from the summary's ``offset_test`` (phase.OffsetTest.as_dict): a
+    present offset is printed with the interval it is held at, an absent one says it was not fitted, and
+    nothing is printed without two pairs to read."""
+    from smarticle_mjx.calibrate.phase import OffsetTest
+    from smarticle_mjx.calibrate.report import offset_markdown
+    here = OffsetTest("heading", 0.1203, 0.0011, 4, 3.18).as_dict()
+    md = "\n".join(offset_markdown(here))
+    lo, hi = here["interval"]
+    assert lo < 0.1203 < hi and f"[{lo:+.4f}, {hi:+.4f}]" in md and "holds it there" in md and "+0.1203" in md
+    none = OffsetTest("arms", 0.0004, 0.0009, 6, 2.57).as_dict()
+    assert none["absent"] and "not fitted" in "\n".join(offset_markdown(none))
+    assert offset_markdown(OffsetTest("arms", 0.1, float("nan"), 1, float("inf")).as_dict()) == []
+    assert offset_markdown(None) == []

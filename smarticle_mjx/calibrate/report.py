@@ -118,6 +118,22 @@ HELDOUT_RULE = ("a lag or dead time is kept only if, fitted with the nominal par
                 "error by 20 % or more")
 
 
+
+def offset_markdown(ot: dict | None) -> list[str]:
+    """The report's lines on the phase offset read off the robots' own curves (``phase.OffsetTest``), or
+    none where it was not read (one robot, or fewer than two pairs)."""
+    if not ot or ot["n"] < 2:
+        return []
+    src = "arm curves" if ot["source"] == "arms" else "curves (arms where tracked, else the heading's wobble)"
+    return ["## Phase offset between the robots, without the model", "",
+            f"The shift that aligns each robot's {src} with robot 0's, pair by pair: "
+            f"{ot['mean']:+.4f} ± {ot['se']:.4f} periods over {ot['n']} pairs (Student's t at 95 %: "
+            f"{ot['t95']:.2f}). "
+            + (f"**An offset between the robots**: every fit of a phase offset holds it there, reported with "
+               f"[{ot['interval'][0]:+.4f}, {ot['interval'][1]:+.4f}] (the spread and "
+               f"{OFFSET_SYSTEMATIC} period the reading may miss by)." if ot["present"] else
+               "No offset between the robots: a phase offset is not fitted."), ""]
+
 def markdown(r: dict) -> str:
     b, a = r["before"], r["after"]
     an = r.get("after_nominal") or b
@@ -186,17 +202,7 @@ def markdown(r: dict) -> str:
                       + ("lag" if rt["reading"] == "servo_lag" else "dead time")
                       + "**, which is kept should a lag and a dead time both pass."]
         lines.append("")
-    ot = r.get("offset_test")
-    if ot and ot["n"] >= 2:
-        src = "arm curves" if ot["source"] == "arms" else "curves (arms where tracked, else the heading's wobble)"
-        lines += ["## Phase offset between the robots, without the model", "",
-                  f"The shift that aligns each robot's {src} with robot 0's, pair by pair: "
-                  f"{ot['mean']:+.4f} ± {ot['se']:.4f} periods over {ot['n']} pairs (Student's t at 95 %: "
-                  f"{ot['t95']:.2f}). "
-                  + (f"**An offset between the robots**: every fit of a phase offset holds it there, reported with "
-                     f"[{ot['interval'][0]:+.4f}, {ot['interval'][1]:+.4f}] (the spread and "
-                     f"{OFFSET_SYSTEMATIC} period the reading may miss by)." if ot["present"] else
-                     "No offset between the robots: a phase offset is not fitted."), ""]
+    lines += offset_markdown(r.get("offset_test"))
     lines += hypotheses_markdown(r.get("nominal_hypotheses") or [])
     dr = r.get("drift")
     if dr and dr.get("dof"):
