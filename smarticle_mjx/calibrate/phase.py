@@ -31,6 +31,22 @@ def _misfit(t, a0, ai, shift):
     return float(np.mean((ai[inside] - ref) ** 2))
 
 
+def _aligning_shift(t, c0, ci, scale: float, shifts: np.ndarray) -> float | None:
+    """The shift (in ``shifts``' units, times ``scale`` in seconds) at which curve ``ci`` best matches
+    ``c0`` shifted, refined by a parabola through the grid's best three; None where they never overlap."""
+    cost = np.array([_misfit(t, c0, ci, s * scale) for s in shifts])
+    if not np.isfinite(cost).any():
+        return None
+    j = int(np.nanargmin(cost))
+    s = shifts[j]
+    if 0 < j < len(shifts) - 1 and np.isfinite(cost[j - 1:j + 2]).all():
+        c_m, c_0, c_p = cost[j - 1:j + 2]
+        den = c_m - 2 * c_0 + c_p
+        if den > 0:
+            s = s + 0.5 * (shifts[1] - shifts[0]) * (c_m - c_p) / den
+    return float(s)
+
+
 def estimate_offset(trials, step: float = 0.0025, max_offset: float = 0.25) -> dict | None:
     """Phase offset (periods) per robot step, from the arms of multi-robot trials.
 
@@ -45,17 +61,9 @@ def estimate_offset(trials, step: float = 0.0025, max_offset: float = 0.25) -> d
             continue  # robots' arm curves are compared only where they run the same gait
         period = tr.gait.period()
         for i in range(1, tr.robots):
-            cost = np.array([_misfit(tr.t, tr.arms[:, 0], tr.arms[:, i], i * s * period) for s in shifts])
-            if not np.isfinite(cost).any():
-                continue
-            j = int(np.nanargmin(cost))
-            s = shifts[j]
-            if 0 < j < len(shifts) - 1 and np.isfinite(cost[j - 1:j + 2]).all():
-                c_m, c_0, c_p = cost[j - 1:j + 2]
-                den = c_m - 2 * c_0 + c_p
-                if den > 0:
-                    s = s + 0.5 * step * (c_m - c_p) / den
-            est.append(float(s))
+            s = _aligning_shift(tr.t, tr.arms[:, 0], tr.arms[:, i], i * period, shifts)
+            if s is not None:
+                est.append(s)
     if not est:
         return None
     return {"offset": float(np.median(est)), "per_robot": est, "pairs": len(est)}
@@ -95,17 +103,9 @@ def pair_offsets(trials, step: float = 0.0025, max_offset: float = 0.25) -> dict
             curves = [_detrended_heading(tr.t, tr.pose[:, i, 2])[:, None] for i in range(tr.robots)]
             sources |= {"heading"}
         for i in range(1, tr.robots):
-            cost = np.array([_misfit(tr.t, curves[0], curves[i], i * s * period) for s in shifts])
-            if not np.isfinite(cost).any():
-                continue
-            j = int(np.nanargmin(cost))
-            s = shifts[j]
-            if 0 < j < len(shifts) - 1 and np.isfinite(cost[j - 1:j + 2]).all():
-                c_m, c_0, c_p = cost[j - 1:j + 2]
-                den = c_m - 2 * c_0 + c_p
-                if den > 0:
-                    s = s + 0.5 * step * (c_m - c_p) / den
-            est.append(float(s))
+            s = _aligning_shift(tr.t, curves[0], curves[i], i * period, shifts)
+            if s is not None:
+                est.append(s)
     if not est:
         return None
     x = np.asarray(est)
