@@ -118,7 +118,6 @@ HELDOUT_RULE = ("a lag or dead time is kept only if, fitted with the nominal par
                 "error by 20 % or more")
 
 
-
 def offset_markdown(ot: dict | None) -> list[str]:
     """The report's lines on the phase offset read off the robots' own curves (``phase.OffsetTest``), or
     none where it was not read (one robot, or fewer than two pairs)."""
@@ -133,6 +132,7 @@ def offset_markdown(ot: dict | None) -> list[str]:
                f"[{ot['interval'][0]:+.4f}, {ot['interval'][1]:+.4f}] (the spread and "
                f"{OFFSET_SYSTEMATIC} period the reading may miss by)." if ot["present"] else
                "No offset between the robots: a phase offset is not fitted."), ""]
+
 
 def markdown(r: dict) -> str:
     b, a = r["before"], r["after"]
