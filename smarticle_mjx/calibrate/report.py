@@ -123,7 +123,8 @@ def offset_markdown(ot: dict | None) -> list[str]:
     none where it was not read (one robot, or fewer than two pairs)."""
     if not ot or ot["n"] < 2:
         return []
-    src = "arm curves" if ot["source"] == "arms" else "curves (arms where tracked, else the heading's wobble)"
+    src = {"arms": "arm curves", "heading": "heading wobble (its steady rotation taken out)"}.get(
+        ot["source"], "curves (arms where tracked, else the heading's wobble)")
     return ["## Phase offset between the robots, without the model", "",
             f"The shift that aligns each robot's {src} with robot 0's, pair by pair: "
             f"{ot['mean']:+.4f} ± {ot['se']:.4f} periods over {ot['n']} pairs (Student's t at 95 %: "
