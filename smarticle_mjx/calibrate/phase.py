@@ -54,19 +54,10 @@ def estimate_offset(trials, step: float = 0.0025, max_offset: float = 0.25) -> d
       dict: offset (periods: robot i runs i * offset ahead), per_robot
       estimates, pairs used; None without two tracked robots.
     """
-    shifts = np.arange(-max_offset, max_offset + step / 2, step)
-    est = []
-    for tr in trials:
-        if tr.robots < 2 or tr.arms is None or not tr.one_gait:
-            continue  # robots' arm curves are compared only where they run the same gait
-        period = tr.gait.period()
-        for i in range(1, tr.robots):
-            s = _aligning_shift(tr.t, tr.arms[:, 0], tr.arms[:, i], i * period, shifts)
-            if s is not None:
-                est.append(s)
-    if not est:
+    po = pair_offsets(trials, step, max_offset, heading=False)
+    if po is None:
         return None
-    return {"offset": float(np.median(est)), "per_robot": est, "pairs": len(est)}
+    return {"offset": float(np.median(po["per_pair"])), "per_robot": po["per_pair"], "pairs": po["n"]}
 
 
 def _detrended_heading(t, theta):
@@ -81,11 +72,12 @@ def _detrended_heading(t, theta):
     return out
 
 
-def pair_offsets(trials, step: float = 0.0025, max_offset: float = 0.25) -> dict | None:
+def pair_offsets(trials, step: float = 0.0025, max_offset: float = 0.25, heading: bool = True) -> dict | None:
     """Every pair's phase offset (periods: robot i runs i * offset ahead of robot 0), measured without the
     model: from the arm curves where arms are tracked (as :func:`estimate_offset`), else from the body's
-    heading wobble with each robot's steady rotation taken out. Robots of one build on one gait wobble
-    alike in time; a robot whose gait runs ahead wobbles ahead by the same time.
+    heading wobble with each robot's steady rotation taken out (``heading`` False: trials without tracked
+    arms are left out). Robots of one build on one gait wobble alike in time; a robot whose gait runs ahead
+    wobbles ahead by the same time.
 
     Returns:
       dict: source ("arms" or "heading"), per_pair estimates, mean, se (the spread over pairs / sqrt n),
@@ -99,6 +91,8 @@ def pair_offsets(trials, step: float = 0.0025, max_offset: float = 0.25) -> dict
         period = tr.gait.period()
         if tr.arms is not None and np.isfinite(tr.arms).any():
             curves, sources = [tr.arms[:, i] for i in range(tr.robots)], sources | {"arms"}
+        elif not heading:
+            continue
         else:
             curves = [_detrended_heading(tr.t, tr.pose[:, i, 2])[:, None] for i in range(tr.robots)]
             sources |= {"heading"}
@@ -152,11 +146,17 @@ class OffsetTest:
         return float(np.hypot(self.se, OFFSET_SYSTEMATIC))
 
     @property
+    def read_from(self) -> str:
+        """What the offset was read off, in words."""
+        return {"arms": "arm curves", "heading": "heading wobble (its steady rotation taken out)"}.get(
+            self.source, "arm curves, and heading wobble where arms were not tracked")
+
+    @property
     def interval(self) -> tuple[float, float]:
         return (self.mean - 1.96 * self.sd, self.mean + 1.96 * self.sd)
 
     def as_dict(self) -> dict:
-        return {"source": self.source, "mean": self.mean, "se": self.se, "n": self.n, "t95": self.t95,
+        return {"source": self.source, "read_from": self.read_from, "mean": self.mean, "se": self.se, "n": self.n, "t95": self.t95,
                 "present": self.present, "absent": self.absent, "sd": self.sd,
                 "interval": list(self.interval) if self.present else None}
 

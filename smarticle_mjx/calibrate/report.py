@@ -123,10 +123,8 @@ def offset_markdown(ot: dict | None) -> list[str]:
     none where it was not read (one robot, or fewer than two pairs)."""
     if not ot or ot["n"] < 2:
         return []
-    src = {"arms": "arm curves", "heading": "heading wobble (its steady rotation taken out)"}.get(
-        ot["source"], "curves (arms where tracked, else the heading's wobble)")
     return ["## Phase offset between the robots, without the model", "",
-            f"The shift that aligns each robot's {src} with robot 0's, pair by pair: "
+            f"The shift that aligns each robot's {ot['read_from']} with robot 0's, pair by pair: "
             f"{ot['mean']:+.4f} ± {ot['se']:.4f} periods over {ot['n']} pairs (Student's t at 95 %: "
             f"{ot['t95']:.2f}). "
             + (f"**An offset between the robots**: every fit of a phase offset holds it there, reported with "

@@ -101,7 +101,7 @@ class NominalStage:
 
 
 def offset_absent_reason(otest: OffsetTest) -> str:
-    return (f"the robots' own {'arm curves' if otest.source == 'arms' else 'curves'} align at "
+    return (f"the robots' own {otest.read_from} align at "
             f"{otest.mean:+.4f} +- {otest.se:.4f} periods ({otest.n} pairs): no phase offset between them")
 
 
@@ -162,9 +162,9 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             hypotheses.append({"effect": name, "tried": False, "accepted": False,
                                "reason": offset_absent_reason(otest)})
             continue
-        if name == "phase_offset" and otest is not None and otest.present:
-            e_start = {"phase_offset": otest.mean}  # measured on the robots' own curves (and held: calibrate)
-        elif name == "phase_offset":  # started where the robots' arm curves align (model-free)
+        # a present offset is held at its reading (train.effect_fixed, set by calibrate): nothing to start
+        if name == "phase_offset" and not (otest is not None and otest.present):
+            # started where the robots' arm curves align (model-free)
             est = estimate_offset(train.trials)
             e_start = {"phase_offset": est["offset"]} if est else None
             if est:
@@ -579,7 +579,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     # period in clean sets with two robots, the model's mismatch between their trials)
     otest = offset_test(train.trials) if max(tr.robots for tr in trials) > 1 else None
     if otest is not None and otest.applicable:
-        say(f"phase offset on the robots' own {otest.source}: {otest.mean:+.4f} +- {otest.se:.4f} periods "
+        say(f"phase offset on the robots' own {otest.read_from}: {otest.mean:+.4f} +- {otest.se:.4f} periods "
             f"({otest.n} pairs): " + ("present" if otest.present else "absent, not fitted"))
     if otest is not None and otest.present:
         # a timing between robots of one build, measured: held there in every joint fit of the offset, which
@@ -623,6 +623,17 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     obs = observable_stages(train, test, trials, stages)
     say(f"observables of the data and of {len(stages)} model stages ({train.runs + test.runs - runs_before} more runs)")
     nominal_fit = nom.fit if nom else None
+
+    def measured_interval(name: str) -> dict | None:
+        """The statistical interval of an effect sized without the model's fit, whose reported interval
+        already is what was measured (no mismatch term): the drift stage's tilt, an offset held at its
+        reading; None for a fitted effect."""
+        if name == "plate_tilt" and "plate_tilt" in model.fixed:
+            return (tilt.tilt or {}).get("interval_statistical")
+        if name == "phase_offset" and "phase_offset" in train.effect_fixed:
+            return model.found[name][1]
+        return None
+
     summary = {
         "trials": {"train": [t.name for t in train_t], "heldout": [t.name for t in test_t]},
         "conventions": conv, "nominal": nominal_fit.as_dict() if nominal_fit else None,
@@ -633,12 +644,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         "delay_test": nom.delay.as_dict() if nom else None,
         "offset_test": otest.as_dict() if otest is not None else None,
         "rise_test": ({**nom.rise.as_dict(), "reading": servo_reading(nom.rise)} if nom and nom.rise else None),
-        "added": [added_entry(e, *model.found[e.name], statistical=(
-                              (tilt.tilt or {}).get("interval_statistical")
-                              if e.name == "plate_tilt" and "plate_tilt" in model.fixed
-                              # an offset held at its model-free reading: its interval is the reading's
-                              else model.found[e.name][1] if e.name == "phase_offset" and train.effect_fixed
-                              else None))
+        "added": [added_entry(e, *model.found[e.name], statistical=measured_interval(e.name))
                   for e in model.chosen],
         "verdict": verdict(after["err_heldout"], model.chosen), "model_runs": train.runs + test.runs + tilt.runs,
         "drift": {**tilt.drift, "tilt_fit": tilt.tilt}, "noise_test": noise, "observables": obs,
