@@ -133,6 +133,20 @@ def offset_markdown(ot: dict | None) -> list[str]:
                "No offset between the robots: a phase offset is not fitted."), ""]
 
 
+def drag_markdown(dt: dict | None) -> list[str]:
+    """The report's lines on arms dragging on the plate, read off the body's heading (``armdrag.DragTest``),
+    or none where it could not be read (no quarter resolved by enough frames)."""
+    if not dt or not dt.get("applicable"):
+        return []
+    return ["## Arms on the plate, without the model", "",
+            "Between the kicks at the ends of a swing, an arm clear of the plate leaves its body at rest; an arm "
+            "that drags on the plate turns it, the same way at every repeat. The body's heading rate there: "
+            f"{dt['rate_deg_s']:.2f} deg/s (median over {dt['groups']} kinds of gait quarter, largest "
+            f"{dt['max_rate_deg_s']:.2f}); chi² {dt['chi2']:.1f} against zero, p = {dt['p']:.2g} (present at "
+            f"p < {dt['rule']['p_present']:g} and above {dt['rule']['rate_floor_deg_s']:g} deg/s). "
+            f"**{dt['action'][0].upper() + dt['action'][1:]}.**", ""]
+
+
 def markdown(r: dict) -> str:
     b, a = r["before"], r["after"]
     an = r.get("after_nominal") or b
@@ -202,6 +216,7 @@ def markdown(r: dict) -> str:
                       + "**, which is kept should a lag and a dead time both pass."]
         lines.append("")
     lines += offset_markdown(r.get("offset_test"))
+    lines += drag_markdown(r.get("drag_test"))
     lines += hypotheses_markdown(r.get("nominal_hypotheses") or [])
     dr = r.get("drift")
     if dr and dr.get("dof"):

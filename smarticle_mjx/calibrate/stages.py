@@ -28,6 +28,7 @@ from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN
                   split, stage_tracks, where_residual)
 from .observables import DelayTest, delay_test, observables, servo_reading
 from .nominal import BY_NAME as NOMINAL_BY_NAME, apply as apply_nominal, fit_nominal
+from .armdrag import DragTest, drag_test
 from .phase import OffsetTest, estimate_offset, offset_test
 from .residuals import CONTACT_W
 from .sim import pmap, simulate_trials
@@ -98,6 +99,28 @@ class NominalStage:
     hypotheses: list
     delay: DelayTest  # the measured arm delay against the preset model's, by amplitude
     rise: DelayTest | None = None  # the arm rise's excess over the preset model's, split the same way
+
+
+ARM_PLATE = "arm_plate_contact"
+
+
+def drag_plan(dtest: DragTest | None, plate_hypotheses: tuple[str, ...], library) -> tuple[tuple, tuple, str]:
+    """What the arm-drag test (``armdrag.drag_test``) changes: (plate hypotheses, library, what was done).
+
+    present: arms on the plate become a joint hypothesis of the nominal stage (fitted with the nominal
+    parameters from the grid's start; calibrate() leaves the joint hypotheses out of the rounds); absent: no fit tries them, unless asked for as a
+    joint hypothesis (a user who knows the arms touch); not applicable: as asked."""
+    if dtest is None or not dtest.applicable:
+        return plate_hypotheses, library, "not read"
+    if dtest.present:
+        if ARM_PLATE in plate_hypotheses:
+            return plate_hypotheses, library, "present: fitted jointly with the nominal parameters (as asked)"
+        # the joint hypotheses are tried from the library; calibrate() takes them out of the rounds after it
+        return plate_hypotheses + (ARM_PLATE,), library, "present: fitted jointly with the nominal parameters"
+    if ARM_PLATE in plate_hypotheses:
+        return plate_hypotheses, library, "absent, fitted jointly all the same (asked for)"
+    return (plate_hypotheses, tuple(e for e in library if e.name != ARM_PLATE),
+            "absent: arms on the plate are not fitted")
 
 
 def offset_absent_reason(otest: OffsetTest) -> str:
@@ -586,6 +609,15 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         # the model's mismatch would bend (it sized offsets 0.5-0.8x on development sets; as a prior of the
         # measured width, 0.84x on one of them)
         train.effect_fixed = {"phase_offset": (otest.mean, otest.interval)}
+    # do the arms drag on the plate? Read off the body's heading between the kicks of each swing, before any
+    # fit (after version 0.4.1): where they do, the arm-plate friction is fitted jointly with the nominal
+    # parameters; where they do not, no fit tries it (by default it was fitted only in the rounds, after a
+    # nominal fit that had made the plate slipperier to mimic the drag, and added on clean data)
+    dtest = drag_test(train.trials)
+    plate_hypotheses, library, drag_action = drag_plan(dtest, tuple(plate_hypotheses), library)
+    if dtest is not None and dtest.applicable:
+        say(f"arms on the plate, from the body's turning between kicks: {dtest.rate_deg_s:.2f} deg/s "
+            f"(p {dtest.p:.2g}, {dtest.groups} quarters' kinds): {drag_action}")
     nom = (nominal_stage(train, test, trials, library, model, say, tuple(plate_hypotheses), otest) if nominal
            else None)
     if nominal:  # the library's effects that rescale a fitted nominal parameter would fit it twice
@@ -643,6 +675,8 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         "nominal_hypotheses": nom.hypotheses if nom else [], "plate_hypotheses": list(plate_hypotheses),
         "delay_test": nom.delay.as_dict() if nom else None,
         "offset_test": otest.as_dict() if otest is not None else None,
+        "drag_test": ({**dtest.as_dict(), "action": drag_action} if dtest is not None and dtest.applicable
+                      else None),
         "rise_test": ({**nom.rise.as_dict(), "reading": servo_reading(nom.rise)} if nom and nom.rise else None),
         "added": [added_entry(e, *model.found[e.name], statistical=measured_interval(e.name))
                   for e in model.chosen],
