@@ -469,8 +469,9 @@ def calibrate(
     set_: list[str] = typer.Option([], "--set", help=_SET_HELP + " (before the sidecar's measured values)"),
     plate_hypothesis: list[str] = typer.Option([], help="also fit this plate effect jointly with the nominal "
                                                         "parameters from a grid start (repeatable; "
-                                                        "arm_plate_contact: docs/calibration.md says what it "
-                                                        "gains and what it risks)"),
+                                                        "arm_plate_contact is fitted so where the body keeps "
+                                                        "turning between an arm's kicks, and not at all where "
+                                                        "it does not, unless named here)"),
 ):
     """Residuals of the model against measured tracks, ranked candidate effects, the fit, before/after."""
     from .calibrate import report
