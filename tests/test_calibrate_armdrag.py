@@ -18,14 +18,15 @@ from smarticle_mjx.calibrate import data as D
 from smarticle_mjx.calibrate import independent as IND
 
 
-def _write(path, name, amplitude, headings, t, fr):
-    """One interchange CSV + sidecar: a lone robot at the origin with the given heading track per trial."""
+def _write(path, name, amplitude, headings, t, fr, robots=1, spacing=0.3):
+    """One interchange CSV + sidecar: ``robots`` robots ``spacing`` m apart along x, each with the given
+    heading track per trial."""
     lines = ["trial,t,robot,x,y,theta,alpha1,alpha2"]
     for k, h in enumerate(headings):
-        lines += [f"{k},{tf:.6f},0,0.0,0.0,{hf:.7f},," for tf, hf in zip(t, h)]
+        lines += [f"{k},{tf:.6f},{i},{i * spacing},0.0,{hf:.7f},," for tf, hf in zip(t, h) for i in range(robots)]
     (path / f"{name}.csv").write_text("\n".join(lines) + "\n")
     T = 1.6 * amplitude / 90.0
-    (path / f"{name}.json").write_text(json.dumps({"robots": 1, "frame_rate_hz": fr, "plate": {"friction": 0.37},
+    (path / f"{name}.json").write_text(json.dumps({"robots": robots, "frame_rate_hz": fr, "plate": {"friction": 0.37},
                                                    "gait": {"kind": "square", "amplitude_deg": amplitude,
                                                             "period_s": T, "chirality": "ccw"}}))
 
@@ -46,14 +47,14 @@ def _heading(t, q, drag_deg_s, kick_deg, noise_deg, rng, delay=0.03):
     return np.radians(np.interp(t, fine, h) + rng.normal(0.0, noise_deg, len(t)))
 
 
-def _built(tmp_path, drag_deg_s, fr=60.0, amplitudes=(60.0, 90.0), noise_deg=0.5, seed=0):
+def _built(tmp_path, drag_deg_s, fr=60.0, amplitudes=(60.0, 90.0), noise_deg=0.5, seed=0, **where):
     tmp_path.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     for a in amplitudes:
         T = 1.6 * a / 90.0
         t = np.arange(0.0, 5 * T, 1.0 / fr)
         _write(tmp_path, f"a{int(a)}", a, [_heading(t, T / 4, drag_deg_s, 4.0, noise_deg, rng) for _ in range(2)],
-               t, fr)
+               t, fr, **where)
     return D.load(tmp_path)
 
 
@@ -71,6 +72,14 @@ def test_kicks_alone_are_not_read_as_drag(tmp_path):
     for seed in range(3):
         dt = armdrag.drag_test(_built(tmp_path / str(seed), 0.0, seed=seed))
         assert dt.applicable and dt.absent
+
+
+def test_robots_that_may_touch_are_not_read(tmp_path):
+    """The same turning tracks on two robots 3 cm apart (they may touch: collisions turn robots between
+    kicks too) give no reading; 30 cm apart they read present."""
+    near = armdrag.drag_test(_built(tmp_path / "near", 8.0, robots=2, spacing=0.03))
+    assert near is None or not near.applicable
+    assert armdrag.drag_test(_built(tmp_path / "far", 8.0, robots=2, spacing=0.3)).present
 
 
 def test_too_few_frames_per_quarter_give_no_reading(tmp_path):

@@ -13,8 +13,9 @@ rest while its arm turns steadily.
 How it is read (fixed on the independent simulator's tracks built for the tests, before any stress set was
 read with it):
 
-* each robot's heading rate between consecutive tracked frames (no smoothing), placed by its time within
-  the gait's quarter (the commanded gait's clock);
+* each lone robot's heading rate between consecutive tracked frames (no smoothing), placed by its time
+  within the gait's quarter (the commanded gait's clock); a robot that comes within ``CONTACT_W`` body
+  lengths of another in a trial is left out of that trial (collisions turn it);
 * one group per (file, robot, quarter of the gait): the quarters of that kind after the first half period,
   folded onto bins of at least one frame each (at most 12 bins, quarters with fewer than 6 frames are not
   used);
@@ -37,6 +38,8 @@ import math
 import warnings
 
 import numpy as np
+
+from .drift import robot_alone
 
 KICK_S = 0.04         # s either side of a kick's peak that is not the steady swing
 MAX_BINS = 12
@@ -100,6 +103,8 @@ def quarter_groups(trials) -> dict:
     for tr in trials:
         gaits = tr.gaits or (tr.gait,) * tr.robots
         for i in range(tr.robots):
+            if not robot_alone(tr.pose, i, tr.params.robot.body_length):
+                continue  # robots that may touch turn each other: their headings say nothing of the plate
             q = gaits[i].period() / 4.0
             nb = min(MAX_BINS, int(math.floor(q * tr.frame_rate_hz)))
             if nb < MIN_FRAMES:
