@@ -742,3 +742,30 @@ def test_a_measured_effect_value_is_held_in_the_joint_fit():
     assert tuple(f1.interval["phase_offset"]) == (0.06, 0.08)
     for f in (f0, f1):
         assert f.values["servo_dead_time"]["dead_time_s"] == pytest.approx(0.02, abs=1e-3)
+
+
+def test_an_offset_measured_clear_of_zero_is_added_first_whatever_its_fit_gains_held_out():
+    """stages.measured_offset and first_choice with phase.OffsetTest.established: an offset read off the
+    robots' curves whose reported interval (spread and the reading's 0.005-period floor) excludes zero is
+    accepted although its joint fit lost 10 % held out, and is added before a plate that gained 60 %; a
+    reading that is present by Student's t but within what the reading may miss by is judged by the fit
+    as before; other hypotheses keep their judgement."""
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.phase import OffsetTest
+    from smarticle_mjx.calibrate.stages import MEASURED_OFFSET, Judgement, first_choice, measured_offset
+
+    clear = OffsetTest("heading", 0.0978, 0.0253, 4, 3.18)   # 2047/6's reading: interval [0.047, 0.148]
+    small = OffsetTest("arms", 0.008, 0.001, 6, 2.57)        # present by t, inside 1.96 x hypot(se, 0.005)
+    assert clear.present and clear.established and clear.interval[0] > 0
+    assert small.present and not small.established
+    refused = Judgement(304.0, -0.10, True, False)
+    j, rule = measured_offset("phase_offset", clear, refused, "held-out gain")
+    assert j.accepted and rule == MEASURED_OFFSET
+    j, rule = measured_offset("phase_offset", small, refused, "held-out gain")
+    assert not j.accepted and rule == "held-out gain"
+    assert measured_offset("anisotropic_friction", clear, refused, "held-out gain") == (refused, "held-out gain")
+    off, plate = BY_NAME["phase_offset"], BY_NAME["anisotropic_friction"]
+    passed = [(None, 0.60, plate, {}, {}), (None, -0.10, off, {}, {})]
+    assert first_choice(passed, clear)[2] is off
+    assert first_choice(passed, small)[2] is plate
+    assert first_choice([], clear) is None

@@ -142,6 +142,12 @@ class OffsetTest:
         return self.applicable and not self.present
 
     @property
+    def established(self) -> bool:
+        """Present, and its reported interval (the spread and what the reading may miss by) clear of zero:
+        the calibration adds it as measured, without asking a fit to confirm it."""
+        return self.present and abs(self.mean) > 1.96 * self.sd
+
+    @property
     def sd(self) -> float:
         return float(np.hypot(self.se, OFFSET_SYSTEMATIC))
 
@@ -157,7 +163,7 @@ class OffsetTest:
 
     def as_dict(self) -> dict:
         return {"source": self.source, "read_from": self.read_from, "mean": self.mean, "se": self.se, "n": self.n, "t95": self.t95,
-                "present": self.present, "absent": self.absent, "sd": self.sd,
+                "present": self.present, "absent": self.absent, "established": self.established, "sd": self.sd,
                 "interval": list(self.interval) if self.present else None}
 
 

@@ -129,7 +129,9 @@ def offset_markdown(ot: dict | None) -> list[str]:
             f"{ot['t95']:.2f}). "
             + (f"**An offset between the robots**: every fit of a phase offset holds it there, reported with "
                f"[{ot['interval'][0]:+.4f}, {ot['interval'][1]:+.4f}] (the spread and "
-               f"{OFFSET_SYSTEMATIC} period the reading may miss by)." if ot["present"] else
+               f"{OFFSET_SYSTEMATIC} period the reading may miss by)"
+               + ("; clear of zero, it is added as measured, with no fit asked to confirm it." if ot.get("established")
+                  else "; within reach of zero, a fit must confirm it.") if ot["present"] else
                "No offset between the robots: a phase offset is not fitted."), ""]
 
 
