@@ -144,8 +144,10 @@ def drag_markdown(dt: dict | None) -> list[str]:
             "Between the kicks at the ends of a swing, an arm clear of the plate leaves its body at rest; an arm "
             "that drags on the plate turns it, the same way at every repeat. The body's heading rate there: "
             f"{dt['rate_deg_s']:.2f} deg/s (median over {dt['groups']} kinds of gait quarter, largest "
-            f"{dt['max_rate_deg_s']:.2f}); chi² {dt['chi2']:.1f} against zero, p = {dt['p']:.2g} (present at "
-            f"p < {dt['rule']['p_present']:g} and above {dt['rule']['rate_floor_deg_s']:g} deg/s). "
+            f"{dt['max_rate_deg_s']:.2f}), at most {dt['upper_deg_s']:.2f} (twice its standard error above); "
+            f"chi² {dt['chi2']:.1f} against zero, p = {dt['p']:.2g} (present at p < {dt['rule']['p_present']:g} "
+            f"and above {dt['rule']['rate_floor_deg_s']:g} deg/s; absent where a turn of "
+            f"{dt['rule']['detectable_deg_s']:g} deg/s would have shown). "
             f"**{dt['action'][0].upper() + dt['action'][1:]}.**", ""]
 
 

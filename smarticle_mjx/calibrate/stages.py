@@ -108,10 +108,13 @@ def drag_plan(dtest: DragTest | None, plate_hypotheses: tuple[str, ...], library
     """What the arm-drag test (``armdrag.drag_test``) changes: (plate hypotheses, library, what was done).
 
     present: arms on the plate become a joint hypothesis of the nominal stage (fitted with the nominal
-    parameters from the grid's start; calibrate() leaves the joint hypotheses out of the rounds); absent: no fit tries them, unless asked for as a
-    joint hypothesis (a user who knows the arms touch); not applicable: as asked."""
+    parameters from the grid's start; calibrate() leaves the joint hypotheses out of the rounds); absent: no
+    fit tries them, unless asked for as a joint hypothesis (a user who knows the arms touch); undecided or
+    not applicable: as asked (the rounds may still try them)."""
     if dtest is None or not dtest.applicable:
         return plate_hypotheses, library, "not read"
+    if dtest.undecided:
+        return plate_hypotheses, library, "undecided: left to the rounds, as without a reading"
     if dtest.present:
         if ARM_PLATE in plate_hypotheses:
             return plate_hypotheses, library, "present: fitted jointly with the nominal parameters (as asked)"
