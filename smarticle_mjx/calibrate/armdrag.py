@@ -93,8 +93,9 @@ class DragTest:
         return {"groups": self.groups, "chi2": self.chi2, "p": self.p, "rate_deg_s": self.rate_deg_s,
                 "max_rate_deg_s": self.max_rate_deg_s, "se_deg_s": self.se_deg_s, "upper_deg_s": self.upper_deg_s,
                 "present": self.present, "absent": self.absent, "undecided": self.undecided,
-                "applicable": self.applicable, "rule": {"kick_s": KICK_S, "p_present": P_PRESENT, "detectable_deg_s": DETECTABLE,
-                                                        "rate_floor_deg_s": RATE_FLOOR, "min_groups": MIN_GROUPS}}
+                "applicable": self.applicable,
+                "rule": {"kick_s": KICK_S, "p_present": P_PRESENT, "rate_floor_deg_s": RATE_FLOOR,
+                         "detectable_deg_s": DETECTABLE, "min_groups": MIN_GROUPS}}
 
 
 def _steady_bins(mean_rate: np.ndarray, q: float) -> np.ndarray:
@@ -116,7 +117,8 @@ def _steady_bins(mean_rate: np.ndarray, q: float) -> np.ndarray:
 
 
 def quarter_groups(trials) -> dict:
-    """{(file, robot, kind, bins): [Q, bins] mean heading rate (rad/s) per repeat and bin}."""
+    """{(file, robot, kind of quarter, bins, quarter's length in s): per repeat of that quarter, the mean
+    heading rate (rad/s) in each bin (NaN where no frame fell)}."""
     groups: dict = {}
     for tr in trials:
         gaits = tr.gaits or (tr.gait,) * tr.robots
