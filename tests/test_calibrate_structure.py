@@ -769,3 +769,36 @@ def test_an_offset_measured_clear_of_zero_is_added_first_whatever_its_fit_gains_
     assert first_choice(passed, clear)[2] is off
     assert first_choice(passed, small)[2] is plate
     assert first_choice([], clear) is None
+
+
+def test_arms_read_dragging_are_added_where_their_fit_sizes_them_whatever_they_gain_held_out():
+    """stages.measured_offset and first_choice with armdrag.DragTest.present: arms on the plate read off the
+    body's turning between kicks (seed 2048's set 26: 32 deg/s, p ~ 0) are accepted where their joint fit's
+    interval is clear of no drag, although the fit gained only 16 % held out (under the 20 % rule); a fit
+    that sizes them absent, an undecided or absent reading, and other hypotheses keep their judgement; a
+    measured offset still goes first, a read drag before a plate that gained more."""
+    from smarticle_mjx.calibrate.armdrag import DragTest
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.phase import OffsetTest
+    from smarticle_mjx.calibrate.stages import (ARM_PLATE, MEASURED_DRAG, MEASURED_OFFSET, Judgement,
+                                                first_choice, measured_offset)
+
+    read = DragTest(8, 900.0, 1e-80, 32.0, 58.0, 1.5)
+    undecided = DragTest(4, 14.0, 0.0014, 16.0, 20.0, 6.0)   # 2048/2's first reading: not present
+    absent = DragTest(12, 10.0, 0.6, 0.1, 0.3, 0.05)
+    assert read.present and undecided.undecided and absent.absent
+    sized = Judgement(120.0, 0.16, True, False)     # present in its fit, refused by the held-out rule
+    unsized = Judgement(-3.0, 0.02, False, False)   # its fit's interval reaches no drag
+    j, rule = measured_offset(ARM_PLATE, None, sized, "held-out gain", drag=read)
+    assert j.accepted and rule == MEASURED_DRAG
+    assert measured_offset(ARM_PLATE, None, unsized, "held-out gain", drag=read) == (unsized, "held-out gain")
+    for other in (undecided, absent, None):
+        assert measured_offset(ARM_PLATE, None, sized, "held-out gain", drag=other) == (sized, "held-out gain")
+    assert measured_offset("anisotropic_friction", None, sized, "held-out gain", drag=read) == (sized, "held-out gain")
+    arm, plate, off = BY_NAME[ARM_PLATE], BY_NAME["anisotropic_friction"], BY_NAME["phase_offset"]
+    passed = [(None, 0.60, plate, {}, {}), (None, 0.16, arm, {}, {})]
+    assert first_choice(passed, None, read)[2] is arm
+    assert first_choice(passed, None, undecided)[2] is plate
+    clear = OffsetTest("heading", 0.0978, 0.0253, 4, 3.18)
+    assert first_choice(passed + [(None, -0.1, off, {}, {})], clear, read)[2] is off
+    assert measured_offset("phase_offset", clear, sized, "x", drag=read)[1] == MEASURED_OFFSET

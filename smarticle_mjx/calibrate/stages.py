@@ -108,7 +108,8 @@ def drag_plan(dtest: DragTest | None, plate_hypotheses: tuple[str, ...], library
     """What the arm-drag test (``armdrag.drag_test``) changes: (plate hypotheses, library, what was done).
 
     present: arms on the plate become a joint hypothesis of the nominal stage (fitted with the nominal
-    parameters from the grid's start; calibrate() leaves the joint hypotheses out of the rounds); absent: no
+    parameters from the grid's start; calibrate() leaves the joint hypotheses out of the rounds), accepted
+    where that fit sizes them present, without the held-out rule (:func:`measured_offset`); absent: no
     fit tries them, unless asked for as a joint hypothesis (a user who knows the arms touch); undecided or
     not applicable: as asked (the rounds may still try them)."""
     if dtest is None or not dtest.applicable:
@@ -117,9 +118,11 @@ def drag_plan(dtest: DragTest | None, plate_hypotheses: tuple[str, ...], library
         return plate_hypotheses, library, "undecided: left to the rounds, as without a reading"
     if dtest.present:
         if ARM_PLATE in plate_hypotheses:
-            return plate_hypotheses, library, "present: fitted jointly with the nominal parameters (as asked)"
+            return plate_hypotheses, library, ("present: fitted jointly with the nominal parameters (as asked) and added "
+                                               "where the fit sizes it clear of no drag")
         # the joint hypotheses are tried from the library; calibrate() takes them out of the rounds after it
-        return plate_hypotheses + (ARM_PLATE,), library, "present: fitted jointly with the nominal parameters"
+        return plate_hypotheses + (ARM_PLATE,), library, ("present: fitted jointly with the nominal parameters and "
+                                                          "added where the fit sizes it clear of no drag")
     if ARM_PLATE in plate_hypotheses:
         return plate_hypotheses, library, "absent, fitted jointly all the same (asked for)"
     return (plate_hypotheses, tuple(e for e in library if e.name != ARM_PLATE),
@@ -133,7 +136,7 @@ def offset_absent_reason(otest: OffsetTest) -> str:
 
 def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, model: Model, say,
                   plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES,
-                  otest: OffsetTest | None = None) -> NominalStage:
+                  otest: OffsetTest | None = None, drag: DragTest | None = None) -> NominalStage:
     """Fit the robot's nominal parameters, then each joint hypothesis (a servo lag or dead time, a phase
     offset between robots) with them; keep the best accepted hypothesis."""
     null = EffectSet()
@@ -241,7 +244,8 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
                 base_chi2, base_err = chi2_n, err_n
                 say(f"  nominal parameters restarted at plate_friction {nom_n['plate_friction']:.3g}: held-out "
                     f"error {base_err:.2f}, the baseline for {name}")
-        j, rule = measured_offset(name, otest, *judged(e, fe.interval, base_chi2, chi2_e, n, base_err, err_e, dtest))
+        j, rule = measured_offset(name, otest, *judged(e, fe.interval, base_chi2, chi2_e, n, base_err, err_e, dtest),
+                                  drag=drag)
         hypotheses.append({"effect": name, "tried": True, "values": fe.values[name], "interval": interval,
                            "err_heldout": err_e, "heldout_gain": j.heldout_gain, "bic_gain": j.bic_gain,
                            "present": j.present, "accepted": j.accepted, "rule": rule,
@@ -251,7 +255,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         if j.accepted:
             passed.append((fe, j.heldout_gain, e, nom_e, interval))
     passed = servo_choice(passed, hypotheses, reading, say)
-    best = first_choice(passed, otest)
+    best = first_choice(passed, otest, drag)
     if best is not None:
         fe, _, e, nom_e, interval = best
         model.add(e, fe.values[e.name], interval)
@@ -259,7 +263,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         train.nominal = test.nominal = dict(nom_e)
         nominal_fit = dataclasses.replace(fe, values=dict(nom_e))
         say(f"added {e.name} (fitted with the nominal parameters)")
-        second = second_hypothesis(train, test, tasks, best, nom0, n, dtest, say, reading, first)
+        second = second_hypothesis(train, test, tasks, best, nom0, n, dtest, say, reading, first, drag)
         hypotheses += second.tried
         if second.fit is not None:
             fe2, e2 = second.fit, second.effect
@@ -274,26 +278,41 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
 
 
 MEASURED_OFFSET = "measured on the robots' curves"
+MEASURED_DRAG = "read on the body's turning between kicks"
 
 
-def measured_offset(name: str, otest: OffsetTest | None, j: Judgement, rule: str) -> tuple[Judgement, str]:
-    """A phase offset established on the robots' own curves (``OffsetTest.established``: present, its
-    interval clear of zero) is accepted whatever its joint fit gains held out (added after version 0.4.1):
-    a timing between the robots, measured, that no fit needs to confirm; the model's mismatch between their
-    trials can cost it held out (fresh seed 2047, set 6: +10 % beside a plate whose grip depends on the
-    robot's heading, and a plate named instead). Any other hypothesis keeps its judgement."""
+def measured_offset(name: str, otest: OffsetTest | None, j: Judgement, rule: str,
+                    drag: DragTest | None = None) -> tuple[Judgement, str]:
+    """Structure read off the data before any fit is not asked to win a held-out contest:
+
+    * a phase offset established on the robots' own curves (``OffsetTest.established``: present, its
+      interval clear of zero) is accepted whatever its joint fit gains held out (added after version 0.4.1):
+      a timing between the robots, measured, that no fit needs to confirm; the model's mismatch between
+      their trials can cost it held out (fresh seed 2047, set 6: +10 % beside a plate whose grip depends on
+      the robot's heading, and a plate named instead);
+    * arms on the plate read present by the arm-drag reading (``DragTest.present``) are accepted where their
+      joint fit sizes them present (its interval clear of no drag), whatever they gain held out (added
+      after seed 2048's set 26: a drag read at 32 deg/s, fitted jointly beside a measured offset, present,
+      refused at +16 % held out).
+
+    Any other hypothesis keeps its judgement."""
     if name == "phase_offset" and otest is not None and otest.established:
         return dataclasses.replace(j, accepted=True), MEASURED_OFFSET
+    if name == ARM_PLATE and drag is not None and drag.present and j.present:
+        return dataclasses.replace(j, accepted=True), MEASURED_DRAG
     return j, rule
 
 
-def first_choice(passed: list, otest: OffsetTest | None):
-    """The joint hypothesis the nominal stage adds first: a measured offset (:func:`measured_offset`), so
-    that the others are judged beside it; else the accepted one with the largest held-out gain; None."""
-    if otest is not None and otest.established:
-        for c in passed:
-            if c[2].name == "phase_offset":
-                return c
+def first_choice(passed: list, otest: OffsetTest | None, drag: DragTest | None = None):
+    """The joint hypothesis the nominal stage adds first: what was read off the data (:func:`measured_offset`:
+    a measured offset, else arms on the plate read present), so that the others are judged beside it; else
+    the accepted one with the largest held-out gain; None."""
+    for name, read in (("phase_offset", otest is not None and otest.established),
+                       (ARM_PLATE, drag is not None and drag.present)):
+        if read:
+            for c in passed:
+                if c[2].name == name:
+                    return c
     return max(passed, key=lambda c: c[1], default=None)
 
 
@@ -321,7 +340,8 @@ class SecondHypothesis:
 
 
 def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, nom0: dict, n: int,
-                      dtest: DelayTest, say, reading: str | None, first: dict) -> SecondHypothesis:
+                      dtest: DelayTest, say, reading: str | None, first: dict,
+                      drag: DragTest | None = None) -> SecondHypothesis:
     """A second joint hypothesis beside the accepted one (added after version 0.4.1).
 
     The joint hypotheses are alternatives in the first pass: the best accepted one is kept. But two can be
@@ -376,7 +396,8 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
             if chi2_n < chi2_1:
                 base_chi2, base_err = chi2_n, err_n
         interval = {p.name: fe.interval[p.name] for p in e.params}
-        j, rule = judged(e, interval, base_chi2, chi2, n, base_err, err, dtest)
+        j, rule = measured_offset(name, None, *judged(e, interval, base_chi2, chi2, n, base_err, err, dtest),
+                                  drag=drag)
         first_present = is_present(e1, {p.name: fe.interval[p.name] for p in e1.params})
         ok = j.accepted and first_present
         tried.append({"effect": name, "beside": e1.name, "tried": True, "values": fe.values[name],
@@ -645,7 +666,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     if dtest is not None and dtest.applicable:
         say(f"arms on the plate, from the body's turning between kicks: {dtest.rate_deg_s:.2f} deg/s "
             f"(p {dtest.p:.2g}, {dtest.groups} quarters' kinds): {drag_action}")
-    nom = (nominal_stage(train, test, trials, library, model, say, tuple(plate_hypotheses), otest) if nominal
+    nom = (nominal_stage(train, test, trials, library, model, say, tuple(plate_hypotheses), otest, dtest) if nominal
            else None)
     if nominal:  # the library's effects that rescale a fitted nominal parameter would fit it twice
         library = tuple(e for e in library if e.name not in NOMINAL_EFFECTS and e.name not in SERVO_HYPOTHESES
