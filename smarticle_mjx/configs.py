@@ -126,6 +126,29 @@ def robot_outline(pose, robot: RobotParams = RobotParams()):
     return corners, np.stack(arms, -3)
 
 
+def mount_outline(pose, robot: RobotParams = RobotParams()):
+    """Rectangles [..., 2, 4, 2] (counter-clockwise) of the arms' mounts
+    (``RobotParams.arm_mount_length``) of robots at ``pose`` [..., 5]: from the
+    hinge to ``arm_mount_length`` along each arm, ``arm_mount_width`` across;
+    None for robots without mounts."""
+    if not robot.has_mount:
+        return None
+    pose = np.asarray(pose, dtype=float)
+    x, y, h, a1, a2 = (pose[..., k] for k in range(5))
+    c, s = np.cos(h), np.sin(h)
+    hx, t, m = robot.hinge_x, robot.arm_mount_width / 2, robot.arm_mount_length
+    out = []
+    for sign, alpha in ((-1, a1), (1, a2)):
+        ux, uy = sign * np.cos(alpha), np.sin(alpha)
+        nx, ny = -uy, ux
+        pts = []
+        for u, v in ((0, -1), (1, -1), (1, 1), (0, 1)):
+            bx, by = sign * hx + u * m * ux + v * t * nx, u * m * uy + v * t * ny
+            pts.append(np.stack([x + c * bx - s * by, y + s * bx + c * by], -1))
+        out.append(np.stack(pts, -2))
+    return np.stack(out, -3)
+
+
 def arm_piece_radius(robot: RobotParams) -> float:
     """Radius by which an arm outline of :func:`robot_outline` is widened."""
     return 0.0 if robot.arm_shape == "plate" else robot.arm_radius
@@ -173,12 +196,21 @@ def pair_separation(pose1, pose2, robot: RobotParams = RobotParams()):
     c1, arms1 = robot_outline(pose1, robot)
     c2, arms2 = robot_outline(pose2, robot)
     r = arm_piece_radius(robot)
+    # each robot's pieces beside its body: its arms (widened by r) and their mounts (radius 0)
+    pieces1 = [(arms1[..., k, :, :], r) for k in range(2)]
+    pieces2 = [(arms2[..., k, :, :], r) for k in range(2)]
+    if robot.has_mount:
+        m1, m2 = mount_outline(pose1, robot), mount_outline(pose2, robot)
+        pieces1 += [(m1[..., k, :, :], 0.0) for k in range(2)]
+        pieces2 += [(m2[..., k, :, :], 0.0) for k in range(2)]
     gaps = [_convex_dist(c1, c2)]
-    for k in range(2):
-        gaps.append(_convex_dist(arms1[..., k, :, :], c2) - r)
-        gaps.append(_convex_dist(arms2[..., k, :, :], c1) - r)
-        for m in range(2):
-            gaps.append(_convex_dist(arms1[..., k, :, :], arms2[..., m, :, :]) - 2 * r)
+    for p, rp in pieces1:
+        gaps.append(_convex_dist(p, c2) - rp)
+    for q, rq in pieces2:
+        gaps.append(_convex_dist(q, c1) - rq)
+    for p, rp in pieces1:
+        for q, rq in pieces2:
+            gaps.append(_convex_dist(p, q) - rp - rq)
     return np.min(np.stack(gaps), 0)
 
 

@@ -163,7 +163,7 @@ def render(t, poses, robot: RobotParams, period_s: float, out, opts: MovieOption
         c = COLOURS[i % len(COLOURS)]
         bodies.append(ax.add_patch(Polygon(np.zeros((4, 2)), closed=True, fc=c, ec="k", lw=0.8, alpha=0.85)))
         arms.append([ax.add_patch(Polygon(np.zeros((4, 2)), closed=True, fc="0.25", ec="k", lw=0.5))
-                     for _ in range(2)])
+                     for _ in range(4 if robot.has_mount else 2)])  # arms, then their mounts
         trails.append(ax.add_collection(LineCollection([], colors=c, linewidths=1.5)))
         arrows.append(None)
     label = ax.text(0.03, 0.97, "", transform=ax.transAxes, va="top", fontsize=9, family="monospace")
@@ -176,11 +176,14 @@ def render(t, poses, robot: RobotParams, period_s: float, out, opts: MovieOption
         k = idx[f]
         p = poses[k]
         corners, arm_out = C.robot_outline(p, robot)
+        mounts = C.mount_outline(p, robot)
         for i in range(n):
             bodies[i].set_xy(corners[i])
             for a in range(2):
                 shape = arm_out[i, a]
                 arms[i][a].set_xy(shape if len(shape) == 4 else _capsule(shape, radius))
+                if mounts is not None:
+                    arms[i][2 + a].set_xy(mounts[i, a])
             # fading trail of the body centre
             j0 = int(np.searchsorted(t, t[k] - trail_s))
             pts = xy[j0:k + 1, i]

@@ -56,10 +56,14 @@ def packing(n: int, robot: RobotParams, alpha: tuple[float, float], gap: float) 
     """Poses [n, 5] of the compressed start: the n sites of a staggered lattice
     nearest its centre, spaced by the robot's bounding box at arm angles
     ``alpha`` plus ``gap`` (m), all headings 0, centred on the origin."""
-    body, arms = C.robot_outline(np.array([0.0, 0.0, 0.0, alpha[0], alpha[1]]), robot)
-    pts = np.concatenate([body.reshape(-1, 2), arms.reshape(-1, 2)])
+    pose0 = np.array([0.0, 0.0, 0.0, alpha[0], alpha[1]])
+    body, arms = C.robot_outline(pose0, robot)
     pad = C.arm_piece_radius(robot) if robot.arm_shape != "plate" else 0.0
+    pts = np.concatenate([body.reshape(-1, 2), arms.reshape(-1, 2)])
     lo, hi = pts.min(0) - pad, pts.max(0) + pad
+    if robot.has_mount:  # the mounts (unwidened) may reach past the arms' sides
+        mounts = C.mount_outline(pose0, robot).reshape(-1, 2)
+        lo, hi = np.minimum(lo, mounts.min(0)), np.maximum(hi, mounts.max(0))
     w, d = hi - lo + gap
     rows = int(math.ceil(math.sqrt(n))) + 2
     sites = [((c + 0.5 * (r % 2)) * w, r * d) for r in range(-rows, rows + 1) for c in range(-rows, rows + 1)]

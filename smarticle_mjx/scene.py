@@ -136,6 +136,12 @@ class RobotParams:
     # plastic gear teeth may. No public source measures the lab servos' mesh
     # compliance (a diagnosis knob, docs/relax.md)
     backlash_stop_timeconst: float | None = None
+    # The arm's mount near the hinge, as the lab's CAD arm part has it (docs/relax.md: a C-shaped mount
+    # 6.75 mm wide on the part's inner 20 mm, where the plate is 2.9 mm thick): a second box of the arm,
+    # from the hinge to arm_mount_length along it, arm_mount_width across, as tall as the arm; massless
+    # (the arm's mass and inertia stay the arm's). 0 (the presets): no mount. Native backend only
+    arm_mount_length: float = 0.0
+    arm_mount_width: float = 0.0
 
     def validate(self) -> None:
         positive = ("body_length", "body_thickness", "body_height", "arm_length",
@@ -180,9 +186,24 @@ class RobotParams:
         if not 0 <= self.backlash_friction < self.servo_torque:
             raise ValueError("robot.backlash_friction must be in [0, servo_torque), "
                              f"got {self.backlash_friction}")
+        if self.arm_mount_length < 0 or self.arm_mount_width < 0:
+            raise ValueError("robot.arm_mount_length and robot.arm_mount_width must be >= 0")
+        if self.arm_mount_length > 0:
+            if self.arm_mount_length > min(self.arm_lengths):
+                raise ValueError(f"robot.arm_mount_length ({self.arm_mount_length:g} m) must not exceed the arm "
+                                 f"({min(self.arm_lengths):g} m)")
+            if not self.arm_mount_width > self.arm_thickness:
+                raise ValueError(f"robot.arm_mount_width must exceed the arm's thickness ({self.arm_thickness:g} m) "
+                                 f"where arm_mount_length > 0, got {self.arm_mount_width:g}")
+        elif self.arm_mount_width > 0:
+            raise ValueError("robot.arm_mount_width needs robot.arm_mount_length > 0")
         if self.backlash_stop_timeconst is not None and not 0 < self.backlash_stop_timeconst <= 0.1:
             raise ValueError("robot.backlash_stop_timeconst must be in (0, 0.1] s (or None: 2 time steps), "
                              f"got {self.backlash_stop_timeconst}")
+
+    @property
+    def has_mount(self) -> bool:
+        return self.arm_mount_length > 0
 
     @property
     def arm_radius(self) -> float:
@@ -405,6 +426,16 @@ def _arm_geom_xml(name: str, p: RobotParams, sign: int, length: float) -> str:
     return f'<geom {common} type="capsule" fromto="{_fmt(0, 0, 0, sign * tip, 0, 0)}" size="{p.arm_radius:.9g}"/>'
 
 
+def _mount_geom_xml(name: str, p: RobotParams, sign: int) -> str:
+    """The arm's mount (``RobotParams.arm_mount_length``), a massless box from the hinge; "" without one."""
+    if not p.has_mount:
+        return ""
+    half = p.arm_mount_length / 2
+    return (f'\n        <geom name="{name}_mount" type="box" mass="0" contype="{_ROBOT_BIT}" conaffinity="{_ROBOT_BIT}" '
+            f'rgba="0.3 0.3 0.3 1" pos="{_fmt(sign * half, 0, 0)}" '
+            f'size="{_fmt(half, p.arm_mount_width / 2, p.arm_extent_z / 2)}"/>')
+
+
 def _robot_xml(i: int, s: SceneParams, pose: Sequence[float], plate_bits: int = 0) -> str:
     p = s.robot
     x, y, heading, a1, a2 = (float(v) for v in pose)
@@ -457,11 +488,11 @@ def _robot_xml(i: int, s: SceneParams, pose: Sequence[float], plate_bits: int = 
             contype="{plate_bits | _ROBOT_BIT}" conaffinity="{plate_bits | _ROBOT_BIT}" rgba="{rgba}"/>
       <body name="r{i}_arm1" pos="{_fmt(-hx, 0, arm_dz)}">
         <joint name="r{i}_a1" type="hinge" axis="0 0 -1" {joint}/>{free_play(1)}
-        {_arm_geom_xml(f"r{i}_arm1", p, -1, len1)}
+        {_arm_geom_xml(f"r{i}_arm1", p, -1, len1)}{_mount_geom_xml(f"r{i}_arm1", p, -1)}
       </body>
       <body name="r{i}_arm2" pos="{_fmt(hx, 0, arm_dz)}">
         <joint name="r{i}_a2" type="hinge" axis="0 0 1" {joint}/>{free_play(2)}
-        {_arm_geom_xml(f"r{i}_arm2", p, 1, len2)}
+        {_arm_geom_xml(f"r{i}_arm2", p, 1, len2)}{_mount_geom_xml(f"r{i}_arm2", p, 1)}
       </body>
     </body>""", (a1, a2)
 

@@ -99,6 +99,9 @@ def check_model(params: SceneParams, numerics: DartNumerics) -> None:
     if numerics.servo == "pd" and params.robot.servo_armature > 0:
         raise ValueError("DART has no joint armature: its pd servo needs a model with servo_armature 0, "
                          f"got {params.robot.servo_armature:g} kg m^2")
+    if params.robot.has_mount:
+        raise ValueError("the DART twin builds one shape per arm: arms with mounts (robot.arm_mount_length > 0) "
+                         "run on the native backend")
     if params.robot.backlash_deg > 0 or any(q != RobotQuirk() for q in params.quirks):
         raise ValueError("the DART twin builds ideal robots: backlash and centre-of-mass offsets run on the "
                          "MuJoCo backends")

@@ -29,7 +29,7 @@ import time
 import mujoco
 import numpy as np
 
-from .core import (BackendBase, Lanes, check_solver, check_start_delays, PeriodRecords, Record, Scene, Status,
+from .core import (BackendBase, Lanes, check_solver, check_start_delays, PeriodRecords, Record, Scene, Status, refuse_mounts,
                    distinct_gaits, lane_controls, on_step_grid, steps_per_period)
 
 MISSING = "the warp backend needs MuJoCo Warp: pip install -e '.[gpu]'"
@@ -158,6 +158,7 @@ class WarpBackend(BackendBase):
     def __init__(self, scene: Scene, device: str | None = None, penetration_limit: float = 0.002,
                  deterministic: bool = False, graph: bool = True):
         check_solver(scene, "warp", WARP_SOLVERS)
+        refuse_mounts(scene.params, "warp")
         if not available():
             raise ValueError(MISSING)
         import warp as wp

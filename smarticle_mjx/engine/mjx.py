@@ -24,7 +24,7 @@ from mujoco import mjx
 
 from .. import gait as gait_mod
 from . import mjx_collision
-from .core import (BackendBase, Lanes, check_solver, check_start_delays, PeriodRecords, Record, Scene, Status,
+from .core import (BackendBase, Lanes, check_solver, check_start_delays, PeriodRecords, Record, Scene, Status, refuse_mounts,
                    on_step_grid, steps_per_period)
 
 
@@ -82,6 +82,7 @@ class MjxBackend(BackendBase):
             raise ValueError(f"the mjx backend integrates with {', '.join(MJX_INTEGRATORS)}, not "
                              f"{scene.params.integrator!r}; use the native or warp backend")
         check_solver(scene, "mjx", MJX_SOLVERS)
+        refuse_mounts(scene.params, "mjx")
         self.model = mujoco.MjModel.from_xml_string(Scene.mjcf(scene.params, scene.n_robots, sensors="none"))
         # near-contact sub-stepping (SceneParams.contact_substeps): lanes here run in lock-step, so a lane
         # that skips sub-steps saves nothing; every step is split (the gate always open)
