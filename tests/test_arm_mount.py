@@ -6,6 +6,7 @@ import math
 import mujoco
 import numpy as np
 import pytest
+from mjgap import mujoco_gap
 
 from smarticle_mjx import configs as C
 from smarticle_mjx import presets
@@ -18,19 +19,6 @@ CAD = dict(arm_mount_length=0.0266, arm_mount_width=0.00675)
 def _params(**robot):
     p = presets.params("lab")
     return p.replace(robot=S.dataclasses.replace(p.robot, **robot))
-
-
-def _mujoco_gap(params, poses):
-    """Smallest signed distance between the two robots' geoms, from MuJoCo's own distance query."""
-    m = S.compile_model(S.build_mjcf(params, poses))
-    d = mujoco.MjData(m)
-    mujoco.mj_resetDataKeyframe(m, d, 0)
-    mujoco.mj_forward(m, d)
-    lay = S.SceneLayout.of(m)
-    g0 = [g for g in range(m.ngeom) if lay.geom_robot[g] == 0]
-    g1 = [g for g in range(m.ngeom) if lay.geom_robot[g] == 1]
-    ft = np.zeros(6)
-    return min(mujoco.mj_geomDistance(m, d, a, b, 0.2, ft) for a in g0 for b in g1)
 
 
 def test_the_planar_gap_with_mounts_is_mujocos_own_distance():
@@ -48,7 +36,7 @@ def test_the_planar_gap_with_mounts_is_mujocos_own_distance():
         p1 = (0.0, 0.0, rng.uniform(0, 2 * math.pi), a[0], a[1])
         p2 = (r * math.cos(ang), r * math.sin(ang), rng.uniform(0, 2 * math.pi), a[2], a[3])
         ours = float(C.pair_separation(np.array(p1), np.array(p2), params.robot))
-        theirs = _mujoco_gap(params, [p1, p2])
+        theirs = mujoco_gap(params, [p1, p2])
         if theirs > 1e-4:
             assert ours == pytest.approx(theirs, abs=1e-6)
         else:

@@ -9,6 +9,7 @@ import re
 import mujoco
 import numpy as np
 import pytest
+from mjgap import mujoco_gap
 from typer.testing import CliRunner
 
 from smarticle_mjx import configs as C
@@ -103,19 +104,6 @@ def test_unknown_preset_is_one_line():
         presets.get("nope")
 
 
-def _mujoco_gap(params, poses):
-    """Smallest signed distance between the two robots' geoms, from MuJoCo's own distance query."""
-    m = S.compile_model(S.build_mjcf(params, poses))
-    d = mujoco.MjData(m)
-    mujoco.mj_resetDataKeyframe(m, d, 0)
-    mujoco.mj_forward(m, d)
-    lay = S.SceneLayout.of(m)
-    g0 = [g for g in range(m.ngeom) if lay.geom_robot[g] == 0]
-    g1 = [g for g in range(m.ngeom) if lay.geom_robot[g] == 1]
-    ft = np.zeros(6)
-    return min(mujoco.mj_geomDistance(m, d, a, b, 0.2, ft) for a in g0 for b in g1)
-
-
 def _overlap_by_sampling(params, pose1, pose2, h=2.5e-4):
     """Independent reference: grid points inside robot 2's outline (matplotlib's
     point-in-polygon for the body and plates, distance to the axis for
@@ -159,7 +147,7 @@ def test_planar_overlap_test_is_exact_for_the_preset_geometry(name):
     arms = rng.uniform(-math.pi / 2, math.pi / 2, (n, 2))
     poses = C.pair_poses(cf[:, 0], cf[:, 1], cf[:, 2], arms[:, 0], arms[:, 1], params.robot)
     ours = C.pair_separation(poses[:, 0], poses[:, 1], params.robot)
-    ref = np.array([_mujoco_gap(params, p) for p in poses])
+    ref = np.array([mujoco_gap(params, p) for p in poses])
     apart = ours > 0
     assert 20 < apart.sum() < n - 20, "the sample should hold both outcomes"
     np.testing.assert_allclose(ours[apart], ref[apart], atol=1e-6)
