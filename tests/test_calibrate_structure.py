@@ -771,12 +771,13 @@ def test_an_offset_measured_clear_of_zero_is_added_first_whatever_its_fit_gains_
     assert first_choice([], clear) is None
 
 
-def test_arms_read_dragging_are_added_where_their_fit_sizes_them_whatever_they_gain_held_out():
+def test_arms_read_dragging_are_added_where_their_fit_sizes_them_without_losing_held_out():
     """stages.measured_offset and first_choice with armdrag.DragTest.present: arms on the plate read off the
     body's turning between kicks (seed 2048's set 26: 32 deg/s, p ~ 0) are accepted where their joint fit's
-    interval is clear of no drag, although the fit gained only 16 % held out (under the 20 % rule); a fit
-    that sizes them absent, an undecided or absent reading, and other hypotheses keep their judgement; a
-    measured offset still goes first, a read drag before a plate that gained more."""
+    interval is clear of no drag, although the fit gained only 16 % held out (under the 20 % rule), but not
+    where the fit loses held out (seed 2050's set 1: an outside grip read as a drag, -4 %); a fit that sizes
+    them absent, an undecided or absent reading, and other hypotheses keep their judgement; a measured
+    offset still goes first, a read drag before a plate that gained more."""
     from smarticle_mjx.calibrate.armdrag import DragTest
     from smarticle_mjx.calibrate.effects import BY_NAME
     from smarticle_mjx.calibrate.phase import OffsetTest
@@ -792,6 +793,9 @@ def test_arms_read_dragging_are_added_where_their_fit_sizes_them_whatever_they_g
     j, rule = measured_offset(ARM_PLATE, None, sized, "held-out gain", drag=read)
     assert j.accepted and rule == MEASURED_DRAG
     assert measured_offset(ARM_PLATE, None, unsized, "held-out gain", drag=read) == (unsized, "held-out gain")
+    loses = Judgement(5906.0, -0.04, True, False)
+    j, rule = measured_offset(ARM_PLATE, None, loses, "held-out gain", drag=read)
+    assert not j.accepted and rule == MEASURED_DRAG
     for other in (undecided, absent, None):
         assert measured_offset(ARM_PLATE, None, sized, "held-out gain", drag=other) == (sized, "held-out gain")
     assert measured_offset("anisotropic_friction", None, sized, "held-out gain", drag=read) == (sized, "held-out gain")

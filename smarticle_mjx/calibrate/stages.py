@@ -109,7 +109,7 @@ def drag_plan(dtest: DragTest | None, plate_hypotheses: tuple[str, ...], library
 
     present: arms on the plate become a joint hypothesis of the nominal stage (fitted with the nominal
     parameters from the grid's start; calibrate() leaves the joint hypotheses out of the rounds), accepted
-    where that fit sizes them present, without the held-out rule (:func:`measured_offset`); absent: no
+    where that fit sizes them present and does not lose held out (:func:`measured_offset`); absent: no
     fit tries them, unless asked for as a joint hypothesis (a user who knows the arms touch); undecided or
     not applicable: as asked (the rounds may still try them)."""
     if dtest is None or not dtest.applicable:
@@ -119,10 +119,11 @@ def drag_plan(dtest: DragTest | None, plate_hypotheses: tuple[str, ...], library
     if dtest.present:
         if ARM_PLATE in plate_hypotheses:
             return plate_hypotheses, library, ("present: fitted jointly with the nominal parameters (as asked) and added "
-                                               "where the fit sizes it clear of no drag")
+                                               "where the fit sizes it clear of no drag without losing held out")
         # the joint hypotheses are tried from the library; calibrate() takes them out of the rounds after it
         return plate_hypotheses + (ARM_PLATE,), library, ("present: fitted jointly with the nominal parameters and "
-                                                          "added where the fit sizes it clear of no drag")
+                                                          "added where the fit sizes it clear of no drag without "
+                                                          "losing held out")
     if ARM_PLATE in plate_hypotheses:
         return plate_hypotheses, library, "absent, fitted jointly all the same (asked for)"
     return (plate_hypotheses, tuple(e for e in library if e.name != ARM_PLATE),
@@ -291,15 +292,17 @@ def measured_offset(name: str, otest: OffsetTest | None, j: Judgement, rule: str
       their trials can cost it held out (fresh seed 2047, set 6: +10 % beside a plate whose grip depends on
       the robot's heading, and a plate named instead);
     * arms on the plate read present by the arm-drag reading (``DragTest.present``) are accepted where their
-      joint fit sizes them present (its interval clear of no drag), whatever they gain held out (added
-      after seed 2048's set 26: a drag read at 32 deg/s, fitted jointly beside a measured offset, present,
-      refused at +16 % held out).
+      joint fit sizes them present (its interval clear of no drag) and gains by BIC without losing held out,
+      as a servo hypothesis after a positive delay test is (added after seed 2048's set 26: a drag read at
+      32 deg/s, fitted jointly beside a measured offset, present, refused at +16 % held out; "without
+      losing" added after seed 2050's set 1, where a heading-dependent grip outside the library turned
+      the robot between kicks, read as a drag, and was added at -4 %).
 
     Any other hypothesis keeps its judgement."""
     if name == "phase_offset" and otest is not None and otest.established:
         return dataclasses.replace(j, accepted=True), MEASURED_OFFSET
     if name == ARM_PLATE and drag is not None and drag.present and j.present:
-        return dataclasses.replace(j, accepted=True), MEASURED_DRAG
+        return dataclasses.replace(j, accepted=j.bic_gain > 0 and j.heldout_gain >= 0), MEASURED_DRAG
     return j, rule
 
 
