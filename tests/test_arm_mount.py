@@ -123,3 +123,15 @@ def test_backends_without_mounts_refuse_them_in_one_line():
     refuse_mounts(_params(), "mjx")  # no mount: nothing to refuse
     with pytest.raises(ValueError, match="arms with mounts"):
         check_model(params, DartNumerics())
+
+
+def test_a_store_made_before_mounts_reads_back_without_them():
+    """A recorded scene that predates the mount fields (no keys for them) reads back with no mount, and a
+    recorded mount reads back as recorded."""
+    import json
+    d = json.loads(json.dumps(S.params_json(_params())))
+    for k in ("arm_mount_length", "arm_mount_width"):
+        del d["robot"][k]
+    assert not S.params_from_json(d).robot.has_mount
+    back = S.params_from_json(json.loads(json.dumps(S.params_json(_params(**CAD)))))
+    assert back.robot.arm_mount_length == CAD["arm_mount_length"] and back.robot.has_mount
