@@ -87,6 +87,30 @@ def _segments_cross(p1, q1, p2, q2):
     return (o1 * o2 < 0) & (o3 * o4 < 0)
 
 
+def _body_to_world(pose):
+    """(pose's arm angles a1, a2, and a map of body-frame points (bx, by) to world points [..., 2]) of
+    robots at ``pose`` [..., 5]."""
+    pose = np.asarray(pose, dtype=float)
+    x, y, h, a1, a2 = (pose[..., k] for k in range(5))
+    c, s = np.cos(h), np.sin(h)
+    zero = 0 * x
+
+    def world(bx, by):
+        bx, by = bx + zero, by + zero
+        return np.stack([x + c * bx - s * by, y + s * bx + c * by], -1)
+    return a1, a2, world
+
+
+def _arm_rectangle(world, sign, hx, alpha, length, half_width):
+    """[..., 4, 2] counter-clockwise rectangle from an arm's hinge (``sign`` -1: arm 1 at -``hx``, pointing
+    along -x at angle 0 and folding toward +y; +1: arm 2, mirrored) ``length`` along the arm at ``alpha``,
+    ``half_width`` either side of its axis."""
+    ux, uy = sign * np.cos(alpha), np.sin(alpha)  # along the arm, body frame
+    nx, ny = -uy, ux  # across the arm, to its left: the corners run counter-clockwise
+    return np.stack([world(sign * hx + u * length * ux + v * half_width * nx, u * length * uy + v * half_width * ny)
+                     for u, v in ((0, -1), (1, -1), (1, 1), (0, 1))], -2)
+
+
 def robot_outline(pose, robot: RobotParams = RobotParams()):
     """Planar outline of robots at ``pose`` [..., 5].
 
@@ -98,31 +122,19 @@ def robot_outline(pose, robot: RobotParams = RobotParams()):
       counter-clockwise, radius 0). Hinges sit ``robot.hinge_x`` from the
       body centre.
     """
-    pose = np.asarray(pose, dtype=float)
-    x, y, h, a1, a2 = (pose[..., k] for k in range(5))
-    c, s = np.cos(h), np.sin(h)
+    a1, a2, world = _body_to_world(pose)
     hw, hd = robot.body_length / 2, robot.body_thickness / 2
     hx = robot.hinge_x
-
-    def world(bx, by):
-        return np.stack([x + c * bx - s * by, y + s * bx + c * by], -1)
-
     corners = np.stack([world(-hw, -hd), world(hw, -hd), world(hw, hd), world(-hw, hd)], -2)
-    zero = 0 * x
     arms = []
-    # arm 1 points along -x at angle 0 and folds toward +y; arm 2 mirrors it
     len1, len2 = robot.arm_lengths
     for sign, alpha, length in ((-1, a1, len1), (1, a2, len2)):
-        ux, uy = sign * np.cos(alpha), np.sin(alpha)  # along the arm, body frame
         if robot.arm_shape == "plate":
-            t = robot.arm_thickness / 2
-            nx, ny = -uy, ux  # across the arm, to its left: the corners run counter-clockwise
-            pts = [(sign * hx + u * length * ux + v * t * nx, u * length * uy + v * t * ny)
-                   for u, v in ((0, -1), (1, -1), (1, 1), (0, 1))]
-            arms.append(np.stack([world(px + zero, py + zero) for px, py in pts], -2))
+            arms.append(_arm_rectangle(world, sign, hx, alpha, length, robot.arm_thickness / 2))
         else:
             reach = length - robot.arm_radius
-            arms.append(np.stack([world(sign * hx + zero, zero), world(sign * hx + reach * ux, reach * uy)], -2))
+            ux, uy = sign * np.cos(alpha), np.sin(alpha)
+            arms.append(np.stack([world(sign * hx, 0.0), world(sign * hx + reach * ux, reach * uy)], -2))
     return corners, np.stack(arms, -3)
 
 
@@ -133,20 +145,9 @@ def mount_outline(pose, robot: RobotParams = RobotParams()):
     None for robots without mounts."""
     if not robot.has_mount:
         return None
-    pose = np.asarray(pose, dtype=float)
-    x, y, h, a1, a2 = (pose[..., k] for k in range(5))
-    c, s = np.cos(h), np.sin(h)
-    hx, t, m = robot.hinge_x, robot.arm_mount_width / 2, robot.arm_mount_length
-    out = []
-    for sign, alpha in ((-1, a1), (1, a2)):
-        ux, uy = sign * np.cos(alpha), np.sin(alpha)
-        nx, ny = -uy, ux
-        pts = []
-        for u, v in ((0, -1), (1, -1), (1, 1), (0, 1)):
-            bx, by = sign * hx + u * m * ux + v * t * nx, u * m * uy + v * t * ny
-            pts.append(np.stack([x + c * bx - s * by, y + s * bx + c * by], -1))
-        out.append(np.stack(pts, -2))
-    return np.stack(out, -3)
+    a1, a2, world = _body_to_world(pose)
+    return np.stack([_arm_rectangle(world, sign, robot.hinge_x, alpha, robot.arm_mount_length,
+                                    robot.arm_mount_width / 2) for sign, alpha in ((-1, a1), (1, a2))], -3)
 
 
 def arm_piece_radius(robot: RobotParams) -> float:

@@ -745,25 +745,25 @@ def test_a_measured_effect_value_is_held_in_the_joint_fit():
 
 
 def test_an_offset_measured_clear_of_zero_is_added_first_whatever_its_fit_gains_held_out():
-    """stages.measured_offset and first_choice with phase.OffsetTest.established: an offset read off the
+    """stages.measured_structure and first_choice with phase.OffsetTest.established: an offset read off the
     robots' curves whose reported interval (spread and the reading's 0.005-period floor) excludes zero is
     accepted although its joint fit lost 10 % held out, and is added before a plate that gained 60 %; a
     reading that is present by Student's t but within what the reading may miss by is judged by the fit
     as before; other hypotheses keep their judgement."""
     from smarticle_mjx.calibrate.effects import BY_NAME
     from smarticle_mjx.calibrate.phase import OffsetTest
-    from smarticle_mjx.calibrate.stages import MEASURED_OFFSET, Judgement, first_choice, measured_offset
+    from smarticle_mjx.calibrate.stages import MEASURED_OFFSET, Judgement, first_choice, measured_structure
 
     clear = OffsetTest("heading", 0.0978, 0.0253, 4, 3.18)   # 2047/6's reading: interval [0.047, 0.148]
     small = OffsetTest("arms", 0.008, 0.001, 6, 2.57)        # present by t, inside 1.96 x hypot(se, 0.005)
     assert clear.present and clear.established and clear.interval[0] > 0
     assert small.present and not small.established
     refused = Judgement(304.0, -0.10, True, False)
-    j, rule = measured_offset("phase_offset", clear, refused, "held-out gain")
+    j, rule = measured_structure("phase_offset", clear, refused, "held-out gain")
     assert j.accepted and rule == MEASURED_OFFSET
-    j, rule = measured_offset("phase_offset", small, refused, "held-out gain")
+    j, rule = measured_structure("phase_offset", small, refused, "held-out gain")
     assert not j.accepted and rule == "held-out gain"
-    assert measured_offset("anisotropic_friction", clear, refused, "held-out gain") == (refused, "held-out gain")
+    assert measured_structure("anisotropic_friction", clear, refused, "held-out gain") == (refused, "held-out gain")
     off, plate = BY_NAME["phase_offset"], BY_NAME["anisotropic_friction"]
     passed = [(None, 0.60, plate, {}, {}), (None, -0.10, off, {}, {})]
     assert first_choice(passed, clear)[2] is off
@@ -772,7 +772,7 @@ def test_an_offset_measured_clear_of_zero_is_added_first_whatever_its_fit_gains_
 
 
 def test_arms_read_dragging_are_added_where_their_fit_sizes_them_without_losing_held_out():
-    """stages.measured_offset and first_choice with armdrag.DragTest.present: arms on the plate read off the
+    """stages.measured_structure and first_choice with armdrag.DragTest.present: arms on the plate read off the
     body's turning between kicks (seed 2048's set 26: 32 deg/s, p ~ 0) are accepted where their joint fit's
     interval is clear of no drag, although the fit gained only 16 % held out (under the 20 % rule), but not
     where the fit loses held out (seed 2050's set 1: an outside grip read as a drag, -4 %); a fit that sizes
@@ -782,7 +782,7 @@ def test_arms_read_dragging_are_added_where_their_fit_sizes_them_without_losing_
     from smarticle_mjx.calibrate.effects import BY_NAME
     from smarticle_mjx.calibrate.phase import OffsetTest
     from smarticle_mjx.calibrate.stages import (ARM_PLATE, MEASURED_DRAG, MEASURED_OFFSET, Judgement,
-                                                first_choice, measured_offset)
+                                                first_choice, measured_structure)
 
     read = DragTest(8, 900.0, 1e-80, 32.0, 58.0, 1.5)
     undecided = DragTest(4, 14.0, 0.0014, 16.0, 20.0, 6.0)   # 2048/2's first reading: not present
@@ -790,19 +790,19 @@ def test_arms_read_dragging_are_added_where_their_fit_sizes_them_without_losing_
     assert read.present and undecided.undecided and absent.absent
     sized = Judgement(120.0, 0.16, True, False)     # present in its fit, refused by the held-out rule
     unsized = Judgement(-3.0, 0.02, False, False)   # its fit's interval reaches no drag
-    j, rule = measured_offset(ARM_PLATE, None, sized, "held-out gain", drag=read)
+    j, rule = measured_structure(ARM_PLATE, None, sized, "held-out gain", drag=read)
     assert j.accepted and rule == MEASURED_DRAG
-    assert measured_offset(ARM_PLATE, None, unsized, "held-out gain", drag=read) == (unsized, "held-out gain")
+    assert measured_structure(ARM_PLATE, None, unsized, "held-out gain", drag=read) == (unsized, "held-out gain")
     loses = Judgement(5906.0, -0.04, True, False)
-    j, rule = measured_offset(ARM_PLATE, None, loses, "held-out gain", drag=read)
+    j, rule = measured_structure(ARM_PLATE, None, loses, "held-out gain", drag=read)
     assert not j.accepted and rule == MEASURED_DRAG
     for other in (undecided, absent, None):
-        assert measured_offset(ARM_PLATE, None, sized, "held-out gain", drag=other) == (sized, "held-out gain")
-    assert measured_offset("anisotropic_friction", None, sized, "held-out gain", drag=read) == (sized, "held-out gain")
+        assert measured_structure(ARM_PLATE, None, sized, "held-out gain", drag=other) == (sized, "held-out gain")
+    assert measured_structure("anisotropic_friction", None, sized, "held-out gain", drag=read) == (sized, "held-out gain")
     arm, plate, off = BY_NAME[ARM_PLATE], BY_NAME["anisotropic_friction"], BY_NAME["phase_offset"]
     passed = [(None, 0.60, plate, {}, {}), (None, 0.16, arm, {}, {})]
     assert first_choice(passed, None, read)[2] is arm
     assert first_choice(passed, None, undecided)[2] is plate
     clear = OffsetTest("heading", 0.0978, 0.0253, 4, 3.18)
     assert first_choice(passed + [(None, -0.1, off, {}, {})], clear, read)[2] is off
-    assert measured_offset("phase_offset", clear, sized, "x", drag=read)[1] == MEASURED_OFFSET
+    assert measured_structure("phase_offset", clear, sized, "x", drag=read)[1] == MEASURED_OFFSET

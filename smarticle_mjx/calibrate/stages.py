@@ -109,7 +109,7 @@ def drag_plan(dtest: DragTest | None, plate_hypotheses: tuple[str, ...], library
 
     present: arms on the plate become a joint hypothesis of the nominal stage (fitted with the nominal
     parameters from the grid's start; calibrate() leaves the joint hypotheses out of the rounds), accepted
-    where that fit sizes them present and does not lose held out (:func:`measured_offset`); absent: no
+    where that fit sizes them present and does not lose held out (:func:`measured_structure`); absent: no
     fit tries them, unless asked for as a joint hypothesis (a user who knows the arms touch); undecided or
     not applicable: as asked (the rounds may still try them)."""
     if dtest is None or not dtest.applicable:
@@ -245,8 +245,8 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
                 base_chi2, base_err = chi2_n, err_n
                 say(f"  nominal parameters restarted at plate_friction {nom_n['plate_friction']:.3g}: held-out "
                     f"error {base_err:.2f}, the baseline for {name}")
-        j, rule = measured_offset(name, otest, *judged(e, fe.interval, base_chi2, chi2_e, n, base_err, err_e, dtest),
-                                  drag=drag)
+        j, rule = measured_structure(name, otest, *judged(e, fe.interval, base_chi2, chi2_e, n, base_err, err_e,
+                                                          dtest), drag=drag)
         hypotheses.append({"effect": name, "tried": True, "values": fe.values[name], "interval": interval,
                            "err_heldout": err_e, "heldout_gain": j.heldout_gain, "bic_gain": j.bic_gain,
                            "present": j.present, "accepted": j.accepted, "rule": rule,
@@ -282,7 +282,7 @@ MEASURED_OFFSET = "measured on the robots' curves"
 MEASURED_DRAG = "read on the body's turning between kicks"
 
 
-def measured_offset(name: str, otest: OffsetTest | None, j: Judgement, rule: str,
+def measured_structure(name: str, otest: OffsetTest | None, j: Judgement, rule: str,
                     drag: DragTest | None = None) -> tuple[Judgement, str]:
     """Structure read off the data before any fit is not asked to win a held-out contest:
 
@@ -307,9 +307,9 @@ def measured_offset(name: str, otest: OffsetTest | None, j: Judgement, rule: str
 
 
 def first_choice(passed: list, otest: OffsetTest | None, drag: DragTest | None = None):
-    """The joint hypothesis the nominal stage adds first: what was read off the data (:func:`measured_offset`:
-    a measured offset, else arms on the plate read present), so that the others are judged beside it; else
-    the accepted one with the largest held-out gain; None."""
+    """The joint hypothesis the nominal stage adds first: what was read off the data
+    (:func:`measured_structure`: a measured offset, else arms on the plate read present), so that the others
+    are judged beside it; else the accepted one with the largest held-out gain; None."""
     for name, read in (("phase_offset", otest is not None and otest.established),
                        (ARM_PLATE, drag is not None and drag.present)):
         if read:
@@ -399,8 +399,8 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
             if chi2_n < chi2_1:
                 base_chi2, base_err = chi2_n, err_n
         interval = {p.name: fe.interval[p.name] for p in e.params}
-        j, rule = measured_offset(name, None, *judged(e, interval, base_chi2, chi2, n, base_err, err, dtest),
-                                  drag=drag)
+        j, rule = measured_structure(name, None, *judged(e, interval, base_chi2, chi2, n, base_err, err, dtest),
+                                     drag=drag)
         first_present = is_present(e1, {p.name: fe.interval[p.name] for p in e1.params})
         ok = j.accepted and first_present
         tried.append({"effect": name, "beside": e1.name, "tried": True, "values": fe.values[name],

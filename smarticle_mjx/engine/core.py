@@ -55,27 +55,24 @@ class Record:
             raise ValueError("collision_bins must be >= 1")
 
 
-def collision_sensors_xml(n_robots: int, by_body: bool = False) -> str:
+def collision_sensors_xml(n_robots: int) -> str:
     """Contact sensors of the collision record, pair after pair, kind after kind.
 
-    ``geom1`` is robot j's part and ``geom2`` robot i's: MuJoCo's contact
-    sensor reports the force that geom1 exerts on geom2 (the contact normal
-    points from geom1 to geom2), so the force is the one on robot i.
-    ``by_body``: match the parts' bodies (``r{i}``, ``r{i}_arm1``, ...)
-    instead, so that an arm's mount counts as its arm (every geom of an arm's
-    body); the body ``r{i}`` holds only the body's geom.
+    ``body1`` is robot j's part and ``body2`` robot i's: MuJoCo's contact
+    sensor reports the force that the first exerts on the second (the contact
+    normal points from the first to the second), so the force is the one on
+    robot i. A part is matched by its body (``r{i}`` holds only the body's
+    geom, ``r{i}_arm1`` every geom of arm 1: its plate or capsule and, where
+    the scene gives one, its mount), so an arm's mount counts as its arm.
     """
+    def body(i: int, part: str) -> str:
+        return f"r{i}" if part == "body" else f"r{i}_{part}"
     out = []
     for i in range(n_robots):
         for j in range(i + 1, n_robots):
             for a in PARTS:
                 for b in PARTS:
-                    if by_body:
-                        b1, b2 = (f"r{j}" if b == "body" else f"r{j}_{b}"), (f"r{i}" if a == "body" else f"r{i}_{a}")
-                        who = f'body1="{b1}" body2="{b2}"'
-                    else:
-                        who = f'geom1="r{j}_{b}" geom2="r{i}_{a}"'
-                    out.append(f'    <contact name="coll_{i}_{j}_{a}_{b}" {who} '
+                    out.append(f'    <contact name="coll_{i}_{j}_{a}_{b}" body1="{body(j, b)}" body2="{body(i, a)}" '
                                f'data="found force" reduce="netforce"/>')
     return "\n".join(out)
 
@@ -110,8 +107,7 @@ class Scene:
             raise ValueError("n_robots must be >= 1")
         spacing = 4 * (params.robot.body_length + 2 * params.robot.arm_length)
         poses = [(spacing * i, 0.0, 0.0, 0.0, 0.0) for i in range(n_robots)]
-        extra = (collision_sensors_xml(n_robots, params.robot.has_mount)
-                 if collisions and n_robots > 1 and sensors != "none" else "")
+        extra = collision_sensors_xml(n_robots) if collisions and n_robots > 1 and sensors != "none" else ""
         return build_mjcf(params, poses, sensors=sensors, extra_sensors=extra)
 
     @staticmethod
