@@ -164,3 +164,76 @@ def test_sequence_and_kind_summary_of_a_built_record():
     assert summary["arm2-arm2"].periods_with_contact == 0.0 and math.isnan(summary["arm2-arm2"].attractive_fraction)
     only_first = {k.kind: k for k in RC.kind_summary(coll, mask=np.array([[True, False]]))}
     assert only_first["arm1-arm1"].attractive_fraction == 1.0
+
+
+# ------------------------------------------------------------------ arm hits (built records and tracks)
+
+def _hit_record(k=2, b=8, n=3):
+    pairs = np.array([(i, j) for i in range(n) for j in range(i + 1, n)])
+    return np.zeros((k, len(pairs), len(RC.KINDS), b), np.int32), pairs
+
+
+def _track(moves, n=3, t_end=2.0, dt=0.001):
+    """A track of n resting robots; ``moves``: (robot, t0, t1, dx in m) moves it along x linearly."""
+    t = np.arange(0.0, t_end + dt / 2, dt)
+    poses = np.zeros((len(t), n, 3))
+    poses[:, :, 1] = np.arange(n) * 0.1
+    for r, t0, t1, dx in moves:
+        poses[:, r, 0] += dx * np.clip((t - t0) / (t1 - t0), 0.0, 1.0)
+    return t, poses
+
+
+def test_arm_hit_push_and_coast_built():
+    """Robot 1's arm on robot 0's body in bins 3-4 of the first period (T = 1 s, 8 bins: 0.375-0.625 s):
+    robot 0 moves 2 mm while touched and coasts 1 mm in the next 50 ms; the hit says so, and who hit whom."""
+    steps, pairs = _hit_record()
+    steps[0, 0, RC.KINDS.index("body-arm1"), 3:5] = 5
+    t, poses = _track([(0, 0.375, 0.625, 0.002), (0, 0.625, 0.675, 0.001)])
+    res = RC.arm_hits(steps, pairs, 1.0, t, poses)
+    assert res.left_out == 0 and len(res.hits) == 1
+    h = res.hits[0]
+    assert (h.striker, h.struck) == (1, 0)
+    assert (h.start_s, h.end_s) == pytest.approx((0.375, 0.625))
+    assert (h.push_mm, h.coast_mm, h.slide_mm) == pytest.approx((2.0, 1.0, 3.0), abs=1e-9)
+    assert res.coast_share == pytest.approx(1 / 3)
+
+
+def test_arm_hit_other_direction_and_across_period_end():
+    """Robot 0's arm 2 on robot 2's body (pair (0, 2), kind arm2-body) in the last bin of period 0 and the
+    first of period 1 is one hit of robot 2, 0.875-1.125 s; nothing moved, so it slid nothing."""
+    steps, pairs = _hit_record()
+    q = [tuple(p) for p in pairs].index((0, 2))
+    steps[0, q, RC.KINDS.index("arm2-body"), 7] = 1
+    steps[1, q, RC.KINDS.index("arm2-body"), 0] = 3
+    t, poses = _track([])
+    res = RC.arm_hits(steps, pairs, 1.0, t, poses)
+    assert len(res.hits) == 1
+    h = res.hits[0]
+    assert (h.striker, h.struck) == (0, 2)
+    assert (h.start_s, h.end_s) == pytest.approx((0.875, 1.125))
+    assert h.slide_mm == pytest.approx(0.0)
+
+
+def test_arm_hit_left_out_when_not_alone():
+    """A hit counts only where what the struck robot moved is the hit's: a third robot touching it during
+    the hit, or anything touching it in the settling after, leaves it out; so does a track that ends first."""
+    steps, pairs = _hit_record()
+    steps[0, 0, RC.KINDS.index("body-arm1"), 3] = 1  # robot 1's arm on robot 0 ...
+    q02 = [tuple(p) for p in pairs].index((0, 2))
+    steps[0, q02, RC.KINDS.index("arm1-arm1"), 3] = 1  # ... while robot 2 touches robot 0
+    t, poses = _track([])
+    assert RC.arm_hits(steps, pairs, 1.0, t, poses).left_out == 1
+    steps, pairs = _hit_record()
+    steps[0, 0, RC.KINDS.index("body-arm1"), 3] = 1
+    steps[0, q02, RC.KINDS.index("body-body"), 4] = 1  # robot 2 touches robot 0 within 0.1 s after the hit
+    assert RC.arm_hits(steps, pairs, 1.0, t, poses).left_out == 1
+    steps, pairs = _hit_record()
+    steps[0, 0, RC.KINDS.index("body-arm1"), 3] = 1
+    assert len(RC.arm_hits(steps, pairs, 1.0, t, poses).hits) == 1  # alone: counted
+    t_short, p_short = _track([], t_end=0.45)
+    assert RC.arm_hits(steps, pairs, 1.0, t_short, p_short).left_out == 1  # the track ends in the settling
+
+
+def test_arm_hit_records_are_checked():
+    with pytest.raises(ValueError, match="contact kinds"):
+        RC.arm_hits(np.zeros((1, 1, 4, 8)), np.array([[0, 1]]), 1.0, np.arange(3.0), np.zeros((3, 2, 3)))
