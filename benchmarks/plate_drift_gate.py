@@ -39,6 +39,8 @@ def kind_of(s: dict) -> str | None:
     for k in KINDS:
         if k in hidden:
             return k
+    if "heading_friction" in s["outside"]:
+        return "heading grip (outside)"
     return "clean" if not hidden and not s["outside"] else None
 
 
@@ -52,19 +54,26 @@ def measure(s: dict) -> dict:
             "kind": kind_of(s), "arms_tracked": s["arms_tracked"], "gaits": len(s["amplitudes"]),
             "significant": bool(drift["significant"]), "p": drift["p"],
             "one_direction": bool(drift["directions"]["consistent"]), "plate_models": m,
-            "reaches_tilt_fit_before": old, "reaches_tilt_fit_now": old and not m["follows_the_robot"]}
+            "reaches_tilt_fit_before": old, "reaches_tilt_fit_now": old and not m["follows_the_robot"],
+            # the anisotropy reading (calibrate.stages.anisotropy_read): drift significant and following the
+            # robot's step; since seed 2051 also fitting one anisotropy better than a heading-dependent grip
+            "anisotropy_read_following": bool(drift["significant"] and m["follows_the_robot"]),
+            "anisotropy_read": bool(drift["significant"] and m["anisotropic"])}
 
 
 def table(rows: list[dict]) -> str:
     out = ["| hidden | sets | drift significant | in ≥ 2 gaits | one direction (gate before) | "
-           "and not following the robot (gate tried) |", "|---|---|---|---|---|---|"]
-    for kind in ("plate_tilt", "anisotropic_friction", "both", "clean"):
+           "and not following the robot (gate tried) | anisotropy read: following the robot | "
+           "and not a heading grip |", "|---|---|---|---|---|---|---|---|"]
+    for kind in ("plate_tilt", "anisotropic_friction", "both", "heading grip (outside)", "clean"):
         rs = [r for r in rows if r["kind"] == kind]
         if not rs:
             continue
         sig = [r for r in rs if r["significant"]]
         out.append(f"| {kind} | {len(rs)} | {len(sig)} | {sum(r['plate_models']['applicable'] for r in sig)} | "
-                   f"{sum(r['reaches_tilt_fit_before'] for r in rs)} | {sum(r['reaches_tilt_fit_now'] for r in rs)} |")
+                   f"{sum(r['reaches_tilt_fit_before'] for r in rs)} | {sum(r['reaches_tilt_fit_now'] for r in rs)} | "
+                   f"{sum(r.get('anisotropy_read_following', False) for r in rs)} | "
+                   f"{sum(r.get('anisotropy_read', False) for r in rs)} |")
     return "\n".join(out)
 
 
@@ -87,7 +96,7 @@ def main():
             m = r["plate_models"]
             print(f"{seed}/{i} {k}: p {r['p']:.2g}, gaits with drift {m['groups']}, one direction "
                   f"{r['one_direction']}, chi2 one vector {m['chi2_one_vector']:.1f} / anisotropy "
-                  f"{m['chi2_anisotropy']:.1f} -> tilt fit {r['reaches_tilt_fit_before']} then, "
+                  f"{m['chi2_anisotropy']:.1f} / grip {m['chi2_grip']:.1f}, anisotropy read {r['anisotropy_read']} -> tilt fit {r['reaches_tilt_fit_before']} then, "
                   f"{r['reaches_tilt_fit_now']} with the gate tried", flush=True)
     print(table(rows))
     out = RESULTS / f"plate_drift_gate_{args.tag}.json"

@@ -479,6 +479,8 @@ def _plate_groups(kind: str, seed: int, noise_mm: float = 0.003) -> list:
             z = s * np.exp(1j * h)
             if kind == "anisotropic":
                 z = z + e * np.conj(z)  # E acting on a plate-frame vector, in complex numbers
+            elif kind == "grip":  # mu (1 + 0.3 cos 2(h - 30 deg)) under the robot: a step shorter by about that
+                z = z * (1.0 - 0.3 * np.cos(2 * (h - math.radians(30.0))))
             else:
                 z = z + 0.05 * size * np.exp(0.7j)
             z = z + noise_mm * (rng.normal(size=4) + 1j * rng.normal(size=4))
@@ -505,6 +507,19 @@ def test_a_plate_slipperier_along_one_axis_drifts_with_the_robots_step_and_a_til
     t = plate_drift_models(_plate_groups("tilt", seed))
     assert t.groups == 3 and t.chi2_drift > 100
     assert not t.follows_the_robot and t.chi2_one_vector < t.chi2_anisotropy
+    assert a.anisotropic and a.chi2_anisotropy < a.chi2_grip
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_grip_that_depends_on_the_heading_fits_its_own_model_better_than_an_anisotropy(seed):
+    """calibrate.drift.PlateDrift.chi2_grip, on steps built without any model: a plate whose grip under a
+    robot depends on the robot's heading (mu (1 + e cos 2h), outside the library) shortens or lengthens
+    each step along itself; what the per-gait regression reads as drift then fits one such grip (two
+    coefficients for every gait) better than one anisotropy, so it is not called anisotropic."""
+    from smarticle_mjx.calibrate.drift import plate_drift_models
+    g = plate_drift_models(_plate_groups("grip", seed))
+    assert g.groups == 3 and g.chi2_drift > 100
+    assert g.chi2_grip < 0.5 * g.chi2_anisotropy and not g.anisotropic
 
 
 @pytest.mark.slow
@@ -806,3 +821,19 @@ def test_arms_read_dragging_are_added_where_their_fit_sizes_them_without_losing_
     clear = OffsetTest("heading", 0.0978, 0.0253, 4, 3.18)
     assert first_choice(passed + [(None, -0.1, off, {}, {})], clear, read)[2] is off
     assert measured_structure("phase_offset", clear, sized, "x", drag=read)[1] == MEASURED_OFFSET
+
+
+def test_a_tilt_is_not_named_where_the_gaits_drifts_follow_the_robots_step():
+    """stages.tilt_accepted: the drift stage's tilt is named where it is clear of zero, takes half the
+    drift's chi^2 and the gaits' drifts point one way, and (since seed 2051) not where they follow the
+    robot's own step as a plate slipperier along one axis makes them (seed 2049's set 11, a grip that
+    depends on the heading: chi2 0.4 as one anisotropy against 75.5 as one drift vector)."""
+    from smarticle_mjx.calibrate.stages import tilt_accepted
+    base = {"ok": True, "z2": 40.0, "chi2_before": 80.0, "chi2_after": 6.0, "one_direction": True,
+            "follows_the_robot": False}
+    assert tilt_accepted(base)
+    assert not tilt_accepted({**base, "follows_the_robot": True})
+    assert not tilt_accepted({**base, "one_direction": False})
+    assert not tilt_accepted({**base, "z2": 3.0})
+    assert not tilt_accepted({**base, "chi2_after": 50.0})
+    assert not tilt_accepted({"ok": False})

@@ -252,6 +252,11 @@ class PlateDrift:
       chi2_anisotropy: of v_g = K w_g, one K for every gait.
       anisotropy: K (re, im) in the best fit: |K| about (1 - r) / (1 + r) for a ratio r of the plate's
         mobilities along its axes, arg / 2 the slipperier axis.
+      chi2_grip: of a grip that depends on the robot's heading (since seed 2051): a plate whose mu under a
+        robot is mu (1 + e cos 2(h - h0)) scales the robot's step along itself, step = (1 + c1 cos 2h +
+        c2 sin 2h) R(h) s, and the regression reads v_g = c1 u_g + c2 u'_g (u, u' what it reads from
+        R(h) s cos 2h and R(h) s sin 2h at the gait's headings; c1, c2 one pair for every gait). Outside
+        the library; compared so that a heading-dependent grip is not read as an anisotropic plate.
     """
 
     groups: int
@@ -259,6 +264,7 @@ class PlateDrift:
     chi2_one_vector: float
     chi2_anisotropy: float
     anisotropy: tuple[float, float]
+    chi2_grip: float = float("inf")
 
     @property
     def applicable(self) -> bool:
@@ -269,9 +275,15 @@ class PlateDrift:
         """The drifts fit one plate anisotropy better than one drift vector."""
         return self.applicable and self.chi2_anisotropy < self.chi2_one_vector
 
+    @property
+    def anisotropic(self) -> bool:
+        """The drifts fit one plate anisotropy better than one drift vector and better than a grip that
+        depends on the robot's heading."""
+        return self.follows_the_robot and self.chi2_anisotropy < self.chi2_grip
+
     def as_dict(self) -> dict:
         return {**dataclasses.asdict(self), "anisotropy": list(self.anisotropy), "applicable": self.applicable,
-                "follows_the_robot": self.follows_the_robot}
+                "follows_the_robot": self.follows_the_robot, "anisotropic": self.anisotropic}
 
 
 def plate_drift_models(groups: list[tuple[list, list]], fits: list[dict | None] | None = None) -> PlateDrift:
@@ -285,21 +297,35 @@ def plate_drift_models(groups: list[tuple[list, list]], fits: list[dict | None] 
         if r is None:
             continue
         s_g = complex(*r["s"])
-        signal = []
-        for h in hs:
-            z = np.conj(s_g) * np.exp(-1j * np.asarray(h, float))
-            signal.append((h, np.column_stack([z.real, z.imag])))
-        w = regress(signal, noise=(r["var_step"], r["var_pos"]))
-        rows.append((complex(*r["v"]), complex(*w["v"]), float(np.mean(np.diag(r["cov_v"])))))
+
+        def read(fn):
+            signal = []
+            for h in hs:
+                h = np.asarray(h, float)
+                z = fn(h)
+                signal.append((h, np.column_stack([z.real, z.imag])))
+            return complex(*regress(signal, noise=(r["var_step"], r["var_pos"]))["v"])
+
+        w = read(lambda h: np.conj(s_g) * np.exp(-1j * h))
+        u1 = read(lambda h: s_g * np.exp(1j * h) * np.cos(2 * h))
+        u2 = read(lambda h: s_g * np.exp(1j * h) * np.sin(2 * h))
+        rows.append((complex(*r["v"]), w, float(np.mean(np.diag(r["cov_v"]))), u1, u2))
     if not rows:
-        return PlateDrift(0, 0.0, 0.0, 0.0, (0.0, 0.0))
-    v = np.array([a for a, _, _ in rows])
-    w = np.array([b for _, b, _ in rows])
-    var = np.array([c for _, _, c in rows])
+        return PlateDrift(0, 0.0, 0.0, 0.0, (0.0, 0.0), 0.0)
+    v = np.array([x[0] for x in rows])
+    w = np.array([x[1] for x in rows])
+    var = np.array([x[2] for x in rows])
     k = complex(np.sum(np.conj(w) * v / var) / max(float(np.sum(np.abs(w) ** 2 / var)), 1e-300))
     one = complex(np.sum(v / var) / np.sum(1.0 / var))
+    # the grip: two real coefficients for the two complex signals, by weighted least squares on (re, im)
+    sw = 1.0 / np.sqrt(var)
+    a = np.column_stack([np.concatenate([(x * sw).real, (x * sw).imag]) for x in
+                         (np.array([x[3] for x in rows]), np.array([x[4] for x in rows]))])
+    y = np.concatenate([(v * sw).real, (v * sw).imag])
+    c, *_ = np.linalg.lstsq(a, y, rcond=None)
+    chi2_grip = float(np.sum((y - a @ c) ** 2))
     return PlateDrift(len(rows), float(np.sum(np.abs(v) ** 2 / var)), float(np.sum(np.abs(v - one) ** 2 / var)),
-                      float(np.sum(np.abs(v - k * w) ** 2 / var)), (k.real, k.imag))
+                      float(np.sum(np.abs(v - k * w) ** 2 / var)), (k.real, k.imag), chi2_grip)
 
 
 def drift_test(trials) -> dict:
