@@ -3,8 +3,10 @@
 ``smx calibrate`` names a plate tilt only where the plate-frame drift test is significant and the gaits'
 drifts point one way (``drift.directions``). A third gate was tried (November 2026, after version 0.4.0):
 that the drifts do not follow the robot's own step as a plate slipperier along one axis makes them
-(``drift.PlateDrift.follows_the_robot``); on fresh seeds it stopped as many tilts as anisotropic plates,
-so it is reported, not applied. The gates need no model, so they can be scored on many sets quickly:
+(``drift.PlateDrift.follows_the_robot``); on fresh seeds 2042-2043 it stopped as many tilts as anisotropic
+plates, so it was reported, not applied, until the seeds run since (2041, 2044-2050) showed it keeping
+every tilt and stopping about half the plates not level in another way: applied since seed 2051
+(``stages.tilt_accepted``; docs/calibration.md). The gates need no model, so they can be scored on many sets quickly:
 for every set of the given suite seeds and indices (benchmarks/calibration_stress.py, same draw, data
 written as the suite writes them) that hides ``plate_tilt`` or ``anisotropic_friction`` (or neither,
 with ``--clean``), this script runs the drift test on the data and records which gates pass. It does not
