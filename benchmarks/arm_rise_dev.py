@@ -46,14 +46,7 @@ def kind(s: dict) -> str | None:
 
 
 def chosen() -> list[tuple[int, int, str]]:
-    out, count = [], {}
-    for seed in SEEDS:
-        for index in range(60):
-            k = kind(CS.draw_set(seed, index))
-            if k and count.get(k, 0) < PER_CLASS:
-                count[k] = count.get(k, 0) + 1
-                out.append((seed, index, k))
-    return out
+    return CS.choose_sets(SEEDS, kind, PER_CLASS)
 
 
 def excess(data: list, model: list) -> list[dict]:

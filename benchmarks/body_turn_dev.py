@@ -60,14 +60,7 @@ def kind(s: dict) -> str | None:
 
 
 def chosen(per_class: int) -> list[tuple[int, int, str]]:
-    out, count = [], {}
-    for seed in SEEDS:
-        for index in range(60):
-            k = kind(CS.draw_set(seed, index))
-            if k and count.get(k, 0) < per_class:
-                count[k] = count.get(k, 0) + 1
-                out.append((seed, index, k))
-    return out
+    return CS.choose_sets(SEEDS, kind, per_class)
 
 
 def turns(trials, tracks=None) -> tuple[dict, float]:

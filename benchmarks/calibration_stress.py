@@ -135,6 +135,19 @@ def draw_set(suite_seed: int, index: int) -> dict:
             "data_seed": int(rng.integers(2 ** 31))}
 
 
+def choose_sets(seeds, kind, per_class: int, indices=range(60)) -> list[tuple[int, int, str]]:
+    """(seed, index, class) of the first ``per_class`` sets of each class ``kind(set)`` gives (None: not
+    chosen), in seed and index order: sets chosen by what they hide, before any is run."""
+    out, count = [], {}
+    for seed in seeds:
+        for index in indices:
+            k = kind(draw_set(seed, index))
+            if k and count.get(k, 0) < per_class:
+                count[k] = count.get(k, 0) + 1
+                out.append((seed, index, k))
+    return out
+
+
 def write_set(s: dict, out, effects: bool = True) -> None:
     """The set's data (one CSV + sidecar per amplitude); ``effects`` False: its clean twin (same build,
     starts, frame times and noise draws)."""

@@ -78,13 +78,12 @@ def main():
         row = allh.as_dict()
         row["coast_share_ci"] = boot_share(per, np.random.default_rng(0))
         row["hits_per_trial"] = [len(p.hits) for p in per]
-        row["turn_deg"] = dataclasses.asdict(RC.quartiles([abs(h.turn_deg) for h in allh.hits]))
         row["wall_s"] = time.perf_counter() - t0
         res["variants"][name] = row
         save_json(args.out, res)
         s, pu, co = row["slide_mm"], row["push_mm"], row["coast_mm"]
         print(f"{name}: {row['hits']} hits ({row['left_out']} left out); slide {s['median']:.2f} "
-              f"[{s['q1']:.2f}, {s['q3']:.2f}] mm, push {pu['median']:.2f}, coast {co['median']:.3f} mm; "
+              f"[{s['q25']:.2f}, {s['q75']:.2f}] mm, push {pu['median']:.2f}, coast {co['median']:.3f} mm; "
               f"coast share {row['coast_share']:.3f} [{row['coast_share_ci'][0]:.3f}, {row['coast_share_ci'][1]:.3f}]"
               f" ({row['wall_s']:.0f} s)", flush=True)
 

@@ -17,6 +17,7 @@ import dataclasses
 import numpy as np
 
 from ..labels import CONTACT_KINDS as KINDS, PARTS  # noqa: F401 (the record's kinds, in its order)
+from .relaxation import Spread
 
 
 @dataclasses.dataclass(frozen=True)
@@ -143,21 +144,6 @@ class ArmHit:
 
 
 @dataclasses.dataclass(frozen=True)
-class Quartiles:
-    median: float
-    q1: float
-    q3: float
-
-
-def quartiles(x) -> Quartiles:
-    x = np.asarray(x, float)
-    if len(x) == 0:
-        return Quartiles(np.nan, np.nan, np.nan)
-    q1, m, q3 = np.percentile(x, [25, 50, 75])
-    return Quartiles(float(m), float(q1), float(q3))
-
-
-@dataclasses.dataclass(frozen=True)
 class HitSlides:
     """The arm hits of one or more trials (:func:`arm_hits`) and their summary.
 
@@ -171,20 +157,25 @@ class HitSlides:
     left_out: int
 
     @property
-    def slide_mm(self) -> Quartiles:
-        return quartiles([h.slide_mm for h in self.hits])
+    def slide_mm(self) -> Spread:
+        return Spread.of([h.slide_mm for h in self.hits])
 
     @property
-    def push_mm(self) -> Quartiles:
-        return quartiles([h.push_mm for h in self.hits])
+    def push_mm(self) -> Spread:
+        return Spread.of([h.push_mm for h in self.hits])
 
     @property
-    def coast_mm(self) -> Quartiles:
-        return quartiles([h.coast_mm for h in self.hits])
+    def coast_mm(self) -> Spread:
+        return Spread.of([h.coast_mm for h in self.hits])
 
     @property
-    def duration_ms(self) -> Quartiles:
-        return quartiles([1e3 * (h.end_s - h.start_s) for h in self.hits])
+    def duration_ms(self) -> Spread:
+        return Spread.of([1e3 * (h.end_s - h.start_s) for h in self.hits])
+
+    @property
+    def turn_deg(self) -> Spread:
+        """The struck robots' heading change per hit, unsigned."""
+        return Spread.of([abs(h.turn_deg) for h in self.hits])
 
     @property
     def coast_share(self) -> float:
@@ -195,10 +186,10 @@ class HitSlides:
         return HitSlides(self.hits + other.hits, self.left_out + other.left_out)
 
     def as_dict(self) -> dict:
-        q = lambda x: dataclasses.asdict(x)  # noqa: E731
+        q = dataclasses.asdict
         return {"hits": len(self.hits), "left_out": self.left_out, "slide_mm": q(self.slide_mm),
                 "push_mm": q(self.push_mm), "coast_mm": q(self.coast_mm), "duration_ms": q(self.duration_ms),
-                "coast_share": self.coast_share, "settle_s": SETTLE_S}
+                "turn_deg": q(self.turn_deg), "coast_share": self.coast_share, "settle_s": SETTLE_S}
 
 
 def _runs(on: np.ndarray) -> list[tuple[int, int]]:
