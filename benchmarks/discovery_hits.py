@@ -1,5 +1,5 @@
 """The discovery diagnosis at the collision level: what one arm hit slides a struck robot
-(sweeps/screens/discovery_hits.toml, written before it ran, says why and what was predicted).
+(sweeps/probes/discovery_hits.toml, written before it ran, says why and what was predicted).
 
 Every trial of each variant is simulated again from the spread screen's own configuration (the same starts,
 robots, start delays and per-cycle retrigger as its relaxation stores), recording the collision record and a
@@ -7,7 +7,7 @@ full-rate track, and read by ``reduce.collisions.arm_hits``. Per variant: the hi
 median [quartiles] of the slide, push and coast per hit, and the coast share with a 95 % bootstrap interval
 over trials.
 
-    python benchmarks/discovery_hits.py [--probe sweeps/screens/discovery_hits.toml]
+    python benchmarks/discovery_hits.py [--probe sweeps/probes/discovery_hits.toml]
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def boot_share(per_trial: list[RC.HitSlides], rng, n: int = 2000) -> tuple[float
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--probe", type=pathlib.Path, default=ROOT.parent / "sweeps/screens/discovery_hits.toml")
+    ap.add_argument("--probe", type=pathlib.Path, default=ROOT.parent / "sweeps/probes/discovery_hits.toml")
     ap.add_argument("--model", default=presets.DEFAULT)
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "discovery_hits.json")
     args = ap.parse_args()
