@@ -57,8 +57,9 @@ def measure(s: dict) -> dict:
             "significant": bool(drift["significant"]), "p": drift["p"],
             "one_direction": bool(drift["directions"]["consistent"]), "plate_models": m,
             "reaches_tilt_fit_before": old, "reaches_tilt_fit_now": old and not m["follows_the_robot"],
-            # the anisotropy reading (calibrate.stages.anisotropy_read): drift significant and following the
-            # robot's step; since seed 2051 also fitting one anisotropy better than a heading-dependent grip
+            # an anisotropic plate read off the drift, tried after seed 2051 and not adopted
+            # (docs/calibration.md): drift significant and following the robot's step, and also fitting one
+            # anisotropy better than a heading-dependent grip
             "anisotropy_read_following": bool(drift["significant"] and m["follows_the_robot"]),
             "anisotropy_read": bool(drift["significant"] and m["anisotropic"])}
 

@@ -256,7 +256,9 @@ class PlateDrift:
         robot is mu (1 + e cos 2(h - h0)) scales the robot's step along itself, step = (1 + c1 cos 2h +
         c2 sin 2h) R(h) s, and the regression reads v_g = c1 u_g + c2 u'_g (u, u' what it reads from
         R(h) s cos 2h and R(h) s sin 2h at the gait's headings; c1, c2 one pair for every gait). Outside
-        the library; compared so that a heading-dependent grip is not read as an anisotropic plate.
+        the library; reported beside the anisotropy (``anisotropic``), and used by no rule of the
+        calibration: as a reading of an anisotropic plate it did not keep outside grips out
+        (docs/calibration.md, "Does the drift follow the robot?").
     """
 
     groups: int
@@ -264,7 +266,7 @@ class PlateDrift:
     chi2_one_vector: float
     chi2_anisotropy: float
     anisotropy: tuple[float, float]
-    chi2_grip: float = float("inf")
+    chi2_grip: float
 
     @property
     def applicable(self) -> bool:

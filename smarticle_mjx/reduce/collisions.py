@@ -230,13 +230,12 @@ def arm_hits(steps, pairs, period: float, t, poses, settle_s: float = SETTLE_S) 
     def at(s, when):
         return np.array([np.interp(when, t, xy[:, s, 0]), np.interp(when, t, xy[:, s, 1])])
 
-    body, arm1, arm2 = (PARTS.index(x) for x in ("body", "arm1", "arm2"))
-    kind = lambda a, c: 3 * a + c  # noqa: E731 (robot i's part a, robot j's part c)
+    arm_on_i = [KINDS.index(k) for k in ("body-arm1", "body-arm2")]  # robot j's arm on robot i's body
+    arm_on_j = [KINDS.index(k) for k in ("arm1-body", "arm2-body")]  # robot i's arm on robot j's body
     hits, left = [], 0
     for q, (i, j) in enumerate(pairs):
-        for struck, striker, kinds in ((i, j, (kind(body, arm1), kind(body, arm2))),
-                                       (j, i, (kind(arm1, body), kind(arm2, body)))):
-            for g0, g1 in _runs(on[q, list(kinds)].any(0)):
+        for struck, striker, kinds in ((i, j, arm_on_i), (j, i, arm_on_j)):
+            for g0, g1 in _runs(on[q, kinds].any(0)):
                 ta, tb = g0 * dtb, (g1 + 1) * dtb
                 tc = tb + settle_s
                 g2 = min(int(np.ceil(tc / dtb)), k * b)  # bins up to the end of the settling
