@@ -65,7 +65,15 @@ def main():
     try:
         probe = tomllib.loads(args.probe.read_text())["probe"]
         _, studies = read_relax_screen(ROOT.parent / probe["study"])
-    except (OSError, KeyError, ValueError, tomllib.TOMLDecodeError) as e:
+        missing = [k for k in ("variants", "trials", "periods", "bins", "track_ms") if k not in probe]
+        if missing:
+            raise KeyError(", ".join(missing))
+        unknown = [v for v in probe["variants"] if v not in studies]
+        if unknown:
+            raise ValueError(f"{args.probe}: variants {unknown} are not in {probe['study']}")
+    except KeyError as e:
+        sys.exit(f"error: {args.probe} lacks {e} in its [probe] table")
+    except (OSError, ValueError, tomllib.TOMLDecodeError) as e:
         sys.exit(f"error: {e}")
     res = {"probe": probe, "model": args.model, "variants": {}}
     for name in probe["variants"]:
