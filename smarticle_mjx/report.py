@@ -13,7 +13,7 @@ import pathlib
 
 import numpy as np
 
-from . import formatting, plots, presets
+from . import formatting, plots, presets, specs
 from .reduce import analysis, binding, stepcheck
 from .records import RelaxRecord
 from .scene import SceneParams
@@ -466,8 +466,7 @@ def relax_markdown(rep: dict) -> str:
     lines = [f"# Relaxation report: {', '.join(pathlib.Path(p).name for p in rep['stores'])}", "",
              f"{rep['trials']} trials of {s['n_robots']} robots ({rep['valid']} usable), {s['periods']} periods "
              f"at α_max = {s['amplitude_deg']:g}° ({s['gait']}, {s['chirality']}), model {presets.describe(rep['model'], rep.get('overrides'))}; "
-             f"compressed in-phase start, gap {s['gap_mm']:g} mm, jitter {s['jitter_mm']:g} mm / "
-             f"{s['jitter_deg']:g}°, plate {s['plate_m']:g} m. A glider: a pair bound (touching every period) "
+             f"{specs.relax_start_words(s)}; plate {s['plate_m']:g} m. A glider: a pair bound (touching every period) "
              f"for ≥ {rep['min_periods']} consecutive periods while apart from the rest (no touch with a third "
              f"robot, every third robot's centre ≥ {rep['apart_W']:g} W away, both on the plate).", "",
              "| quantity | model | lab |", "|---|---|---|",
