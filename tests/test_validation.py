@@ -143,6 +143,13 @@ def test_the_page_writes_its_time_step_check_itself(tmp_path):
     text = step_check(result, "lab-lag", {0.5}, _check_file(tmp_path, 1.54, 1.35))[0]
     assert "**does not hold** at the reference, so that row's verdict is the step's" in text
     assert "**4 of 13 claims hold**" in text and "β 1.35 [1.25, 1.45]" in text and "at 0.0625 ms" in text
+    part = Validation((row("holds"),) * 2 + (ClaimRow("x", "", "study polar not run yet", "–", "not measurable", "",
+                                                       run=False),) * 11, {})
+    assert part.count_words() == ("**2 of the 2 claims measured hold** (11 of 13 not measured: their studies "
+                                  "have not run)") and result.count_words() == "**5 of 13 claims hold**"
+    assert Validation.from_json({"rows": [row("holds").as_dict() | {"run": False}], "extra": {}}).not_run == 1
+    old_json = {k: v for k, v in row("holds").as_dict().items() if k != "run"}  # a page written before the field
+    assert Validation.from_json({"rows": [old_json], "extra": {}}).not_run == 0
     result.extra["random_90"]["beta"]["value"] = 1.6
     text = step_check(result, "lab-lag", {0.5}, _check_file(tmp_path, 1.6, 1.7))[0]
     assert "holds here, the same" in text and "**5 of 13 claims hold**" in text
@@ -249,6 +256,11 @@ def test_validate_with_set_runs_every_study_with_the_change_and_keeps_its_stores
     page = out.read_text()
     assert "`timestep=0.00025` changed from the preset" in page and "--set timestep=0.00025" in page
     assert "time step 0.25 ms" in page
+    # a page of two studies counts only the claims it could measure, and says how many it could not
+    rows = json.loads((tmp_path / "v" / "validation.json").read_text())["rows"]
+    unrun = sum("not run yet" in row["measured"] for row in rows)
+    assert 0 < unrun < len(rows) and sum(not row["run"] for row in rows) == unrun
+    assert f"claims measured hold** ({unrun} of {len(rows)} not measured: their studies have not run)" in page
     before = {p.name for p in data.iterdir()}
     for bad, says in (("robot.wobble=1", "wobble"), ("robot.mass=0.001", "must exceed the two arms' mass")):
         r = CliRunner().invoke(app, args + ["--set", bad])

@@ -84,7 +84,7 @@ class Claim:
             study = next((s for s in self.studies if s not in stores), self.studies[0])
             return ClaimRow(self.text, self.paper, f"study {study} not run yet", "–", VERDICTS[None],
                             f"Run `smx validate --studies {study}` (the page is written from the complete stores "
-                            "there are).")
+                            "there are).", run=False)
         o = self.measure(evidence)
         return ClaimRow(self.text, self.paper, o.measured, self.test if o.test is None else o.test, VERDICTS[o.holds],
                         o.note)
@@ -93,7 +93,8 @@ class Claim:
 @dataclasses.dataclass(frozen=True)
 class ClaimRow:
     """One claim's row as the page prints it: the claim, the paper's value, what was measured, the test, the
-    verdict (one of :data:`VERDICTS`' words) and the note."""
+    verdict (one of :data:`VERDICTS`' words) and the note; ``run`` False where a study it needs has not run
+    (rows of pages written before the field existed read back as run)."""
 
     claim: str
     paper: str
@@ -101,6 +102,7 @@ class ClaimRow:
     test: str
     verdict: str
     note: str
+    run: bool = True
 
     @property
     def holds(self) -> bool | None:
@@ -123,6 +125,22 @@ class Validation:
     def held(self) -> int:
         """How many claims hold."""
         return sum(r.holds is True for r in self.rows)
+
+    @property
+    def not_run(self) -> int:
+        """How many claims could not be measured because a study they need has not run."""
+        return sum(not r.run for r in self.rows)
+
+    def count_words(self, held: int | None = None) -> str:
+        """"**k of n claims hold**", or on a page written from a subset of the studies "**k of the m claims
+        measured hold** (n − m not measured: their studies have not run)"; ``held`` replaces the count of
+        claims that hold (the reference step's verdicts)."""
+        held = self.held if held is None else held
+        n, missing = len(self.rows), self.not_run
+        if not missing:
+            return f"**{held} of {n} claims hold**"
+        return (f"**{held} of the {n - missing} claims measured hold** ({missing} of {n} not measured: their "
+                "studies have not run)")
 
     def as_json(self, model: str) -> dict:
         """``validation.json``'s form."""

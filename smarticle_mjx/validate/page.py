@@ -99,7 +99,6 @@ def step_check(result: Validation, model: str, step_ms: set, check: pathlib.Path
         got = json.loads(pathlib.Path(check).read_text())
     except (OSError, ValueError):
         return ["No reference-step check of this page's glider rows exists (`benchmarks/validation_step.py`)."]
-    rows = result.rows
     beta = ((result.extra.get("random_90") or {}).get("beta") or {}).get("value")
     if got.get("model") != model or len(step_ms) != 1 or not finite(beta):
         return [f"The reference-step check (`benchmarks/results/{check.name}`) is of model `{got.get('model')}`, not "
@@ -124,7 +123,7 @@ def step_check(result: Validation, model: str, step_ms: set, check: pathlib.Path
             f"(`benchmarks/validation_step.py`, `benchmarks/results/{check.name}`): the 90° random study gives "
             f"{fmt(h)} at {step:g} ms and {fmt(ref)} at {ref['timestep_ms']:g} ms. "
             f"The β test |β − {BETA_PAPER:g}| < {BETA_TOLERANCE:g}: {VERDICTS[at_here]} here, {verdict}. "
-            f"With the reference's verdict, **{held_ref} of {len(rows)} claims hold**."]
+            f"With the reference's verdict, {result.count_words(held_ref)}."]
 
 
 def _verdict_rule(result: Validation, got: dict, check: pathlib.Path, step: float, ref: dict, here_text: str,
@@ -150,7 +149,7 @@ def _verdict_rule(result: Validation, got: dict, check: pathlib.Path, step: floa
             f"and {ref_text} at {ref['timestep_ms']:g} ms. The rule: a claim whose verdict differs between this "
             "page's step and the reference takes the reference's. "
             + (f"{len(moved)} moved: {'; '.join(moved)}. " if moved else "No verdict moved. ")
-            + f"With the reference's verdicts, **{held_ref} of {len(result.rows)} claims hold**.")
+            + f"With the reference's verdicts, {result.count_words(held_ref)}.")
 
 
 def write_page(result: Validation, stores: dict, out_md: pathlib.Path, figures: pathlib.Path, command: str,
@@ -158,7 +157,6 @@ def write_page(result: Validation, stores: dict, out_md: pathlib.Path, figures: 
     check = step_check_path(imperfections) if check is None else check
     rel = pathlib.Path(figures).name
     every = [q for v in stores.values() for q in (v if isinstance(v, list) else [v])]
-    held = result.held
     made = made_with(every)
     lines = ["# Validation against the paper", "",
              f"Model `{model}` (docs/model.md){overrides_line(overrides)}{robots_line(imperfections, every)}. {provenance(made)} Regenerate with `{command}`: it reuses complete stores made by the "
@@ -166,7 +164,7 @@ def write_page(result: Validation, stores: dict, out_md: pathlib.Path, figures: 
              f"(these took {wall_minutes(every):.0f} minutes of wall time on 2 cores). "
              "`--studies NAME,...` runs a subset; the page is written from the complete stores there are.", "",
              "Every row states its test before the number. A claim that does not hold is reported as such; the "
-             f"model was not tuned to any row. **{held} of {len(result.rows)} claims hold** at this step.", "",
+             f"model was not tuned to any row. {result.count_words()} at this step.", "",
              *step_check(result, model, made["steps_ms"], check), "",
              "| claim | paper | measured | test | verdict | how measured, what was tried |", "|---|---|---|---|---|---|"]
     cell = lambda x: str(x).replace("|", "\\|").replace("\\\\|", "\\|")  # noqa: E731
