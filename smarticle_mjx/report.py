@@ -466,8 +466,8 @@ def relax_markdown(rep: dict) -> str:
     lines = [f"# Relaxation report: {', '.join(pathlib.Path(p).name for p in rep['stores'])}", "",
              f"{rep['trials']} trials of {s['n_robots']} robots ({rep['valid']} usable), {s['periods']} periods "
              f"at α_max = {s['amplitude_deg']:g}° ({s['gait']}, {s['chirality']}), model {presets.describe(rep['model'], rep.get('overrides'))}; "
-             f"{specs.relax_start_words(s)}; plate {s['plate_m']:g} m. A glider: a pair bound (touching every period) "
-             f"for ≥ {rep['min_periods']} consecutive periods while apart from the rest (no touch with a third "
+             f"{specs.relax_config_from_json(s).start_words()}; plate {s['plate_m']:g} m. A glider: a pair bound "
+             f"(touching every period) for ≥ {rep['min_periods']} consecutive periods while apart from the rest (no touch with a third "
              f"robot, every third robot's centre ≥ {rep['apart_W']:g} W away, both on the plate).", "",
              "| quantity | model | lab |", "|---|---|---|",
              f"| trials forming a glider | {rep['emerged']}/{rep['valid']} = {f(rep['fraction'])} "

@@ -196,24 +196,6 @@ def with_overrides(cfg, overrides=()):
     return dataclasses.replace(cfg, overrides=tuple(sorted({**dict(cfg.overrides), **dict(overrides)}.items())))
 
 
-def relax_start_words(settings: dict) -> str:
-    """A relaxation study's start in words, for reports and pages, from its stored settings
-    (``RelaxConfig.to_json``; fields newer than a store take their defaults): the pack, its spacing, the
-    jitter and the robots' synchrony. A start offset comes from ``phase_jitter`` and from the imperfection
-    set's ``phase_sd`` (drawn independently, so their s.d. add in quadrature)."""
-    pack = {"lattice": "staggered lattice", "hex": "hexagonal pack"}[settings.get("start", "lattice")]
-    heads = "headings drawn" if settings.get("headings", "aligned") == "drawn" else "headings aligned"
-    phi = settings.get("start_phi")
-    spacing = f"area fraction {phi:g}" if phi is not None else f"gap {settings['gap_mm']:g} mm"
-    sds = (settings.get("phase_jitter", 0.0), imperfections.get(settings.get("imperfections", "none")).phase_sd)
-    sd = math.hypot(*sds)
-    sync = (f"gait start offsets of s.d. {sd:.3g} periods, drawn per robot and trial" if sd > 0 else "in phase")
-    if settings.get("retrigger_sd", 0.0) > 0:
-        sync += f", every robot re-triggered each cycle with a delay of s.d. {settings['retrigger_sd']:g} periods"
-    return (f"compressed start ({pack}, {heads}, {spacing}, jitter {settings['jitter_mm']:g} mm / "
-            f"{settings['jitter_deg']:g}°), {sync}")
-
-
 @dataclasses.dataclass(frozen=True)
 class RelaxConfig:
     """Everything that defines a relaxation study's data; stored in full."""
@@ -265,6 +247,20 @@ class RelaxConfig:
     def gait_spec(self) -> GaitSpec:
         return GaitSpec(amplitude_deg=self.amplitude_deg, chirality=self.chirality, kind=self.gait,
                         period_s=self.period_s)
+
+    def start_words(self) -> str:
+        """The start in words, for reports and pages: the pack, its spacing, the jitter and the robots'
+        synchrony. A start offset comes from ``phase_jitter`` and from the imperfection set's ``phase_sd``
+        (drawn independently, so their s.d. add in quadrature). A store's settings read back with
+        ``relax_config_from_json``, so fields newer than the store take their defaults."""
+        pack = {"lattice": "staggered lattice", "hex": "hexagonal pack"}[self.start]
+        spacing = f"area fraction {self.start_phi:g}" if self.start_phi is not None else f"gap {self.gap_mm:g} mm"
+        sd = math.hypot(self.phase_jitter, imperfections.get(self.imperfections).phase_sd)
+        sync = f"gait start offsets of s.d. {sd:.3g} periods, drawn per robot and trial" if sd > 0 else "in phase"
+        if self.retrigger_sd > 0:
+            sync += f", every robot re-triggered each cycle with a delay of s.d. {self.retrigger_sd:g} periods"
+        return (f"compressed start ({pack}, headings {self.headings}, {spacing}, jitter {self.jitter_mm:g} mm / "
+                f"{self.jitter_deg:g}°), {sync}")
 
     def scene_params(self) -> SceneParams:
         return presets.apply(presets.params(self.model), self.overrides)

@@ -358,16 +358,16 @@ def test_a_relaxation_page_says_which_start_and_synchrony_its_stores_ran():
     in-phase start whatever ran: start offsets from --phase-jitter and from an imperfection set are named
     with their combined s.d., the per-cycle retrigger, the hexagonal pack, drawn headings and an area
     fraction; a store written before the start family existed reads as the default lattice."""
-    from smarticle_mjx.specs import RelaxConfig, relax_start_words
-    ideal = relax_start_words(RelaxConfig().to_json())
+    from smarticle_mjx.specs import RelaxConfig, relax_config_from_json
+    ideal = RelaxConfig().start_words()
     assert "in phase" in ideal and "staggered lattice" in ideal and "gap 2 mm" in ideal and "offsets" not in ideal
-    lab = relax_start_words(RelaxConfig(imperfections="lab-resync").to_json())
+    lab = RelaxConfig(imperfections="lab-resync").start_words()
     assert "s.d. 0.02 periods" in lab and "in phase" not in lab
-    both = relax_start_words(RelaxConfig(imperfections="lab", phase_jitter=0.03, retrigger_sd=0.01,
-                                         start="hex", headings="drawn", start_phi=0.5).to_json())
+    both = RelaxConfig(imperfections="lab", phase_jitter=0.03, retrigger_sd=0.01, start="hex", headings="drawn",
+                       start_phi=0.5).start_words()
     assert "s.d. 0.0361 periods" in both  # hypot(0.02, 0.03)
     assert "re-triggered each cycle" in both and "hexagonal pack" in both and "headings drawn" in both
     assert "area fraction 0.5" in both and "gap" not in both
     old = {k: v for k, v in RelaxConfig().to_json().items()
            if k not in ("start", "headings", "start_phi", "retrigger_sd")}
-    assert relax_start_words(old) == ideal
+    assert relax_config_from_json(old).start_words() == ideal

@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .. import formatting, specs
+from .. import formatting
 from ..reduce import binding, gliders as GL
 from ..reduce.relaxation import CrowdSummary
 from .inputs import PB_BANDS, BindingVsAmplitude, Descent, Diagonal, LoneDrift, Mirror, Polar, Relaxation
@@ -440,7 +440,7 @@ def relax_emergence(ev: Relaxation) -> Outcome:
                    f"{k}/{n} = {ci(a.fraction, *a.interval)} (lab {ci(ev.lab_fraction, *ev.lab_interval)}); "
                    f"C1 {a.glider_kinds.c1}, C2 {a.glider_kinds.c2}",
                    f"{n} trials ({ev.stages} stages) of {s.n_robots} robots × {s.periods} periods at "
-                   f"{s.amplitude_deg:g}°, {specs.relax_start_words(s.to_json())}. Glider: a pair bound every "
+                   f"{s.amplitude_deg:g}°, {s.start_words()}. Glider: a pair bound every "
                    f"period for ≥ 100 consecutive periods, no touch with a third robot and every third robot ≥ {a.apart_W:g} W "
                    f"away. Relaxation (last period with a robot touching two others): median "
                    f"{f(rt.median, '.0f')} periods [IQR {f(rt.q25, '.0f')}–{f(rt.q75, '.0f')}] (paper: "
