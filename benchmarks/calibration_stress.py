@@ -229,7 +229,8 @@ def run_set(s: dict, plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES) -> di
             "model_runs": res["model_runs"], "plate_hypotheses": res.get("plate_hypotheses"), "fitted": {a["effect"]: a["values"] for a in res["added"]},
             "intervals": {a["effect"]: a["interval"] for a in res["added"]},
             "intervals_statistical": {a["effect"]: a.get("interval_statistical", a["interval"]) for a in res["added"]},
-            "nominal_findings": res["nominal_findings"], "version": __version__, "source": source_hash()}
+            "nominal_findings": res["nominal_findings"], "plate_level": res.get("plate_level"),
+            "version": __version__, "source": source_hash()}
 
 
 def _rate(xs) -> dict:

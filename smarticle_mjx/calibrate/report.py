@@ -234,6 +234,12 @@ def markdown(r: dict) -> str:
         for g in dr["groups"]:
             lines.append(f"| {g['amplitude_deg']:g}° | ({g['v_mm'][0]:+.4f}, {g['v_mm'][1]:+.4f}) | "
                          f"({g['se_mm'][0]:.4f}, {g['se_mm'][1]:.4f}) | {g['cycles']} | {g['spread_deg']:.0f}° |")
+        pl = r.get("plate_level") or {}
+        if pl.get("reason"):
+            lines += ["", f"An anisotropic plate was not tried: {pl['reason']}."]
+        elif pl.get("anisotropic_plate_tried"):
+            lines += ["", f"The drift's p is below {pl['threshold_p']:g}: the plate may be other than level and "
+                      "isotropic, so an anisotropic plate was tried."]
         if tf.get("ok"):
             lines += ["", f"Tilt whose model drift matches: ({tf['tilt_deg'][0]:+.3f}, {tf['tilt_deg'][1]:+.3f})° "
                       f"± ({tf['se_deg'][0]:.3f}, {tf['se_deg'][1]:.3f})°, drift χ² {tf['chi2_before']:.1f} → "
