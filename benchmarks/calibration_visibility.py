@@ -226,19 +226,29 @@ def main():
     ap.add_argument("--sets", default="0-29")
     ap.add_argument("--summary", action="store_true")
     ap.add_argument("--lag-crossings", action="store_true", help="also time the arm behind every hidden servo lag")
+    ap.add_argument("--summary-seeds", default=None,
+                    help="summarise these suite seeds only (e.g. 2049-2051,2058), stored as summary_<seeds> beside "
+                         "the summary of seeds 2027-2031 (the suite this measure was written on)")
     a = ap.parse_args()
     store = json.loads(OUT.read_text()) if OUT.exists() else {}
     lags = store.pop("lag_crossings", None)
+    extra = {k: store.pop(k) for k in list(store) if k.startswith("summary_")}
     store = {k: v for k, v in store.items() if k != "summary"}
     if not a.summary:
         for seed in a.suite_seed or [2030]:
             run(seed, _indices(a.sets), store)
-    s = summary(store)
+    s = summary({k: v for k, v in store.items() if 2027 <= v["suite_seed"] <= 2031})
+    shown = store
+    if a.summary_seeds:
+        seeds = set(_indices(a.summary_seeds))
+        shown = {k: v for k, v in store.items() if v["suite_seed"] in seeds}
+        extra[f"summary_{a.summary_seeds}"] = summary(shown)
     if a.lag_crossings:
         lags = lag_crossings(store)
-    OUT.write_text(json.dumps({**store, "summary": s, **({"lag_crossings": lags} if lags else {})}, indent=1))
-    print(json.dumps(s, indent=1))
-    print(table(store))
+    OUT.write_text(json.dumps({**store, "summary": s, **extra, **({"lag_crossings": lags} if lags else {})},
+                              indent=1))
+    print(json.dumps(extra.get(f"summary_{a.summary_seeds}", s), indent=1))
+    print(table(shown))
 
 
 if __name__ == "__main__":
