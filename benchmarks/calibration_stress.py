@@ -318,7 +318,13 @@ def main():
                     help="also fit this plate effect jointly with the nominal parameters (smx calibrate's option)")
     ap.add_argument("--tag", default="", help="keep this run's results apart (calibration_stress/<seed>-<tag>/): "
                                               "sets of a reported seed run again under later rules")
+    ap.add_argument("--no-plate-level-gate", action="store_true",
+                    help="try the anisotropic plate whatever the plate-frame drift shows (the rule before the gate; "
+                         "for a counterfactual run, with --tag)")
     args = ap.parse_args()
+    if args.no_plate_level_gate:
+        from smarticle_mjx.calibrate import stages
+        stages.P_LEVEL = math.inf  # no p reaches it: plate_skip_reason never withholds the plate
     try:
         plates = plate_hypotheses_with(args.plate_hypothesis)
     except ValueError as e:
