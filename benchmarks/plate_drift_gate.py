@@ -54,7 +54,7 @@ def measure(s: dict) -> dict:
     old = bool(drift["significant"] and drift["directions"]["consistent"])
     return {"seed": s["suite_seed"], "index": s["index"], "hidden": s["hidden"], "outside": s["outside"],
             "kind": kind_of(s), "arms_tracked": s["arms_tracked"], "gaits": len(s["amplitudes"]),
-            "significant": bool(drift["significant"]), "p": drift["p"],
+            "significant": bool(drift["significant"]), "p": drift["p"], "dof": drift["dof"],
             "one_direction": bool(drift["directions"]["consistent"]), "plate_models": m,
             "reaches_tilt_fit_before": old, "reaches_tilt_fit_now": old and not m["follows_the_robot"],
             # an anisotropic plate read off the drift, tried after seed 2051 and not adopted

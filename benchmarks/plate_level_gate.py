@@ -12,7 +12,10 @@ clean set, this script runs the drift test and records its p and whether the gat
 (``stages.plate_skip_reason``: drift read and p >= ``stages.P_LEVEL``) would withhold the plate. It reads the
 calibrations as they were stored (before the gate); it does not calibrate.
 
-    python benchmarks/plate_level_gate.py --min-seed 2030 --clean --tag development
+    python benchmarks/plate_level_gate.py --min-seed 2030 --max-seed 2058 --tag development
+    python benchmarks/plate_level_gate.py --min-seed 2049 --max-seed 2058 --clean --tag clean-2049
+
+Seeds run since the gate (2059 on) were calibrated with it: give ``--max-seed`` to read only those before.
 
 Writes results/plate_level_gate_<tag>.json and prints the table.
 """
@@ -22,13 +25,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import pathlib
-import tempfile
 import time
 
-from calibration_stress import RESULTS, draw_set, write_set
-from smarticle_mjx.calibrate.data import load
-from smarticle_mjx.calibrate.drift import drift_test
+from calibration_stress import RESULTS, draw_set
+from plate_drift_gate import measure
 from smarticle_mjx.calibrate.stages import ANISO, P_LEVEL, plate_skip_reason
 
 
@@ -72,13 +72,11 @@ def main():
         if key in done:
             continue
         s = draw_set(*key)
-        with tempfile.TemporaryDirectory() as d:
-            write_set(s, pathlib.Path(d))
-            dr = drift_test(load(pathlib.Path(d)))
+        m = measure(s)  # the drift test on the set's data, as the tilt gates are read
         row = {"seed": key[0], "index": key[1], "hidden": s["hidden"], "outside": s["outside"],
                "added": r["score"]["added"], "kind": kind(r), "arms_tracked": s["arms_tracked"],
-               "robots": s["robots"], "version": r.get("version"), "p": dr["p"], "dof": dr["dof"],
-               "withheld": plate_skip_reason(dr) is not None}
+               "robots": s["robots"], "version": r.get("version"), "p": m["p"], "dof": m["dof"],
+               "withheld": plate_skip_reason(m) is not None}
         done[key] = row
         print(row, flush=True)
         out_path.write_text(json.dumps({"p_level": P_LEVEL, "rows": list(done.values())}, indent=1))
