@@ -20,6 +20,15 @@
 #                                         # results/warp_flags_convex_again_h200.json)
 #   bash benchmarks/gpu_lease.sh flags3   # the same in deterministic mode, and at half the step (not yet run)
 #
+# Since 0.4.2 the warp backend collides box pairs analytically, as MuJoCo C does (the flags above were
+# GJK/EPA's phantoms). The paper scan at the default, its store kept, after `install`:
+#
+#   bash benchmarks/gpu_lease.sh scan     # (28 November 2026: results/full_scan_gpu_analytic_h200.json)
+#
+# Here, on a machine with pip, once: the two carried folders (about 51 and 54 MB; the repository itself
+# travels beside each, so each call stays under the 64 MiB a call may carry):
+#
+#   bash benchmarks/gpu_lease.sh prepare
 # What travels (ignored folders, prepared on a machine with pip):
 #   .whl1/  mujoco 4.0.0 (+ mujoco-core), mujoco-mjx 3.17.0, mujoco-warp 4.0.0,
 #           glfw, PyOpenGL, trimesh wheels; warp_py.tar.xz (warp-lang 1.19.0's
@@ -49,6 +58,31 @@ finish_warp() {
   python3 -c "import warp; warp.init(); print('warp', warp.__version__, warp.get_cuda_device())"
 }
 case "${1:-}" in
+prepare)
+  W=$(mktemp -d)
+  grep -qx '/.whl1/' .git/info/exclude 2>/dev/null || printf '/.whl1/\n/.whl2/\n' >> .git/info/exclude
+  for p in mujoco==4.0.0 mujoco-core==4.0.0 mujoco-mjx==3.17.0 mujoco-warp==4.0.0 glfw==2.11.0 \
+           PyOpenGL==3.1.10 trimesh==5.2.0 warp-lang==1.19.0; do
+    python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
+      --platform manylinux_2_28_x86_64 --platform manylinux_2_27_x86_64 --platform manylinux_2_17_x86_64 \
+      --platform manylinux2014_x86_64 --platform any -d "$W" "$p"
+  done
+  (cd "$W" && mkdir wx && cd wx && unzip -q ../warp_lang-*.whl && xz -9e -T2 -c warp/bin/warp.so > ../warpso.xz &&
+   tar --exclude=warp/bin/warp.so --exclude=warp/bin/warp-clang.so --exclude=warp/examples \
+     -cJf ../warp_py.tar.xz warp warp_lang-*.dist-info)
+  rm -rf .whl1 .whl2 && mkdir -p .whl1 .whl2
+  cp "$W"/*.whl .whl1/ && rm .whl1/warp_lang-*.whl && cp "$W/warp_py.tar.xz" .whl1/
+  total=$(stat -c %s "$W/warpso.xz"); second=53500000  # the repository (about 12 MB) travels beside it
+  head -c $((total - second)) "$W/warpso.xz" > .whl1/warpso.part1
+  tail -c $second "$W/warpso.xz" > .whl2/warpso.part2
+  rm -rf "$W"; du -sb .whl1 .whl2
+  ;;
+scan)
+  finish_warp
+  timeout "${SCAN_LIMIT:-380}" python3 benchmarks/full_scan.py --backend warp --batch-size 8192 \
+    --n 5000 --periods 75 --store /tmp/keep/scan.h5 --out "$R/full_scan_gpu_analytic.json" || true
+  cp /tmp/keep/scan.h5 "$R/warp_scan_analytic.h5" || true
+  ;;
 install)
   install_wheels
   python3 -c "import jax, mujoco; print('jax', jax.__version__, jax.devices(), 'mujoco', mujoco.__version__)"

@@ -7,7 +7,7 @@ in Warp's deterministic mode or at a finer step?
     python benchmarks/warp_flags.py --store S.h5 --backend warp --out warp_rerun.json
     python benchmarks/warp_flags.py --store S.h5 --backend warp --deterministic --out warp_det.json
     python benchmarks/warp_flags.py --store S.h5 --backend warp --timestep 0.000125 --out warp_half.json
-    python benchmarks/warp_flags.py --store S.h5 --backend warp --analytic-box --out warp_box.json
+    python benchmarks/warp_flags.py --store S.h5 --backend warp --box-collider convex --out warp_gjk.json
     # here, on the CPU: the same lanes on MuJoCo C (float64)
     python benchmarks/warp_flags.py --store S.h5 --backend native --out native_rerun.json
 
@@ -30,7 +30,6 @@ import time
 
 import numpy as np
 
-import mujoco
 
 from full_scan import _device  # what ran the engine, as the paper scan's JSON names it
 from smarticle_mjx import __version__
@@ -62,9 +61,11 @@ def main():
     ap.add_argument("--backend", default="native", help="native | warp | mjx")
     ap.add_argument("--deterministic", action="store_true", help="MuJoCo Warp's deterministic mode")
     ap.add_argument("--timestep", type=float, default=None, help="another step (s) for the rerun")
-    ap.add_argument("--analytic-box", action="store_true",
-                    help="box pairs through the analytic box-box collider (MuJoCo's NATIVECCD disable flag), "
-                         "which MuJoCo C uses, instead of MuJoCo Warp's default GJK/EPA")
+    ap.add_argument("--box-collider", choices=("analytic", "convex"), default=None,
+                    help="Warp's box pairs: 'analytic' (the box-box collider MuJoCo C uses; the warp backend's "
+                         "default since 0.4.2) or 'convex' (MuJoCo Warp's own GJK/EPA, the default before); "
+                         "default: the backend's")
+    ap.add_argument("--analytic-box", action="store_true", help="the same as --box-collider analytic")
     ap.add_argument("--replace", action="append", default=[], metavar="FIELD=VALUE",
                     help="change one numerical field of the stored scene for the rerun (e.g. iterations=100)")
     ap.add_argument("--lanes", default="flagged", help="'flagged' or comma-separated lane indices")
@@ -126,6 +127,15 @@ def main():
     options = dict(config.backend_options()) if args.backend == config.backend else {}
     if args.deterministic:
         options["deterministic"] = True
+    if args.analytic_box:
+        args.box_collider = "analytic"
+    if args.backend == "warp":
+        import inspect
+        from smarticle_mjx.engine.mjwarp import WarpBackend
+        args.box_collider = args.box_collider or inspect.signature(WarpBackend).parameters["box_collider"].default
+        options["box_collider"] = args.box_collider
+    elif args.box_collider:
+        raise SystemExit("--box-collider applies to the warp backend only")
     got: dict[int, dict] = {}
 
     def on_lanes(res):
@@ -134,8 +144,6 @@ def main():
 
     t = time.perf_counter()
     scene = Scene.build(run_params, 2)
-    if args.analytic_box:
-        scene.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
     with make_backend(args.backend, scene, nthread=args.nthread if args.backend == "native" else None,
                       **options) as backend:
         device = _device(args.backend)
@@ -154,7 +162,7 @@ def main():
     out = dict(store=str(args.store), store_backend=config.backend, store_timestep_s=params.timestep,
                backend=args.backend, device=device, deterministic=args.deterministic,
                timestep_s=run_params.timestep, integrator=params.integrator, replaced=args.replace,
-               analytic_box=args.analytic_box,
+               analytic_box=args.box_collider == "analytic", box_collider=args.box_collider,
                package=__version__,
                periods=int(config.periods), lanes_flagged_in_store=int(flagged.size), wall_s=wall,
                lane_periods=int(ran.get("lane_periods", 0)),

@@ -240,3 +240,61 @@ def test_robots_with_their_own_amplitude_and_chirality_run_as_on_native(scene, w
     other = Lanes.from_robot_gaits(poses, [g0, GaitSpec(30.0, "cw", period_s=0.15)])
     with pytest.raises(ValueError, match="different gait periods in one lane run on the native or MJX backend"):
         warp.advance(warp.initial_state(other), other, 1)
+
+
+@needs_warp
+def test_warp_collides_box_pairs_as_mujoco_c_does(scene, warp, native):
+    """The backend's box pairs go through MuJoCo Warp's port of the analytic
+    box-box collider, MuJoCo C's (its default since 0.4.2; Warp's own GJK/EPA
+    made rare phantom contacts a box's thickness deep on a GPU, docs/engine.md).
+    At every state of the IMPACT start where MuJoCo C finds robots touching,
+    the backend's model finds the same contacts: per geom pair the same count,
+    each depth within 10 um (float32), and the scene's own model is left as built."""
+    import warp as wp
+    import mujoco_warp as mjw
+    assert warp.box_collider == "analytic"
+    assert warp.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_NATIVECCD
+    assert not scene.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_NATIVECCD
+    lanes = Lanes.from_gait(np.array([C.pair_poses(*IMPACT, A0[0], A0[1])]), GAIT)
+    q = native.step_qpos(lanes, int(round(0.08 / scene.model.opt.timestep)))[0]
+    m, robot = scene.model, scene.layout.geom_robot
+    d = mujoco.MjData(m)
+    want, touching = [], []
+    for i, qi in enumerate(q):
+        d.qpos[:] = qi
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+        pairs = {}
+        for c in d.contact[:d.ncon]:
+            g1, g2 = sorted((int(c.geom1), int(c.geom2)))
+            if robot[g1] >= 0 and robot[g2] >= 0 and robot[g1] != robot[g2]:
+                pairs.setdefault((g1, g2), []).append(float(c.dist))
+        if pairs:
+            touching.append(i)
+            want.append(pairs)
+    assert len(touching) >= 10, "the start must hold robot-robot contacts"
+    nconmax, njmax = mjwarp.buffer_sizes(m)
+    with wp.ScopedDevice("cpu"):
+        mw = mjw.put_model(warp.model)
+        dw = mjw.make_data(warp.model, nworld=len(touching), nconmax=nconmax, njmax=njmax)
+        dw.qpos.assign(q[touching].astype(np.float32))
+        mjw.kinematics(mw, dw)
+        mjw.collision(mw, dw)
+    n = int(dw.nacon.numpy()[0])
+    geom, dist, world = dw.contact.geom.numpy()[:n], dw.contact.dist.numpy()[:n], dw.contact.worldid.numpy()[:n]
+    got = [{} for _ in touching]
+    for (g1, g2), x, w in zip(np.sort(geom, axis=1), dist, world):
+        if robot[g1] >= 0 and robot[g2] >= 0 and robot[g1] != robot[g2]:
+            got[w].setdefault((int(g1), int(g2)), []).append(float(x))
+    for k, (a, b) in enumerate(zip(want, got)):
+        assert a.keys() == b.keys(), (touching[k], a, b)
+        for pair in a:
+            assert len(a[pair]) == len(b[pair]), (touching[k], pair, a[pair], b[pair])
+            assert np.allclose(sorted(a[pair]), sorted(b[pair]), atol=1e-5), (touching[k], pair, a[pair], b[pair])
+
+
+def test_warp_backend_refuses_an_unknown_box_collider(scene):
+    """A box collider the backend does not know is a one-line ValueError naming the choices, raised
+    before MuJoCo Warp is imported."""
+    with pytest.raises(ValueError, match="analytic, convex"):
+        mjwarp.WarpBackend(scene, box_collider="gjk")

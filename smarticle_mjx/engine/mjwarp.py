@@ -124,6 +124,9 @@ def _kernels():
 # constraint solvers MuJoCo Warp implements (no PGS)
 WARP_SOLVERS = ("Newton", "CG")
 
+# how MuJoCo Warp collides box pairs (WarpBackend's box_collider)
+BOX_COLLIDERS = ("analytic", "convex")
+
 @dataclasses.dataclass
 class _Batch:
     """Device buffers of one batch size (MuJoCo Warp data, records, control table)."""
@@ -150,14 +153,23 @@ class WarpBackend(BackendBase):
         invariant reductions), so a lane's result does not depend on the rest
         of its batch; it costs some speed (measured in benchmarks/engine.py).
       graph: capture each step as a CUDA graph (ignored on the CPU).
+      box_collider: "analytic" (default): box pairs through MuJoCo Warp's port
+        of the analytic box-box collider, the one MuJoCo C uses (set with
+        MuJoCo's NATIVECCD disable flag on the backend's copy of the model);
+        "convex": MuJoCo Warp's own default for box pairs, GJK/EPA, which on a
+        GPU reports rare phantom contacts a box's thickness deep (3.2 mm for
+        an arm plate; docs/engine.md) and so flags about 3 % of a paper scan's
+        lanes. Kept to reproduce stores made before version 0.4.2.
     """
 
     name = "warp"
     batching = "pow2"  # see engine.core.BATCHING
 
     def __init__(self, scene: Scene, device: str | None = None, penetration_limit: float = 0.002,
-                 deterministic: bool = False, graph: bool = True):
+                 deterministic: bool = False, graph: bool = True, box_collider: str = "analytic"):
         check_solver(scene, "warp", WARP_SOLVERS)
+        if box_collider not in BOX_COLLIDERS:
+            raise ValueError(f"box_collider must be one of {', '.join(BOX_COLLIDERS)}, got {box_collider!r}")
         refuse_mounts(scene.params, "warp")
         if not available():
             raise ValueError(MISSING)
@@ -172,6 +184,11 @@ class WarpBackend(BackendBase):
             # a lane that skips sub-steps saves nothing; every step is split (the gate always open)
             self.model = copy.deepcopy(scene.model)
             self.model.opt.timestep = scene.params.sub_timestep
+        self.box_collider = box_collider
+        if box_collider == "analytic":
+            if self.model is scene.model:
+                self.model = copy.deepcopy(scene.model)
+            self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD  # read by MuJoCo Warp only
         self.device = wp.get_device(device if device is not None else
                                     ("cuda:0" if wp.is_cuda_available() else "cpu"))
         self.penetration_limit = penetration_limit
