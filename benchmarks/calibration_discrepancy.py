@@ -16,7 +16,9 @@ variance, so a systematic offset (a lag law unlike the generator's) counts as mi
 fewer than MIN_CASES cases (or none) takes the pooled estimate over every case of every effect in the
 table. The plate tilt is left out: its interval already carries the slide mismatch it is measured
 with (calibrate/drift.py). The rule and MIN_CASES were written before the estimate was computed, from
-the seeds listed; it is scored on suite seeds that were not among them.
+the seeds listed; it is scored on suite seeds that were not among them. Estimated first from seeds
+2026-2029 (version 0.4.0), then again by the same rule from every main-run seed scored by November 2026
+(SEEDS; docs/calibration.md says the plan was written before the estimate was computed).
 
     python benchmarks/calibration_discrepancy.py     # prints the table, writes results/calibration_discrepancy.json
 
@@ -34,7 +36,11 @@ from smarticle_mjx.calibrate.effects import LIBRARY
 
 ROOT = pathlib.Path(__file__).resolve().parent
 RESULTS = ROOT / "results"
-SEEDS = (2026, 2027, 2028, 2029)  # the stress-suite seeds run before the term existed
+# every main-run stress-suite seed scored before the estimate was made again (November 2026, after
+# version 0.4.1); the first estimate (version 0.4.0) took 2026-2029, the seeds run before the term existed
+SEEDS = (2026, 2027, 2028, 2029, 2030, 2031, 2040, 2041, 2042, 2043, 2045, 2046, 2047, 2048, 2049, 2050, 2051,
+         2058, 2059)
+FIRST_SEEDS = (2026, 2027, 2028, 2029)
 MIN_CASES = 5
 LEFT_OUT = ("plate_tilt",)  # carries its own mismatch (calibrate/drift.py)
 # every effect of the library whose size the term covers, added or not on these seeds
@@ -51,7 +57,9 @@ def cases(rows: list[dict]) -> dict:
                 continue
             for k, v in vals.items():
                 t = truth[e].get(k)
-                lo, hi = r["intervals"][e][k]
+                # the statistical interval: rows stored since the term existed keep it apart from the
+                # reported one (which carries the term); before, the reported one was the statistical one
+                lo, hi = r.get("intervals_statistical", r["intervals"])[e][k]
                 if t is None or not v or v * t <= 0 or not (math.isfinite(lo) and math.isfinite(hi)):
                     continue
                 out.setdefault((e, k), []).append((math.log(v / t), (hi - lo) / (2 * 1.96 * abs(v))))

@@ -102,7 +102,7 @@ def test_a_reported_effect_carries_both_intervals():
     got = added_entry(e, {"dead_time_s": 0.025}, {"dead_time_s": (0.023, 0.027)})
     lo, hi = got["interval"]["dead_time_s"]
     assert got["interval_statistical"]["dead_time_s"] == [0.023, 0.027]
-    assert lo < 0.023 and hi > 0.027 and got["mismatch_log_sd"] == {"dead_time_s": 0.4}
+    assert lo < 0.023 and hi > 0.027 and got["mismatch_log_sd"] == {"dead_time_s": D.MISMATCH_LOG_SD["servo_dead_time"]["dead_time_s"][0]}
     # the drift stage's tilt already carries its mismatch: reported as given, its statistical one beside it
     t = BY_NAME["plate_tilt"]
     iv, st = {"tilt_x_deg": (0.1, 3.0), "tilt_y_deg": (-1.0, 1.0)}, {"tilt_x_deg": (0.8, 1.2), "tilt_y_deg": (-0.2, 0.2)}
