@@ -41,6 +41,14 @@ RESULTS = ROOT / "results"
 SEEDS = (2026, 2027, 2028, 2029, 2030, 2031, 2040, 2041, 2042, 2043, 2045, 2046, 2047, 2048, 2049, 2050, 2051,
          2058, 2059)
 FIRST_SEEDS = (2026, 2027, 2028, 2029)
+# the table as first estimated from FIRST_SEEDS (version 0.4.0), kept to score the two on new seeds
+FIRST_TABLE = {
+    "servo_response": {"servo_scale": 0.398}, "friction_scale": {"friction_scale": 0.398},
+    "servo_lag": {"extra_lag_s": 0.364}, "servo_dead_time": {"dead_time_s": 0.400},
+    "phase_offset": {"phase_offset": 0.232}, "anisotropic_friction": {"friction_y_ratio": 0.398},
+    "arm_plate_contact": {"arm_plate_mu": 0.398},
+    "tracking_noise": {"noise_xy_mm": 0.0, "noise_theta_deg": 0.0},
+}
 MIN_CASES = 5
 LEFT_OUT = ("plate_tilt",)  # carries its own mismatch (calibrate/drift.py)
 # every effect of the library whose size the term covers, added or not on these seeds
@@ -88,13 +96,62 @@ def estimate(rows: list[dict]) -> dict:
 
 
 def load_rows(seeds=SEEDS) -> list[dict]:
+    """Every row of the seeds' stored summaries (results/calibration_stress_<seed>.json)."""
     rows = []
     for s in seeds:
         rows += json.loads((RESULTS / f"calibration_stress_{s}.json").read_text())["rows"]
     return rows
 
 
+def coverage(rows: list[dict], tables: dict) -> dict:
+    """Per effect of the term, over the rows' hidden and added cases: how many, and how many of them each
+    table's widened interval (the stored statistical interval widened by that table's spread) holds the
+    truth in every parameter. ``tables``: {name: {effect: {param: log_sd}}}."""
+    from smarticle_mjx.calibrate.discrepancy import widen
+    out: dict = {}
+    for r in rows:
+        truth = r["set"]["truth"]
+        stat = r.get("intervals_statistical", r["intervals"])
+        for e, vals in r["fitted"].items():
+            if e in LEFT_OUT or e not in truth or e not in EFFECTS:
+                continue
+            row = out.setdefault(e, {"cases": 0, **{name: 0 for name in tables}})
+            row["cases"] += 1
+            for name, table in tables.items():
+                row[name] += all(widen(v, tuple(stat[e][k]), table[e][k])[0] <= truth[e][k]
+                                 <= widen(v, tuple(stat[e][k]), table[e][k])[1]
+                                 for k, v in vals.items() if k in truth[e])
+    return out
+
+
+def score(seeds: list[int]) -> dict:
+    """The frozen table against the first one on seeds' stored rows (neither estimated from them)."""
+    from smarticle_mjx.calibrate.discrepancy import MISMATCH_LOG_SD
+    now = {e: {k: v[0] for k, v in ps.items()} for e, ps in MISMATCH_LOG_SD.items()}
+    got = coverage(load_rows(seeds), {"first_table": FIRST_TABLE, "frozen_table": now})
+    total = {k: sum(r[k] for r in got.values()) for k in ("cases", "first_table", "frozen_table")}
+    print(f"interval coverage of hidden and added effects on seeds {', '.join(map(str, seeds))}")
+    print(f"{'effect':>22} {'cases':>5} {'first table':>11} {'frozen table':>12}")
+    for e, r in {**got, "all": total}.items():
+        print(f"{e:>22} {r['cases']:>5} {r['first_table']:>11} {r['frozen_table']:>12}")
+    return {"seeds": seeds, "by_effect": got, "all": total}
+
+
 def main():
+    import argparse
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--score", default=None, metavar="SEEDS",
+                    help="estimate nothing: the frozen table against the first on these seeds' stored rows "
+                         "(comma-separated), written to results/calibration_discrepancy_score_<seeds>.json")
+    args = ap.parse_args()
+    if args.score:
+        seeds = [int(x) for x in args.score.split(",")]
+        if set(seeds) & set(SEEDS):
+            raise SystemExit(f"seeds {sorted(set(seeds) & set(SEEDS))} are ones the table was estimated from")
+        out = RESULTS / f"calibration_discrepancy_score_{'-'.join(map(str, seeds))}.json"
+        out.write_text(json.dumps(score(seeds), indent=2) + "\n")
+        print(f"wrote {out}")
+        return
     table = estimate(load_rows())
     print(f"model-mismatch term from stress-suite seeds {', '.join(map(str, SEEDS))} (min {MIN_CASES} cases, "
           "else pooled)")

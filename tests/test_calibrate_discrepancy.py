@@ -141,3 +141,18 @@ def test_the_report_says_whether_the_robots_own_curves_show_a_phase_offset():
     assert none["absent"] and "not fitted" in "\n".join(offset_markdown(none))
     assert offset_markdown(OffsetTest("arms", 0.1, float("nan"), 1, float("inf")).as_dict()) == []
     assert offset_markdown(None) == []
+
+
+def test_coverage_reads_each_table_on_the_stored_statistical_intervals():
+    """calibration_discrepancy.coverage widens a row's statistical interval by each table's spread: a
+    noise sized at 0.94x with a +-2 % statistical interval is missed with no term and held with a spread
+    of 0.041 (1.96 x 0.041 = 8 % in ln units); rows that keep the statistical interval apart are read from
+    it, not from the reported one."""
+    true, v = 1.0, 0.94
+    row = {"set": {"truth": {"tracking_noise": {"noise_theta_deg": true}}},
+           "fitted": {"tracking_noise": {"noise_theta_deg": v}},
+           "intervals": {"tracking_noise": {"noise_theta_deg": [0.5, 2.0]}},  # reported: wide, not read
+           "intervals_statistical": {"tracking_noise": {"noise_theta_deg": [v * 0.98, v * 1.02]}}}
+    got = CD.coverage([row], {"none": {"tracking_noise": {"noise_theta_deg": 0.0}},
+                              "some": {"tracking_noise": {"noise_theta_deg": 0.041}}})
+    assert got == {"tracking_noise": {"cases": 1, "none": 0, "some": 1}}
