@@ -15,10 +15,11 @@
 #                                         # (the one of 27 November 2026, its flagged lanes and 108 controls: results/warp_scan_h200_flagged_lanes.json)
 #   bash benchmarks/gpu_lease.sh flags2   # (after install and the second wheel half; STORE=... or that
 #                                         # store) its flagged lanes and as many controls, box pairs through
-#                                         # the analytic collider (MuJoCo C's); a call of its own (not yet run)
+#                                         # the analytic collider (MuJoCo C's); a call of its own (run 28 November
+#                                         # 2026: none flagged, results/warp_flags_analytic_box_h200.json)
 #   bash benchmarks/gpu_lease.sh flags2convex  # the same lanes again through GJK/EPA (run 27 November 2026:
 #                                         # results/warp_flags_convex_again_h200.json)
-#   bash benchmarks/gpu_lease.sh flags3   # the same in deterministic mode, and at half the step (not yet run)
+#   bash benchmarks/gpu_lease.sh flags3   # GJK/EPA in deterministic mode, and at half the step (not yet run)
 #
 # Since 0.4.2 the warp backend collides box pairs analytically, as MuJoCo C does (the flags above were
 # GJK/EPA's phantoms). The paper scan at the default, its store kept, after `install`:
@@ -107,15 +108,15 @@ flags2)
 flags2convex)
   finish_warp
   S=${STORE:-benchmarks/results/warp_scan_h200_flagged_lanes.json}
-  timeout "${FLAG_LIMIT:-540}" python3 benchmarks/warp_flags.py --store $S --backend warp --controls 108 \
-    --batch-size 256 --out "$R/warp_flags_convex_again.json" || true
+  timeout "${FLAG_LIMIT:-540}" python3 benchmarks/warp_flags.py --store $S --backend warp --box-collider convex \
+    --controls 108 --batch-size 256 --out "$R/warp_flags_convex_again.json" || true
   ;;
 flags3)
   finish_warp
   S=${STORE:-benchmarks/results/warp_scan_h200_flagged_lanes.json}
-  timeout "${RERUN_LIMIT:-150}" python3 benchmarks/warp_flags.py --store $S --backend warp --deterministic \
+  timeout "${RERUN_LIMIT:-150}" python3 benchmarks/warp_flags.py --store $S --backend warp --box-collider convex --deterministic \
     --out "$R/warp_flags_deterministic.json" || true
-  timeout "${RERUN_LIMIT:-150}" python3 benchmarks/warp_flags.py --store $S --backend warp --timestep 0.000125 \
+  timeout "${RERUN_LIMIT:-150}" python3 benchmarks/warp_flags.py --store $S --backend warp --box-collider convex --timestep 0.000125 \
     --out "$R/warp_flags_half_step.json" || true
   ;;
 1)
