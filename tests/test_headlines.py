@@ -126,7 +126,23 @@ def _twin() -> list[tuple[str, str]]:
     return out
 
 
-HEADLINES = {"twin": _twin, "full scan": _full_scan, "early exit": _early_exit, "claims": _claims,
+def _warp_box_pairs() -> list[tuple[str, str]]:
+    """The paper scan on Warp with analytic box pairs (0.4.2) beside MuJoCo C's at the same step, and the
+    rerun of the lanes GJK/EPA had flagged."""
+    gpu, cpu = _json("full_scan_gpu_analytic_h200.json"), _json("full_scan_75_0.25ms.json")
+    rerun = _json("warp_flags_analytic_box_h200.json")
+    bound = f"{100 * gpu['bound_end_fraction']:.2f} %"
+    return [("README.md", f"flagged {'none' if gpu['nonfinite_or_penetration_lanes'] == 0 else 'some'} and left "
+                          f"{bound[:-2]} % of its {gpu['valid']} valid lanes bound at the end, against MuJoCo C's "
+                          f"{100 * cpu['bound_end_fraction']:.2f} %"),
+            ("docs/engine.md", f"| {gpu['valid']} | **{gpu['nonfinite_or_penetration_lanes']}** | **{bound}** | "
+                               f"{gpu['wall_s']:.0f} s |"),
+            ("docs/engine.md", f"none flagged**, in {rerun['lane_periods']:,} lane-periods"),
+            ("docs/engine.md", f"{rerun['deepest_mm_rerun_of_flagged']['min']:.2f}–"
+                               f"{rerun['deepest_mm_rerun_of_flagged']['max']:.2f} mm in the flagged lanes")]
+
+
+HEADLINES = {"twin": _twin, "warp box pairs": _warp_box_pairs, "full scan": _full_scan, "early exit": _early_exit, "claims": _claims,
              "relaxation and lone robot": _relax_and_lone, "glider step": _glider_step, "engine": _engine,
              "backend agreement": _agreement}
 
