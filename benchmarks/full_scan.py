@@ -55,10 +55,9 @@ def main():
                peak_rss_mib=rss, store_mib=size / 2 ** 20, cpu_s=cpu, cpu_per_wall=cpu / wall,
                backend_s=s.backend_s, tail=_tail(timeline, args.n, args.batch_size, wall),
                **outcome)
-    if args.backend == "warp":  # how Warp collided box pairs: its backend's default (analytic since 0.4.2)
-        import inspect
-        from smarticle_mjx.engine.mjwarp import WarpBackend
-        out["warp_box_collider"] = inspect.signature(WarpBackend).parameters["box_collider"].default
+    if args.backend == "warp":  # how Warp collided box pairs: its backend's default
+        from smarticle_mjx.engine.mjwarp import BOX_COLLIDER
+        out["warp_box_collider"] = BOX_COLLIDER
     print(f"{args.n} configurations ({run.valid} valid) x {args.periods} periods, {args.backend}: "
           f"{wall:.0f} s wall, {s.steps:,} steps ({s.steps_per_s:,.0f}/s), peak RSS {rss:.0f} MiB, "
           f"store {size / 2 ** 20:.1f} MiB, bound at end {run.bound_end_fraction:.1%}, "

@@ -35,6 +35,7 @@ from full_scan import _device  # what ran the engine, as the paper scan's JSON n
 from smarticle_mjx import __version__
 from smarticle_mjx.engine import Lanes, Scene, make_backend
 from smarticle_mjx.engine.batch import RetireRule, run_lanes
+from smarticle_mjx.engine.mjwarp import BOX_COLLIDER, BOX_COLLIDERS
 from smarticle_mjx.scan import RunInputs
 from smarticle_mjx.scene import params_from_json
 from smarticle_mjx.specs import config_from_json
@@ -61,7 +62,7 @@ def main():
     ap.add_argument("--backend", default="native", help="native | warp | mjx")
     ap.add_argument("--deterministic", action="store_true", help="MuJoCo Warp's deterministic mode")
     ap.add_argument("--timestep", type=float, default=None, help="another step (s) for the rerun")
-    ap.add_argument("--box-collider", choices=("analytic", "convex"), default=None,
+    ap.add_argument("--box-collider", choices=BOX_COLLIDERS, default=None,
                     help="Warp's box pairs: 'analytic' (the box-box collider MuJoCo C uses; the warp backend's "
                          "default since 0.4.2) or 'convex' (MuJoCo Warp's own GJK/EPA, the default before); "
                          "default: the backend's")
@@ -130,9 +131,7 @@ def main():
     if args.analytic_box:
         args.box_collider = "analytic"
     if args.backend == "warp":
-        import inspect
-        from smarticle_mjx.engine.mjwarp import WarpBackend
-        args.box_collider = args.box_collider or inspect.signature(WarpBackend).parameters["box_collider"].default
+        args.box_collider = args.box_collider or BOX_COLLIDER
         options["box_collider"] = args.box_collider
     elif args.box_collider:
         raise SystemExit("--box-collider applies to the warp backend only")

@@ -126,6 +126,7 @@ WARP_SOLVERS = ("Newton", "CG")
 
 # how MuJoCo Warp collides box pairs (WarpBackend's box_collider)
 BOX_COLLIDERS = ("analytic", "convex")
+BOX_COLLIDER = "analytic"  # the default (since 0.4.2; "convex" before), which benchmarks record
 
 @dataclasses.dataclass
 class _Batch:
@@ -166,7 +167,7 @@ class WarpBackend(BackendBase):
     batching = "pow2"  # see engine.core.BATCHING
 
     def __init__(self, scene: Scene, device: str | None = None, penetration_limit: float = 0.002,
-                 deterministic: bool = False, graph: bool = True, box_collider: str = "analytic"):
+                 deterministic: bool = False, graph: bool = True, box_collider: str = BOX_COLLIDER):
         check_solver(scene, "warp", WARP_SOLVERS)
         if box_collider not in BOX_COLLIDERS:
             raise ValueError(f"box_collider must be one of {', '.join(BOX_COLLIDERS)}, got {box_collider!r}")
