@@ -56,6 +56,7 @@ def main():
             out["mjx_device"] = str(jax.devices()[0].device_kind)
         if name == "warp":
             out["warp_device"] = str(be.device.name) if hasattr(be.device, "name") else str(be.device)
+            out["warp_box_collider"] = be.box_collider
         t = time.perf_counter()
         _, rec, _ = be.advance(be.initial_state(lanes), lanes, args.periods)
         out[f"{name}_wall_s"] = time.perf_counter() - t

@@ -111,6 +111,7 @@ def warp_rows(scene, params, gait, args, cpu_ref, out):
         be = WarpBackend(scene, deterministic=det)
         out["warp_device"] = str(getattr(be.device, "name", be.device))
         out["warp_buffers"] = dict(nconmax=be.nconmax, njmax=be.njmax)
+        out["warp_box_collider"] = be.box_collider
         for b in (int(x) for x in args.warp_batches.split(",")):
             lanes = sample_lanes(b, params, gait)
             t = time.perf_counter()

@@ -25,6 +25,8 @@
 # GJK/EPA's phantoms). The paper scan at the default, its store kept, after `install`:
 #
 #   bash benchmarks/gpu_lease.sh scan     # (28 November 2026: results/full_scan_gpu_analytic_h200.json)
+#   bash benchmarks/gpu_lease.sh analytic # Warp's throughput curve and its labels against native's (600 x 20;
+#                                         # 28 November 2026: results/*_analytic_h200.json)
 #
 # Here, on a machine with pip, once: the two carried folders (about 51 and 54 MB; the repository itself
 # travels beside each, so each call stays under the 64 MiB a call may carry):
@@ -83,6 +85,15 @@ scan)
   timeout "${SCAN_LIMIT:-380}" python3 benchmarks/full_scan.py --backend warp --batch-size 8192 \
     --n 5000 --periods 75 --store /tmp/keep/scan.h5 --out "$R/full_scan_gpu_analytic.json" || true
   cp /tmp/keep/scan.h5 "$R/warp_scan_analytic.h5" || true
+  ;;
+analytic)
+  # after install: Warp's throughput curve and its label agreement with the native backend with 0.4.2's
+  # analytic box pairs (both were measured with GJK/EPA before)
+  finish_warp
+  python3 benchmarks/engine.py --backends warp --model lab-lag --warp-batches 1024,4096,16384 \
+    --warp-steps 2000 --out "$R/engine_gpu_warp_analytic.json"
+  timeout "${AGREE_LIMIT:-330}" python3 benchmarks/backend_agreement.py --backends native,warp --model lab-lag \
+    --configs ${AGREE_CONFIGS:-600} --periods 20 --out "$R/backend_agreement_gpu_analytic.json" || true
   ;;
 install)
   install_wheels

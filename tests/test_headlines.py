@@ -93,7 +93,7 @@ def _engine() -> list[tuple[str, str]]:
 
 
 def _agreement() -> list[tuple[str, str]]:
-    mjx, warp = _json("backend_agreement.json"), _json("backend_agreement_gpu.json")
+    mjx, warp = _json("backend_agreement.json"), _json("backend_agreement_gpu_analytic_h200.json")
     # the label check of the default numerics (SceneParams' own step: the README quotes the default's)
     labels = _json("timestep_candidates.json")[f"labels:implicitfast-{SceneParams.timestep * 1e3:g}ms"]
     return [("README.md", f"MJX and native agree on {100 * mjx['agree_bound_end']:.1f} % of bound/unbound labels "
