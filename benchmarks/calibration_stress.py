@@ -208,14 +208,16 @@ def source_hash() -> str:
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
 
-def run_set(s: dict, plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES) -> dict:
+def run_set(s: dict, plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES, overrides: tuple = ()) -> dict:
+    """One set calibrated as ``smx calibrate`` would (``overrides``: its ``--set`` changes to the model, for
+    the set and its clean twin alike), scored."""
     from smarticle_mjx import __version__
     from smarticle_mjx.calibrate.data import load
     from smarticle_mjx.calibrate.stages import calibrate
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         write_set(s, tmp)
-        trials = load(tmp)
+        trials = load(tmp, None, overrides)
         t = time.perf_counter()
         res = calibrate(trials, on_step=lambda m: print(f"    [{time.perf_counter() - t:5.0f} s] {m}", flush=True),
                         plate_hypotheses=plate_hypotheses).summary
@@ -224,13 +226,14 @@ def run_set(s: dict, plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES) -> di
     if s["hidden"]:
         with tempfile.TemporaryDirectory() as tmp:
             write_set(s, tmp, effects=False)
-            twin = calibrate(load(tmp), structural=False).summary["after"]["err_heldout"]
+            twin = calibrate(load(tmp, None, overrides), structural=False).summary["after"]["err_heldout"]
     return {"set": s, "score": score(s, res, twin), "wall_s": wall, "total_s": time.perf_counter() - t0,
             "model_runs": res["model_runs"], "plate_hypotheses": res.get("plate_hypotheses"), "fitted": {a["effect"]: a["values"] for a in res["added"]},
             "intervals": {a["effect"]: a["interval"] for a in res["added"]},
             "intervals_statistical": {a["effect"]: a.get("interval_statistical", a["interval"]) for a in res["added"]},
             "nominal_findings": res["nominal_findings"], "plate_level": res.get("plate_level"),
-            "version": __version__, "source": source_hash()}
+            "version": __version__, "source": source_hash(),
+            **({"overrides": dict(overrides)} if overrides else {})}
 
 
 def _rate(xs) -> dict:
@@ -321,7 +324,17 @@ def main():
     ap.add_argument("--no-plate-level-gate", action="store_true",
                     help="try the anisotropic plate whatever the plate-frame drift shows (the rule before the gate; "
                          "for a counterfactual run, with --tag)")
+    ap.add_argument("--set", dest="set_", action="append", default=[], metavar="FIELD=VALUE",
+                    help="change the library's model as smx calibrate --set does (for the set and its clean twin; "
+                         "needs --tag, so that the results stay apart)")
     args = ap.parse_args()
+    from smarticle_mjx import presets
+    try:
+        overrides = presets.overrides(args.set_)
+    except ValueError as e:
+        ap.error(str(e))
+    if overrides and not args.tag:
+        ap.error("--set needs --tag: results made with a changed model are kept apart")
     if args.no_plate_level_gate:
         from smarticle_mjx.calibrate import stages
         stages.P_LEVEL = math.inf  # no p reaches it: plate_skip_reason never withholds the plate
@@ -349,7 +362,7 @@ def main():
             break
         print(f"set {i}: hidden {s['hidden']} outside {s['outside']} amplitudes {s['amplitudes']} "
               f"{s['frame_rate_hz']:g} Hz arms {s['arms_tracked']}", flush=True)
-        r = run_set(s, plates)
+        r = run_set(s, plates, overrides)
         tmp = path.with_suffix(".tmp")
         tmp.write_text(json.dumps(r, indent=1, default=float))
         tmp.replace(path)

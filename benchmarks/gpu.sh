@@ -6,7 +6,7 @@
 #   bash benchmarks/gpu.sh tests      # one stage: tests | throughput | mjx | mjxwarp | agreement | agreement-mjx | scan
 #
 # The Warp stages have run on one H100 and one H200 (at 0.25 ms: the scan stage
-# took about 5 minutes); of the MJX stages only the throughput (mjx) has been
+# took about 5 minutes); of the MJX stages the throughput (mjx) and MJX's Warp path (mjxwarp) have been
 # timed on a GPU (an H200, through benchmarks/gpu_lease.sh, which carries the
 # wheels to a machine without a package index). Run one stage per call where the
 # machine is lent for a limited time. The default model (lab-lag) is measured.

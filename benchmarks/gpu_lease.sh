@@ -25,6 +25,7 @@
 # GJK/EPA's phantoms). The paper scan at the default, its store kept, after `install`:
 #
 #   bash benchmarks/gpu_lease.sh scan     # (28 November 2026: results/full_scan_gpu_analytic_h200.json)
+#   bash benchmarks/gpu_lease.sh mjxwarp  # MJX's impl='warp' against the direct call (4096 and 16384 worlds)
 #   bash benchmarks/gpu_lease.sh analytic # Warp's throughput curve and its labels against native's (600 x 20;
 #                                         # 28 November 2026: results/*_analytic_h200.json)
 #
@@ -94,6 +95,12 @@ analytic)
     --warp-steps 2000 --out "$R/engine_gpu_warp_analytic.json"
   timeout "${AGREE_LIMIT:-330}" python3 benchmarks/backend_agreement.py --backends native,warp --model lab-lag \
     --configs ${AGREE_CONFIGS:-600} --periods 20 --out "$R/backend_agreement_gpu_analytic.json" || true
+  ;;
+mjxwarp)
+  # after install: MuJoCo Warp called directly against MJX's impl='warp' (and the copy MJX carries)
+  finish_warp
+  XLA_PYTHON_CLIENT_PREALLOCATE=false timeout "${MJXWARP_LIMIT:-420}" python3 benchmarks/mjx_warp_path.py \
+    --batches ${MJXWARP_BATCHES:-4096,16384} --out "$R/mjx_warp_path_gpu.json" || true
   ;;
 install)
   install_wheels

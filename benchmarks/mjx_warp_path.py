@@ -259,6 +259,8 @@ def main():
             print(f"{b:>6} {path:>9} {first:8.1f} {row['ms_per_step']:8.2f} {row['steps_per_s']:10,.0f} "
                   f"{row['vs_direct']:9.2f}  {note}", flush=True)
         out["rows"][-1]["max_abs_dqpos_mjx_vs_direct"] = float(np.max(np.abs(res["mjx"][2] - res["direct"][2])))
+        pathlib.Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        pathlib.Path(args.out).write_text(json.dumps(out, indent=2))  # each batch as it ends (a lease may end first)
     # where the vendored copy's time goes: its pipeline stages against the installed release's, largest batch
     out["stages_ms"] = {name: stage_times(lib, wp, model, state, cuts, ctrl, nconmax, njmax, device)
                         for name, lib in (("direct", mjw), ("vendored", vendored))}

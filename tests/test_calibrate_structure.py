@@ -893,3 +893,30 @@ def test_no_anisotropic_plate_is_fitted_to_a_clean_set_whose_drift_shows_a_level
     assert "anisotropic_friction" not in res["plate_hypotheses"]
     report.write(cal, trials, tmp_path / "report")
     assert "An anisotropic plate was not tried" in (tmp_path / "report" / "report.md").read_text()
+
+
+def test_the_stress_suite_refuses_a_model_change_without_a_tag_or_with_a_bad_field_and_writes_nothing():
+    """A stress run with a changed model (--set) is kept apart from the suite's own results: without --tag,
+    or with a field the model does not have, it stops in one line before anything is written."""
+    import subprocess
+    import calibration_stress as S
+    script = pathlib.Path(S.__file__)
+    folder = S.RESULTS / "calibration_stress"
+    before = sorted(p.name for p in folder.iterdir())
+    for args, msg in ((["--set", "integrator=discrete"], "--set needs --tag"),
+                      (["--set", "integratr=discrete", "--tag", "x"], "unknown scene field 'integratr'")):
+        r = subprocess.run([sys.executable, str(script), "--suite-seed", "987654", "--sets", "0", *args],
+                           capture_output=True, text=True)
+        assert r.returncode == 2
+        assert msg in r.stderr.strip().splitlines()[-1]
+    assert sorted(p.name for p in folder.iterdir()) == before
+
+
+def test_the_tilt_noise_reading_leaves_out_the_tracking_noise_and_nothing_else():
+    import calibration_stress as S
+    import tilt_noise as T
+    s = next(S.draw_set(2047, i) for i in range(60) if "tracking_noise" in S.draw_set(2047, i)["hidden"])
+    w = T.without_noise(s)
+    assert not set(T.NOISE) & set(w["generator"])
+    assert {k: v for k, v in s["generator"].items() if k not in T.NOISE} == w["generator"]
+    assert {k: v for k, v in s.items() if k != "generator"} == {k: v for k, v in w.items() if k != "generator"}
