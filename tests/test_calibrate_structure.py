@@ -920,3 +920,22 @@ def test_the_tilt_noise_reading_leaves_out_the_tracking_noise_and_nothing_else()
     assert not set(T.NOISE) & set(w["generator"])
     assert {k: v for k, v in s["generator"].items() if k not in T.NOISE} == w["generator"]
     assert {k: v for k, v in s.items() if k != "generator"} == {k: v for k, v in w.items() if k != "generator"}
+
+
+def test_the_calibrations_model_runs_the_discrete_integrator_unless_set_and_synth_makes_data_the_same_way(
+        tmp_path):
+    """The calibration compares lone robots, whose bodies move by each arm move's slip; with the discrete
+    integrator that slip is converged at the preset's step (tests/test_physics.py checks the fact), so the
+    calibration's model runs it unless --set names the integrator, and smx synth makes data with it."""
+    from smarticle_mjx.calibrate.data import NUMERICS, with_numerics
+    from smarticle_mjx.calibrate.synth import synth
+    from smarticle_mjx.scene import SceneParams
+    assert dict(NUMERICS)["integrator"] == "discrete" != SceneParams().integrator
+    path = _file(tmp_path, SIDE)
+    assert load(path)[0].params.integrator == "discrete"
+    assert load(path, overrides=("integrator=implicitfast",))[0].params.integrator == "implicitfast"
+    assert with_numerics((("plate_friction", 0.2),)) == (("integrator", "discrete"), ("plate_friction", 0.2))
+    (csv,) = synth(tmp_path / "s", trials=1, periods=1, amplitudes=(60.0,), seed=1)
+    side = json.loads(csv.with_suffix(".json").read_text())
+    assert "integrator" not in (side.get("overrides") or {})  # the data record the robot, not the numerics
+    assert load(csv)[0].params.integrator == "discrete"

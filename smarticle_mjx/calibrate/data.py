@@ -86,19 +86,36 @@ class Trial:
         return float(self.t[-1] - self.t[0])
 
 
+# The numerics the calibration's model runs with, unless ``--set`` names the field (since version 0.4.3):
+# MuJoCo's discrete integrator at the preset's step. Lone robots are what a calibration compares, and what
+# moves a lone body is the slip of each arm move. With implicitfast that slip carries a term of the step
+# (2.9x its converged value at 0.25 ms, docs/timestep.md "the kick level"); with discrete it is converged at
+# every step (2.94e-5 W per arm move at 0.0625-1 ms). A measured robot has no such term, and nor has the
+# stress suite's independent simulator, whose servo torque is explicit. smx synth makes data with the same.
+NUMERICS = (("integrator", "discrete"),)
+
+
+def with_numerics(overrides=()) -> tuple:
+    """``overrides`` (``--set`` items or (field, value) pairs) after the calibration's ``NUMERICS``, minus
+    any field that ``overrides`` names itself."""
+    from .. import presets
+    given = presets.overrides(overrides)
+    named = {k for k, _ in given}
+    return tuple((k, v) for k, v in NUMERICS if k not in named) + given
+
+
 def load_csv(path, model: str | None = None, overrides=()) -> list[Trial]:
     """All trials of one CSV file with its sidecar, compared with preset
-    ``model`` (default: the sidecar's, else the default preset) changed by ``overrides`` (``--set``;
-    presets.overrides), before the sidecar's measured values."""
+    ``model`` (default: the sidecar's, else the default preset) run with the calibration's ``NUMERICS``
+    and changed by ``overrides`` (``--set``; presets.overrides), before the sidecar's measured values."""
     from .. import presets
     from .nominal import BY_NAME, apply
     out = []
     for r in tracks.read_csv(path, model):
-        if overrides:
-            try:
-                r = dataclasses.replace(r, params=presets.apply(r.params, overrides))
-            except ValueError as e:
-                raise DataError(f"{pathlib.Path(path).name}: {e}") from None
+        try:
+            r = dataclasses.replace(r, params=presets.apply(r.params, with_numerics(overrides)))
+        except ValueError as e:
+            raise DataError(f"{pathlib.Path(path).name}: {e}") from None
         measured = {name: (v, sd) for name, v, sd in r.measured}
         if "arm_length" in measured and "arm2_length" not in measured:  # one ruler value for both arms
             measured["arm2_length"] = measured["arm_length"]

@@ -162,6 +162,8 @@ def markdown(r: dict) -> str:
              f"{an['err_heldout']:.2f}.", "",
              f"{len(r['trials']['train'])} training trials, {len(r['trials']['heldout'])} held out; "
              f"{r['model_runs']} batched model runs"
+             + ("; the model ran " + " and ".join(f"MuJoCo's `{i}` integrator at {1e3 * dt:g} ms"
+                                                  for i, dt in r["numerics"]) if r.get("numerics") else "")
              + ("; model changed by --set " + ", ".join(f"{k}={v}" for k, v in r["overrides"].items())
                 if r.get("overrides") else "") + ".", ""]
     nom = r.get("nominal")

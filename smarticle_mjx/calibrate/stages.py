@@ -784,5 +784,6 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         "plate_level": {"p": drift["p"], "dof": drift["dof"], "threshold_p": P_LEVEL,
                         "anisotropic_plate_tried": aniso_asked and plate_skip is None, "reason": plate_skip},
         "criteria": {"min_heldout_gain": MIN_HELDOUT_GAIN, "unexplained_error": UNEXPLAINED,
-                     "bic": "chi2 drop > k ln n on training trials"}}
+                     "bic": "chi2 drop > k ln n on training trials"},
+        "numerics": sorted({(t.params.integrator, t.params.timestep) for t in trials})}
     return Calibration(summary, final, dict(train.nominal))

@@ -21,7 +21,7 @@ from ..gait import GaitSpec
 from .. import presets
 from ..plots import check_out_dir
 from ..scene import SceneParams
-from .data import Trial
+from .data import Trial, with_numerics
 from .effects import BY_NAME, EffectSet
 from .sim import simulate_trials
 
@@ -74,7 +74,10 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
 
     ``model`` is the preset that makes the data (default: the default
     preset), changed field by field by ``overrides`` (``--set``,
-    presets.overrides); both go into every sidecar.
+    presets.overrides); both go into every sidecar. The model runs with the
+    numerics ``smx calibrate`` runs it with (``data.NUMERICS``, where
+    ``overrides`` does not name the field), so that the data and the
+    calibration's model differ only by what is hidden in the data.
 
     Trials of every amplitude are interleaved in the files' trial ids so
     that a held-out split sees every amplitude.
@@ -85,7 +88,7 @@ def synth(out_dir, robots: int = 1, trials: int = 6, periods: int = 6, amplitude
         noise_xy_mm, noise_theta_deg = noise["noise_xy_mm"], noise["noise_theta_deg"]
     preset = presets.get(model)
     overrides = presets.overrides(overrides)
-    params = presets.apply(preset.params, overrides)
+    params = presets.apply(preset.params, with_numerics(overrides))  # the numerics smx calibrate runs
     if robots < 1 or trials < 1 or periods < 1:
         raise ValueError("robots, trials and periods must be >= 1")
     if not frame_rate_hz > 0 or not 0 <= occlusion < 0.5 or jitter_s < 0 or jitter_s * frame_rate_hz >= 0.5:
