@@ -15,7 +15,7 @@ from smarticle_mjx.calibrate import independent as I
 from smarticle_mjx.calibrate.data import DataError, load, priors
 from smarticle_mjx.calibrate.fit import nominal_findings
 from smarticle_mjx.calibrate.nominal import NOMINAL, fit_nominal
-from smarticle_mjx.calibrate.observables import DELAY_MIN_MS, delay_test, observables
+from smarticle_mjx.calibrate.observables import DELAY_MIN_MS, DelayTest, delay_test, observables
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
 
@@ -271,6 +271,28 @@ def test_a_servos_timing_is_no_hypothesis_without_arm_tracks_and_none_where_the_
     assert servo_skip_reason(body_only, none_found) == NO_ARMS
     assert servo_skip_reason(tracked, undecided) is None
     assert "no constant excess" in servo_skip_reason(tracked, none_found)
+
+
+def test_a_servo_timing_fitted_wholly_below_the_delay_floor_is_refused_whatever_it_gains():
+    """The delay test calls a constant excess whose upper bound is below DELAY_MIN_MS no constant delay (two
+    servo laws differ by a few ms); a fitted lag or dead time is held to the same floor: with the same large
+    BIC and held-out gains, a 1.8 ms dead time whose interval ends at 3.4 ms is refused, one that reaches
+    8 ms, or any other effect, is judged by the usual rule."""
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.stages import judged
+    nan = float("nan")
+    undecided = DelayTest((), (), (), nan, nan, nan, nan, False, False)
+    gains = (1000.0, 900.0, 400, 4.0, 2.7, undecided)  # chi2 before/after, n, held-out before/after
+    small = {"dead_time_s": (0.0002, 0.0034)}
+    j, rule = judged(BY_NAME["servo_dead_time"], small, *gains)
+    assert j.present and j.bic_gain > 0 and j.heldout_gain > 0.3 and not j.accepted and "floor" in rule
+    j, rule = judged(BY_NAME["servo_dead_time"], {"dead_time_s": (0.0024, 0.0079)}, *gains)
+    assert j.accepted and rule == "held-out gain"
+    j, _ = judged(BY_NAME["servo_lag"], {"extra_lag_s": (0.0002, 0.0034)}, *gains)
+    assert not j.accepted
+    j, _ = judged(BY_NAME["phase_offset"], {"phase_offset": (0.0002, 0.0034)}, *gains)
+    assert j.accepted  # not a timing in seconds: no floor
+    assert DELAY_MIN_MS > 3.4
 
 
 def test_the_noise_estimator_reads_white_noise_and_not_smooth_motion():

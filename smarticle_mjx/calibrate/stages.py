@@ -26,7 +26,7 @@ from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN
                   UNEXPLAINED, Fit,
                   Problem, conventions, fit_effects, is_present, nominal_findings, observable_stages, signatures,
                   split, stage_tracks, where_residual)
-from .observables import DelayTest, delay_test, observables, servo_reading
+from .observables import DELAY_MIN_MS, DelayTest, delay_test, observables, servo_reading
 from .nominal import BY_NAME as NOMINAL_BY_NAME, apply as apply_nominal, fit_nominal
 from .armdrag import DragTest, drag_test
 from .phase import OffsetTest, estimate_offset, offset_test
@@ -57,11 +57,28 @@ def judged(effect: Effect, interval: dict, chi2_before: float, chi2_after: float
            err_after: float, dtest: DelayTest) -> tuple[Judgement, str]:
     """:func:`judge` for a joint hypothesis of the nominal stage, and the rule that decided: where the delay
     test has shown a constant delay, a servo hypothesis is not asked for ``MIN_HELDOUT_GAIN`` over a nominal
-    fit that has bent the servo to mimic it, only not to lose held out."""
+    fit that has bent the servo to mimic it, only not to lose held out.
+
+    A servo timing whose whole 95 % interval lies below ``observables.DELAY_MIN_MS`` is refused whatever
+    it gains (added after version 0.4.3): the delay test calls a constant excess whose upper bound is below
+    that floor no constant delay, since two servo laws' delays differ by a few ms, and a fitted lag or dead
+    time is held to the same floor (fresh seed 2061, set 0: a clean robot's 1.8 ms dead time, statistical
+    interval 0.2-3.4 ms, added for a 26 % held-out gain)."""
     j = judge(effect, interval, chi2_before, chi2_after, n, err_before, err_after)
+    if effect.name in SERVO_HYPOTHESES and below_delay_floor(effect, interval):
+        return dataclasses.replace(j, accepted=False), BELOW_FLOOR
     if effect.name in SERVO_HYPOTHESES and dtest.constant_delay:
         return dataclasses.replace(j, accepted=j.bic_gain > 0 and j.present and j.heldout_gain >= 0), "delay test"
     return j, "held-out gain"
+
+
+BELOW_FLOOR = "below the delay floor"
+
+
+def below_delay_floor(effect: Effect, interval: dict) -> bool:
+    """Every timing parameter's 95 % interval (s) ends below ``DELAY_MIN_MS``."""
+    ends = [interval[p.name][1] for p in effect.params]
+    return all(np.isfinite(e) and e * 1e3 < DELAY_MIN_MS for e in ends)
 
 
 def scores(train: Problem, test: Problem, fe, names=()) -> tuple[dict, EffectSet, float, float]:
@@ -218,12 +235,17 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             tasks.append((name, None, {**nom0, "plate_friction": start["plate_friction"]}, None))
             continue
         tasks.append((name, e, {k: v for k, v in nom0.items() if k not in SERVO_NOMINAL}, e_start))
+        if name in SERVO_HYPOTHESES and not any(t[0] == SERVO_NULL for t in tasks):
+            # and the null the same chance (added after version 0.4.3): the nominal parameters alone, their
+            # servo restarted at the preset (fresh seed 2061, set 0: a clean robot's restart from the preset
+            # servo ended lower than the nominal fit, and a 1.8 ms dead time was added for the restart's gain)
+            tasks.append((SERVO_NULL, None, {k: v for k, v in nom0.items() if k not in SERVO_NOMINAL}, None))
     # every joint fit at once, one thread each (each fit's own runs then go one after another)
     fits = pmap(lambda t: fit_nominal(train, effect=t[1], start=t[2], max_nfev=HYPOTHESIS_NFEV, effect_start=t[3]),
                 tasks)
     done, nulls = {}, {}
     for (name, e, _, _), fe in zip(tasks, fits):
-        if e is None:  # the null's restart beside a plate hypothesis
+        if e is None:  # the null's restart beside a plate hypothesis, or the servo's from the preset
             nulls[name] = fe
             continue
         done.setdefault(name, (e, []))[1].append(fe)
@@ -239,12 +261,15 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         nom_e, _, chi2_e, err_e = scores(train, test, fe, (name,))
         interval = {p.name: fe.interval[p.name] for p in e.params}
         base_chi2, base_err = chi2_0, err0
-        if name in nulls:  # the better of the nominal fit and its restart at the grid's mu is the baseline
-            nom_n, _, chi2_n, err_n = scores(train, test, nulls[name])
+        null_name = SERVO_NULL if name in SERVO_HYPOTHESES else name
+        if null_name in nulls:  # the better of the nominal fit and its restart (at the grid's mu, or from the
+            # preset servo) is the baseline
+            nom_n, _, chi2_n, err_n = scores(train, test, nulls[null_name])
             if chi2_n < chi2_0:
                 base_chi2, base_err = chi2_n, err_n
-                say(f"  nominal parameters restarted at plate_friction {nom_n['plate_friction']:.3g}: held-out "
-                    f"error {base_err:.2f}, the baseline for {name}")
+                where = ("from the preset servo" if null_name == SERVO_NULL
+                         else f"at plate_friction {nom_n['plate_friction']:.3g}")
+                say(f"  nominal parameters restarted {where}: held-out error {base_err:.2f}, the baseline for {name}")
         j, rule = measured_structure(name, otest, *judged(e, fe.interval, base_chi2, chi2_e, n, base_err, err_e,
                                                           dtest), drag=drag)
         hypotheses.append({"effect": name, "tried": True, "values": fe.values[name], "interval": interval,
@@ -252,7 +277,8 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
                            "present": j.present, "accepted": j.accepted, "rule": rule,
                            "baseline_err_heldout": base_err,
                            "evaluations": fe.evaluations})
-        say(f"  nominal + {name}: held-out error {err_e:.2f} ({j.heldout_gain:+.0%}), BIC gain {j.bic_gain:.1f}")
+        say(f"  nominal + {name}: held-out error {err_e:.2f} ({j.heldout_gain:+.0%}), BIC gain {j.bic_gain:.1f}"
+            + (f"; refused: its interval ends below {DELAY_MIN_MS:g} ms" if rule == BELOW_FLOOR else ""))
         if j.accepted:
             passed.append((fe, j.heldout_gain, e, nom_e, interval))
     passed = servo_choice(passed, hypotheses, reading, say)
@@ -278,6 +304,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     return NominalStage(nominal_fit, nom0, alone, hypotheses, dtest, rtest)
 
 
+SERVO_NULL = "servo restarted"  # the key of the nominal fit restarted from the preset servo, without an effect
 MEASURED_OFFSET = "measured on the robots' curves"
 MEASURED_DRAG = "read on the body's turning between kicks"
 
@@ -372,8 +399,9 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
 
     # the null restarts: their departures from the nominal fit kept (a plate's grid mu), the rest at the
     # accepted fit's values
+    # (the servo's null is not: a second servo hypothesis starts from its own first fit, not the preset)
     todo = [(name, None, {k: (st[k] if st[k] != nom0.get(k) else nom_e1[k]) for k in st}, v1)
-            for name, e, st, _ in tasks if e is None and other(name)]
+            for name, e, st, _ in tasks if e is None and name != SERVO_NULL and other(name)]
     for name, fe2 in first.items():
         if other(name):
             for start in (dict(nom_e1), {k: fe2.values[k] for k in fe2.preset}):
@@ -409,7 +437,8 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
                       "accepted": ok, "rule": rule, "baseline_err_heldout": base_err,
                       "evaluations": fe.evaluations})
         say(f"  nominal + {e1.name} + {name}: held-out error {err:.2f} ({j.heldout_gain:+.0%} over "
-            f"{e1.name} alone), BIC gain {j.bic_gain:.1f}" + ("" if first_present else f"; {e1.name} no longer shown"))
+            f"{e1.name} alone), BIC gain {j.bic_gain:.1f}" + ("" if first_present else f"; {e1.name} no longer shown")
+            + (f"; refused: its interval ends below {DELAY_MIN_MS:g} ms" if rule == BELOW_FLOOR else ""))
         if ok:
             passed.append((fe, j.heldout_gain, e))
     passed = servo_choice(passed, tried, reading, say)
