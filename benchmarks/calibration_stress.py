@@ -200,6 +200,11 @@ def score(s: dict, res: dict, twin_err: float | None) -> dict:
             "heldout_vs_twin": (err / twin_err if twin_err else None) if hidden else None}
 
 
+def _plain(x):
+    """numpy scalars as JSON numbers and booleans."""
+    return x.item() if isinstance(x, np.generic) else float(x)
+
+
 def source_hash() -> str:
     """What the stored results depend on besides the calibration: the generator and this file's draw and
     score."""
@@ -232,6 +237,9 @@ def run_set(s: dict, plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES, overr
             "intervals": {a["effect"]: a["interval"] for a in res["added"]},
             "intervals_statistical": {a["effect"]: a.get("interval_statistical", a["interval"]) for a in res["added"]},
             "nominal_findings": res["nominal_findings"], "plate_level": res.get("plate_level"),
+            # every joint hypothesis of the nominal stage as judged (values, gains, baseline, rule), and the
+            # delay test, so that a miss can be read without running the set again (stored after 0.4.3)
+            "hypotheses": res.get("nominal_hypotheses"), "delay_test": res.get("delay_test"),
             "version": __version__, "source": source_hash(),
             **({"overrides": dict(overrides)} if overrides else {})}
 
@@ -364,7 +372,7 @@ def main():
               f"{s['frame_rate_hz']:g} Hz arms {s['arms_tracked']}", flush=True)
         r = run_set(s, plates, overrides)
         tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(r, indent=1, default=float))
+        tmp.write_text(json.dumps(r, indent=1, default=_plain))
         tmp.replace(path)
         print(f"  -> added {r['score']['added']} right {r['score']['right']} {r['wall_s']:.0f} s", flush=True)
     if args.draw_only:
@@ -374,7 +382,7 @@ def main():
     summary = summarise(rows)
     out = RESULTS / f"calibration_stress_{name}.json"
     out.write_text(json.dumps({"suite_seed": args.suite_seed, "source": src, "summary": summary,
-                               "rows": rows}, indent=1, default=float))
+                               "rows": rows}, indent=1, default=_plain))
     print(json.dumps(summary, indent=1))
     print(confusion(rows))
     print(coverage(rows))
