@@ -48,6 +48,7 @@ def cut(trials, periods: float):
 
 def main():
     from smarticle_mjx import __version__
+    from smarticle_mjx.bench import save_json
     from smarticle_mjx.calibrate.data import load
     from smarticle_mjx.calibrate.stages import calibrate
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -82,7 +83,7 @@ def main():
         row["wall_s"] = time.perf_counter() - t0
         row["version"] = __version__
         results[f"{args.suite_seed}/{idx}/{args.cut:g}"] = row
-        OUT.write_text(json.dumps(results, indent=1))
+        save_json(OUT, results)  # atomic: an interrupted run keeps the sets already written
         print(f"{args.suite_seed}/{idx}: whole {row['whole']['heldout']:.2f} against twin "
               f"{row['whole']['twin'] or float('nan'):.2f}; first {args.cut:g} periods left out: "
               f"{row['cut']['set']:.2f} against {row['cut']['twin']:.2f} (x{row['cut']['ratio']:.2f}), "
