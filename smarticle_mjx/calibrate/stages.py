@@ -75,6 +75,11 @@ def judged(effect: Effect, interval: dict, chi2_before: float, chi2_after: float
 BELOW_FLOOR = "below the delay floor"
 
 
+def floor_note(rule: str) -> str:
+    """What a progress line adds where the delay floor refused a timing."""
+    return f"; refused: its interval ends below {DELAY_MIN_MS:g} ms" if rule == BELOW_FLOOR else ""
+
+
 def below_delay_floor(effect: Effect, interval: dict) -> bool:
     """Every timing parameter's 95 % interval (s) ends below ``DELAY_MIN_MS``."""
     ends = [interval[p.name][1] for p in effect.params]
@@ -198,6 +203,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         say("no arm angles tracked: a servo lag or dead time is not tried (body motion alone cannot tell a "
             "servo's timing from its law)")
     hypotheses, passed, tasks, first = [], [], [], {}
+    preset_servo = {k: v for k, v in nom0.items() if k not in SERVO_NOMINAL}  # the second start of a timing
     for name in joint:
         if name not in {e.name for e in library}:
             continue
@@ -234,12 +240,12 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             # (a restart that helps without the anisotropy is not the anisotropy's gain)
             tasks.append((name, None, {**nom0, "plate_friction": start["plate_friction"]}, None))
             continue
-        tasks.append((name, e, {k: v for k, v in nom0.items() if k not in SERVO_NOMINAL}, e_start))
-        if name in SERVO_HYPOTHESES and not any(t[0] == SERVO_NULL for t in tasks):
-            # and the null the same chance (added after version 0.4.3): the nominal parameters alone, their
-            # servo restarted at the preset (fresh seed 2061, set 0: a clean robot's restart from the preset
-            # servo ended lower than the nominal fit, and a 1.8 ms dead time was added for the restart's gain)
-            tasks.append((SERVO_NULL, None, {k: v for k, v in nom0.items() if k not in SERVO_NOMINAL}, None))
+        tasks.append((name, e, preset_servo, e_start))
+    if any(t[0] in SERVO_HYPOTHESES for t in tasks):
+        # and the null the same chance (added after version 0.4.3): the nominal parameters alone, their servo
+        # restarted at the preset, once for both timings (fresh seed 2061, set 0: a clean robot's restart from
+        # the preset servo ended lower than the nominal fit, and a 1.8 ms dead time was added for its gain)
+        tasks.append((SERVO_NULL, None, preset_servo, None))
     # every joint fit at once, one thread each (each fit's own runs then go one after another)
     fits = pmap(lambda t: fit_nominal(train, effect=t[1], start=t[2], max_nfev=HYPOTHESIS_NFEV, effect_start=t[3]),
                 tasks)
@@ -278,7 +284,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
                            "baseline_err_heldout": base_err,
                            "evaluations": fe.evaluations})
         say(f"  nominal + {name}: held-out error {err_e:.2f} ({j.heldout_gain:+.0%}), BIC gain {j.bic_gain:.1f}"
-            + (f"; refused: its interval ends below {DELAY_MIN_MS:g} ms" if rule == BELOW_FLOOR else ""))
+            + floor_note(rule))
         if j.accepted:
             passed.append((fe, j.heldout_gain, e, nom_e, interval))
     passed = servo_choice(passed, hypotheses, reading, say)
@@ -438,7 +444,7 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
                       "evaluations": fe.evaluations})
         say(f"  nominal + {e1.name} + {name}: held-out error {err:.2f} ({j.heldout_gain:+.0%} over "
             f"{e1.name} alone), BIC gain {j.bic_gain:.1f}" + ("" if first_present else f"; {e1.name} no longer shown")
-            + (f"; refused: its interval ends below {DELAY_MIN_MS:g} ms" if rule == BELOW_FLOOR else ""))
+            + floor_note(rule))
         if ok:
             passed.append((fe, j.heldout_gain, e))
     passed = servo_choice(passed, tried, reading, say)
