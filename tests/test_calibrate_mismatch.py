@@ -259,6 +259,22 @@ def test_the_phase_offset_between_two_robots_is_read_from_their_arms_without_the
         assert ot.source == "arms" and lo < ot.mean < hi and ot.present == bool(off) and ot.absent == (not off), ot
 
 
+def test_the_offset_of_a_robot_that_starts_its_first_move_late_is_read_from_its_steady_gait(tmp_path, monkeypatch):
+    """The independent simulator starts every robot at rest in its first corner: one whose clock is 0.149
+    period ahead (mid-move at t = 0) makes its first move from there, later than its steady gait would.
+    Read from one period after the start on, the offset is the hidden one within 0.001 period; read over
+    every frame (as before version 0.4.4) the late first move pulls it below 0.1445."""
+    from smarticle_mjx.calibrate import phase
+    for a in (40.0, 60.0):
+        I.write_case(tmp_path, amplitude_deg=a, name=f"a{int(a)}", trials=2, periods=4, seed=3 + int(a), robots=2,
+                     phase_offset=0.149, frame_rate=90.0)
+    trials = load(tmp_path)
+    po = phase.pair_offsets(trials)
+    assert po["n"] == 4 and abs(po["mean"] - 0.149) < 0.001, po
+    monkeypatch.setattr(phase, "SETTLE_PERIODS", 1e9)  # every frame
+    assert phase.pair_offsets(trials)["mean"] < 0.1445
+
+
 @pytest.mark.slow
 def test_a_phase_offset_between_two_independent_robots_is_named(tmp_path):
     """Two robots of another build, the second running 0.1 period ahead. Fitted

@@ -3,11 +3,16 @@
 Trials that share a robot count, gaits (one per robot) and scene are run
 together as lanes of one native batch (``mujoco.rollout`` on all cores). Gait time is measured
 time: a trial whose first frame is at t0 starts robot i at gait phase
-t0 / T_i.
+t0 / T_i. A robot whose arms are tracked starts with them where the first
+frame has them, and its servo reference starts there too (``Lanes.start_ref``),
+moving to the corner its gait is heading for at the servo's speed: a robot
+measured at rest in a corner while its gait is part of a move ahead makes the
+move from its corner, as it did, not from the middle of the steady gait's move.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import threading
@@ -55,6 +60,25 @@ def _interp_track(t_sim, track, t_frames):
     return out
 
 
+SNAP_DEG = 3.0  # a tracked arm this close to one of its gait's two angles is taken to rest there
+
+
+def start_reference(arms0: np.ndarray, amplitudes) -> np.ndarray:
+    """[N, 2] where each robot's servo reference starts (rad; NaN where the arm is not tracked).
+
+    A robot at rest holds its arms where its servo's reference is: at one of its gait's two angles
+    (+-amplitude) for a robot started in a corner. A tracked arm within ``SNAP_DEG`` of one is taken to
+    be exactly there, the rest being tracking noise (a reference started a noise's width off the gait's
+    corner and caught up in a step would shake a lagging servo's filter for nothing); an arm further
+    from both starts its reference where it was tracked.
+    """
+    arms0 = np.asarray(arms0, float)
+    amp = np.asarray(amplitudes, float)[:, None]
+    corner = np.where(arms0 >= 0, amp, -amp)
+    near = np.abs(arms0 - corner) <= np.radians(SNAP_DEG)
+    return np.where(np.isfinite(arms0), np.where(near, corner, arms0), np.nan)
+
+
 def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int | None = None) -> list[np.ndarray]:
     """Model tracks [F, N, 5] at every trial's frame times.
 
@@ -80,7 +104,7 @@ def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int
         scene = Scene.build(params, n)
         be = make_backend("native", scene, nthread=nthread)
         try:
-            poses, phases, t0s = [], [], []
+            poses, phases, t0s, refs = [], [], [], []
             for k in idx:
                 tr = trials[k]
                 t0 = float(tr.t[0])
@@ -94,10 +118,16 @@ def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int
                     meas = tr.arms[0, i] if tr.arms is not None else np.full(2, np.nan)
                     p[i, 3:] = np.where(np.isfinite(meas), meas, cmd)
                 poses.append(p)
+                # the servo reference starts at the tracked arms (NaN: untracked, at the gait's setpoint)
+                refs.append(start_reference(tr.arms[0], [g.amplitude for g in gaits]) if tr.arms is not None
+                            else np.full((n, 2), np.nan))
                 phases.append(np.mod(ph, 1.0))
                 t0s.append(t0)
-            lanes = on_step_grid(Lanes.from_robot_gaits(np.stack(poses), gaits, phase=np.stack(phases)),
-                                 params.timestep)
+            lanes = Lanes.from_robot_gaits(np.stack(poses), gaits, phase=np.stack(phases))
+            ref = np.stack(refs)
+            if np.isfinite(ref).any():
+                lanes = dataclasses.replace(lanes, start_ref=ref)
+            lanes = on_step_grid(lanes, params.timestep)
             dur = max(trials[k].duration for k in idx)
             periods = max(1, math.ceil(dur / lanes.period + 1e-9))
             stride = max(1, int(round(SIM_SAMPLE_S / params.timestep)))

@@ -199,6 +199,12 @@ class Lanes:
         first period only (the backends drop it after, :meth:`started`). Robots started at different
         times are lanes whose phases are all <= 0 with ``hold = -phase * T``
         (:meth:`with_start_delays`): each begins at its gait's first corner, as a robot triggered late does.
+      start_ref: [B, N, 2] rad, or None: each robot's servo reference starts at these angles (a robot
+        at rest: the arms' own angles) instead of at its gait's setpoint, and moves from there to the
+        corner its gait is heading for at the arm's servo speed, a rate-limited follower of the
+        gait's corners (:func:`follow_corners`), which joins the gait where it meets it. The steady
+        gait is that same follower, so a reference started at the gait's setpoint is the gait; a NaN
+        arm starts there. Run's first period only (:meth:`started`); not with ``hold``.
     """
 
     poses: np.ndarray
@@ -211,6 +217,7 @@ class Lanes:
     arm_speed: np.ndarray | None = None
     retrigger: np.ndarray | None = None
     hold: np.ndarray | None = None
+    start_ref: np.ndarray | None = None
 
     def __post_init__(self):
         b, n = self.poses.shape[:2]
@@ -233,6 +240,12 @@ class Lanes:
                 raise ValueError(f"lanes.hold must be [{b}, {n}] seconds >= 0")
             if (self.hold >= self.robot_gait()[3]).any():
                 raise ValueError("a robot's start delay must be shorter than its gait period")
+        if self.start_ref is not None:
+            if self.start_ref.shape != (b, n, 2) or np.isinf(self.start_ref).any():
+                raise ValueError(f"lanes.start_ref must be [{b}, {n}, 2] angles (NaN: at the gait's setpoint)")
+            if self.hold is not None:
+                raise ValueError("a robot's reference is held at its first corner (hold) or starts at its "
+                                 "arms (start_ref), not both")
         if self.arm_speed is not None:
             if self.arm_speed.shape != (b, n, 2):
                 raise ValueError(f"lanes.arm_speed must have shape ({b}, {n}, 2)")
@@ -339,21 +352,34 @@ class Lanes:
         return dataclasses.replace(self, phase=shifted, hold=None if not hold.any() else hold)
 
     def started(self, t) -> "Lanes":
-        """The lanes at run time ``t`` (one time, or [B]) as far as their start delays go: ``hold`` kept
-        for lanes at the run's start (t = 0) and dropped for the others."""
-        if self.hold is None:
+        """The lanes at run time ``t`` (one time, or [B]) as far as their start goes: ``hold`` and
+        ``start_ref`` kept for lanes at the run's start (t = 0) and dropped for the others."""
+        if self.hold is None and self.start_ref is None:
             return self
         at_start = np.broadcast_to(np.asarray(t, float) == 0.0, (self.size,))
         if at_start.all():
             return self
-        hold = np.where(at_start[:, None], self.hold, 0.0)
-        return dataclasses.replace(self, hold=hold if hold.any() else None)
+        out = self
+        if self.hold is not None:
+            hold = np.where(at_start[:, None], self.hold, 0.0)
+            out = dataclasses.replace(out, hold=hold if hold.any() else None)
+        if self.start_ref is not None:
+            if not at_start.any():
+                return dataclasses.replace(out, start_ref=None)
+            # lanes past their start follow their gait (NaN: the reference starts at the gait's setpoint)
+            out = dataclasses.replace(out, start_ref=np.where(at_start[:, None, None], self.start_ref, np.nan))
+        return out
+
+    @property
+    def starts_apart(self) -> bool:
+        """Whether the run's first period has controls of its own (``hold`` or ``start_ref``)."""
+        return self.hold is not None or self.start_ref is not None
 
     @property
     def timed(self) -> bool:
         """Whether a backend must know each lane's run time: its phases move on (:attr:`varies`) or its
-        robots start at different times (``hold``)."""
-        return self.varies or self.hold is not None
+        robots start differently at the run's start (``hold``, ``start_ref``)."""
+        return self.varies or self.starts_apart
 
     def retrigger_delays(self, cycle) -> np.ndarray:
         """[B, N] each robot's delay (periods) in cycle ``cycle`` ([B] or one int) of its lane."""
@@ -377,7 +403,8 @@ class Lanes:
                      self.phase[idx], self.period, None if self.robot_period is None else self.robot_period[idx],
                      None if self.arm_speed is None else self.arm_speed[idx],
                      None if self.retrigger is None else self.retrigger[idx],
-                     None if self.hold is None else self.hold[idx])
+                     None if self.hold is None else self.hold[idx],
+                     None if self.start_ref is None else self.start_ref[idx])
 
     def arm_ratios(self) -> np.ndarray:
         """[B, N, 2] each arm's speed ratio (1 where the lanes give none)."""
@@ -416,8 +443,10 @@ def distinct_gaits(lanes: Lanes) -> tuple[np.ndarray, np.ndarray]:
     chirality, kind, period and phase of every robot), and each lane's gait as
     an index into ``first``."""
     hold = lanes.hold if lanes.hold is not None else np.zeros(lanes.phase.shape)
-    key = np.concatenate([*lanes.robot_gait(), lanes.phase, hold,
-                          lanes.arm_ratios().reshape(lanes.size, -1)], axis=1)  # [B, 8N]
+    parts = [*lanes.robot_gait(), lanes.phase, hold, lanes.arm_ratios().reshape(lanes.size, -1)]
+    if lanes.start_ref is not None:
+        parts.append(np.nan_to_num(lanes.start_ref.reshape(lanes.size, -1), nan=1e9))  # NaN: one key
+    key = np.concatenate(parts, axis=1)  # [B, 8N] (10N with start_ref)
     _, first, row = np.unique(key, axis=0, return_index=True, return_inverse=True)
     return first, np.asarray(row).reshape(-1)
 
@@ -451,7 +480,74 @@ def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
     if hold is not None:
         sp = np.array(sp)
         sp[..., 2:] *= (t >= hold)[..., None]
+    if u.start_ref is not None:
+        a, c, kd, per = (x[:, None, :] for x in u.robot_gait())
+        sp = follow_corners(u.start_ref, t, a, per, speed * ratios, c, kd, u.phase[:, None, :], sp)
     return sp.reshape(sp.shape[0], sp.shape[1], -1)[row]
+
+
+def follow_corners(start, t, amplitude, period, speed, chirality, kind, phase, steady) -> np.ndarray:
+    """A servo reference that starts at ``start`` and follows the gait's corners at the arms' speed.
+
+    The gait's setpoint is a rate-limited follower of a corner target that changes at each quarter
+    (square) or half (diagonal) period of the robot's phase, each move starting at the change: the
+    target in force is the setpoint at the end of the current quarter. This is that follower
+    started from ``start`` at t = 0 instead of from the gait's own setpoint, segment by segment in
+    closed form: within a segment of constant target c that it enters at r_s, it is
+    c + sign(r_s - c) max(|r_s - c| - speed (t - t_s), 0). Once it meets the gait it stays with it.
+
+    Args (broadcast as in :func:`lane_controls`): start [U, N, 2] rad (NaN: the gait's setpoint at
+      t = 0); t [1, T, 1] s from the run's
+      start; amplitude, period, chirality, kind, phase [U, 1, N]; speed [U, 1, N, 2] each arm's rad/s;
+      steady [U, T, N, 4] the gait's setpoints and rates at ``t``.
+
+    Returns:
+      [U, T, N, 4] setpoints and rates, the follower's where it has not yet met the gait.
+    """
+    steady = np.array(steady, dtype=float)
+    u_n, tt, n = steady.shape[0], steady.shape[1], steady.shape[2]
+    tv = np.broadcast_to(np.asarray(t, float), (1, tt, 1))[0, :, 0]  # [T]
+    shp = (u_n, 1, n)
+    a, per, chi, kd, ph = (np.broadcast_to(np.asarray(x, float), shp)[:, 0] for x in
+                           (amplitude, period, chirality, kind, phase))  # [U, N]
+    w = np.broadcast_to(np.asarray(speed, float), (u_n, 1, n, 2))[:, 0]  # [U, N, 2]
+    q = np.where(kd == gait_mod.DIAGONAL, 2.0, 4.0)  # segments per period
+    m0 = np.floor(np.mod(ph, 1.0) * q + 1e-12)  # segment the robot starts in
+    r_s = np.array(np.broadcast_to(start, (u_n, n, 2)), float)
+    at0 = np.asarray(gait_mod.setpoints(np.zeros(a.shape), a, per, 1.0, chi, kd, ph, w[..., 0], w[..., 1]))
+    r_s = np.where(np.isnan(r_s), at0, r_s)  # NaN: from the gait's own setpoint
+    base = np.mod(ph, 1.0)
+    ends, targets = [], []
+    for j in range(5):  # a period spans at most 5 segments (4 whole, 2 partial)
+        t_e = ((m0 + j + 1) / q - base) * per  # [U, N] end of segment j
+        # the target: the gait's setpoint at the segment's end (each move fits in its segment)
+        ends.append(t_e)
+        targets.append(np.asarray(gait_mod.setpoints(t_e - 1e-9 * per, a, per, 1.0, chi, kd, ph,
+                                                     w[..., 0], w[..., 1])))
+
+    # the rate: the servo's speed while the reference still has a step or more to go, else 0 (a catch-up
+    # shorter than a step, e.g. from a start that differs from the gait's setpoint by tracking noise, is
+    # a small jump of the reference, not a velocity feed-forward of the servo's full speed for a step)
+    h = float(tv[1] - tv[0]) if tt > 1 else 0.0
+    ref = np.full((u_n, tt, n, 2), np.nan)
+    rate = np.zeros((u_n, tt, n, 2))
+    t_s = np.zeros((u_n, n))
+    for t_e, tgt in zip(ends, targets):
+        inside = ((tv[None, :, None] >= t_s[:, None]) & (tv[None, :, None] < t_e[:, None]))[..., None]  # [U, T, N, 1]
+        d = r_s - tgt  # [U, N, 2]
+        left = np.abs(d)[:, None] - w[:, None] * (tv[None, :, None, None] - t_s[:, None, :, None])
+        ref = np.where(inside, tgt[:, None] + np.sign(d)[:, None] * np.maximum(left, 0.0), ref)
+        rate = np.where(inside, np.where(left > w[:, None] * h, -np.sign(d)[:, None] * w[:, None], 0.0), rate)
+        r_s = tgt + np.sign(d) * np.maximum(np.abs(d) - w * (t_e - t_s)[..., None], 0.0)
+        t_s = t_e
+    past = tv[None, :, None] >= t_s[:, None]  # after five segments: the gait
+    ref = np.where(past[..., None], steady[..., :2], ref)
+    rate = np.where(past[..., None], steady[..., 2:], rate)
+    # where the follower has met the gait it is the gait (the same numbers, without round-off)
+    met = np.abs(ref - steady[..., :2]) <= 1e-5  # float32 gait against float64 follower
+    steady[..., :2] = np.where(met, steady[..., :2], ref)
+    steady[..., 2:] = np.where(met, steady[..., 2:], rate)
+    return steady
 
 
 @dataclasses.dataclass
@@ -547,6 +643,9 @@ def check_start_delays(lanes: Lanes, backend: str) -> None:
         raise ValueError(f"the {backend} backend starts every robot's gait at t = 0; robots started at "
                          "different times (imperfections' start offsets, a relaxation's phase jitter) run on "
                          "the native backend")
+    if lanes.start_ref is not None:
+        raise ValueError(f"the {backend} backend starts every servo reference at its gait's setpoint; "
+                         "references started at the arms (a replay of measured trials) run on the native backend")
 
 
 def check_solver(scene: Scene, backend: str, solvers) -> None:

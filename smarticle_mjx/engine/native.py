@@ -124,7 +124,7 @@ class NativeBackend(BackendBase):
         for k in range(n_periods):
             t_start = t0 + k * lanes.period
             lanes_k = lanes.at_time(t_start).started(t_start)
-            if b <= slice_size and (k == 0 or lanes.varies or (k == 1 and lanes.hold is not None)):
+            if b <= slice_size and (k == 0 or lanes.varies or (k == 1 and lanes.starts_apart)):
                 ctrl_all = lane_controls(self.scene, lanes_k, t_rel)
             out_q = []
             for lo in range(0, b, slice_size):
@@ -191,7 +191,7 @@ class NativeBackend(BackendBase):
             t_start = t0 + k * lanes.period
             lanes_k = lanes.at_time(t_start).started(t_start)
             # one period's controls serve every period (after a first one with start delays)
-            if b <= slice_size and (k == 0 or lanes.varies or (k == 1 and lanes.hold is not None)):
+            if b <= slice_size and (k == 0 or lanes.varies or (k == 1 and lanes.starts_apart)):
                 ctrl_all = lane_controls(self.scene, lanes_k, t_rel), lane_controls(self.scene, lanes_k, t_fine)
             out_q = []
             for lo in range(0, b, slice_size):
