@@ -31,11 +31,12 @@ SETTLE_PERIODS = 1.0  # a robot's first period after the trial's start may not b
 def _misfit(t, a0, ai, shift, settle: float = 0.0):
     """Mean squared difference of ai(t) and a0(t + shift) where both exist, both ``settle`` seconds or more
     after the trial's first frame."""
-    ok0 = np.isfinite(a0).all(-1) & (t >= t[0] + settle)
+    settled = t >= t[0] + settle
+    ok0 = np.isfinite(a0).all(-1) & settled
     if ok0.sum() < 4:
         return np.nan
     ts = t + shift
-    inside = (ts >= t[ok0][0]) & (ts <= t[ok0][-1]) & np.isfinite(ai).all(-1) & (t >= t[0] + settle)
+    inside = (ts >= t[ok0][0]) & (ts <= t[ok0][-1]) & np.isfinite(ai).all(-1) & settled
     if inside.sum() < 4:
         return np.nan
     ref = np.stack([np.interp(ts[inside], t[ok0], a0[ok0, k]) for k in range(a0.shape[1])], -1)

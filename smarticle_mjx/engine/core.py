@@ -481,8 +481,7 @@ def lane_controls(scene: Scene, lanes: Lanes, t: np.ndarray) -> np.ndarray:
         sp = np.array(sp)
         sp[..., 2:] *= (t >= hold)[..., None]
     if u.start_ref is not None:
-        a, c, kd, per = (x[:, None, :] for x in u.robot_gait())
-        sp = follow_corners(u.start_ref, t, a, per, speed * ratios, c, kd, u.phase[:, None, :], sp)
+        sp = follow_corners(u.start_ref, t, amp, period, speed * ratios, chi, kind, u.phase[:, None, :], sp)
     return sp.reshape(sp.shape[0], sp.shape[1], -1)[row]
 
 
@@ -512,19 +511,11 @@ def follow_corners(start, t, amplitude, period, speed, chirality, kind, phase, s
                            (amplitude, period, chirality, kind, phase))  # [U, N]
     w = np.broadcast_to(np.asarray(speed, float), (u_n, 1, n, 2))[:, 0]  # [U, N, 2]
     q = np.where(kd == gait_mod.DIAGONAL, 2.0, 4.0)  # segments per period
-    m0 = np.floor(np.mod(ph, 1.0) * q + 1e-12)  # segment the robot starts in
+    base = np.mod(ph, 1.0)
+    m0 = np.floor(base * q + 1e-12)  # segment the robot starts in
     r_s = np.array(np.broadcast_to(start, (u_n, n, 2)), float)
     at0 = np.asarray(gait_mod.setpoints(np.zeros(a.shape), a, per, 1.0, chi, kd, ph, w[..., 0], w[..., 1]))
     r_s = np.where(np.isnan(r_s), at0, r_s)  # NaN: from the gait's own setpoint
-    base = np.mod(ph, 1.0)
-    ends, targets = [], []
-    for j in range(5):  # a period spans at most 5 segments (4 whole, 2 partial)
-        t_e = ((m0 + j + 1) / q - base) * per  # [U, N] end of segment j
-        # the target: the gait's setpoint at the segment's end (each move fits in its segment)
-        ends.append(t_e)
-        targets.append(np.asarray(gait_mod.setpoints(t_e - 1e-9 * per, a, per, 1.0, chi, kd, ph,
-                                                     w[..., 0], w[..., 1])))
-
     # the rate: the servo's speed while the reference still has a step or more to go, else 0 (a catch-up
     # shorter than a step, e.g. from a start that differs from the gait's setpoint by tracking noise, is
     # a small jump of the reference, not a velocity feed-forward of the servo's full speed for a step)
@@ -532,7 +523,10 @@ def follow_corners(start, t, amplitude, period, speed, chirality, kind, phase, s
     ref = np.full((u_n, tt, n, 2), np.nan)
     rate = np.zeros((u_n, tt, n, 2))
     t_s = np.zeros((u_n, n))
-    for t_e, tgt in zip(ends, targets):
+    for j in range(5):  # a period spans at most 5 segments (4 whole, 2 partial)
+        t_e = ((m0 + j + 1) / q - base) * per  # [U, N] end of segment j
+        # the target: the gait's setpoint at the segment's end (each move fits in its segment)
+        tgt = np.asarray(gait_mod.setpoints(t_e - 1e-9 * per, a, per, 1.0, chi, kd, ph, w[..., 0], w[..., 1]))
         inside = ((tv[None, :, None] >= t_s[:, None]) & (tv[None, :, None] < t_e[:, None]))[..., None]  # [U, T, N, 1]
         d = r_s - tgt  # [U, N, 2]
         left = np.abs(d)[:, None] - w[:, None] * (tv[None, :, None, None] - t_s[:, None, :, None])
