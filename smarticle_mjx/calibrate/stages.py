@@ -223,6 +223,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             if est:
                 say(f"  robots' arm curves align at a phase offset of {est['offset']:.3f} periods")
         tasks.append((name, e, nom0, e_start))
+        # (a servo timing's third start, absent from its baseline where needed, comes after: servo_starts)
         # the nominal fit alone bends the servo to mimic a lag or dead time (a 30 ms dead time: speed
         # x0.83, gain x0.52) and, started there, the joint fit stays in that valley (14 ms); so it is
         # started a second time from the preset's servo, and the start that ends with the lower training
@@ -255,14 +256,29 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             nulls[name] = fe
             continue
         done.setdefault(name, (e, []))[1].append(fe)
+    # a timing whose starts at the probe both ended above its baseline in training did not converge: it is
+    # fitted a third time, started absent from that baseline (servo_starts)
+    timings = [name for name in done if name in SERVO_HYPOTHESES]
+    if timings:
+        start, from_null, base_chi2 = nom0, "the nominal fit", chi2_0
+        if SERVO_NULL in nulls and (chi2_n := scores(train, test, nulls[SERVO_NULL])[2]) < chi2_0:
+            start, base_chi2 = {k: nulls[SERVO_NULL].values[k] for k in nulls[SERVO_NULL].preset}, chi2_n
+            from_null = "the nominal fit's restart from the preset servo"
+        timings = [name for name in timings
+                   if scores(train, test, min(done[name][1], key=lambda f: f.err_after), (name,))[2] >= base_chi2]
+        again = pmap(lambda name: fit_nominal(train, effect=BY_NAME[name], start=start, max_nfev=HYPOTHESIS_NFEV,
+                                              effect_start=servo_starts(BY_NAME[name])), timings)
+        for name, fe in zip(timings, again):
+            done[name][1].append(fe)
     for name, (e, fes) in done.items():
         fe = fes[0]
-        if len(fes) == 2:
+        if len(fes) >= 2:
             fe2 = fes[1]
             say(f"  nominal + {name}: training error {fe.err_after:.2f} started from the nominal fit, "
-                f"{fe2.err_after:.2f} " + ("from the grid's start" if name in plate_hypotheses else "from the preset servo"))
-            runs = fe.evaluations + fe2.evaluations
-            fe = dataclasses.replace(fe2 if fe2.err_after < fe.err_after else fe, evaluations=runs)
+                f"{fe2.err_after:.2f} " + ("from the grid's start" if name in plate_hypotheses else "from the preset servo")
+                + (f", {fes[2].err_after:.2f} absent from {from_null}" if len(fes) == 3 else ""))
+            runs = sum(f.evaluations for f in fes)
+            fe = dataclasses.replace(min(fes, key=lambda f: f.err_after), evaluations=runs)
         first[name] = fe
         nom_e, _, chi2_e, err_e = scores(train, test, fe, (name,))
         interval = {p.name: fe.interval[p.name] for p in e.params}
@@ -308,6 +324,25 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             nominal_fit = dataclasses.replace(fe2, values=dict(nom_2))
             say(f"added {e2.name} beside {e.name} (both fitted with the nominal parameters)")
     return NominalStage(nominal_fit, nom0, alone, hypotheses, dtest, rtest)
+
+
+def servo_starts(e: Effect) -> dict:
+    """Where a servo timing's third joint fit with the nominal parameters starts it (version 0.4.5): absent,
+    from the better, in training, of the nominal fit and its restart from the preset servo (the servo's
+    null, the timing's baseline). It is run where both of the first two fits ended above that baseline in
+    training (chi^2 with the priors), which a converged fit, containing the baseline, cannot; started there
+    it ends no worse, so the timing is judged on a fit that has reached its baseline at least.
+
+    The first two starts are the timing's probe (20 ms) from the nominal fit and from the preset's servo
+    (the nominal fit alone bends the servo to mimic a lag or dead time and, started in that valley, a joint
+    fit can stay there). On a servo already bent to mimic the timing, neither needs to converge: 9
+    first-pass servo timings stored with seed 2063 and the development runs of seeds 2060 and 2062 ended
+    with a negative BIC gain, worse in training than their baseline (seed 2060, set 29: a lag's training
+    error 38.3 and 96.0 from its two starts, BIC gain -777). The start that ends with the lowest training
+    error is kept (:func:`nominal_stage`). The absent start alone does not replace the probe's: in the
+    development run of seed 2063, set 16 (a 26 ms dead time), started absent the dead time stayed in the
+    bent servo's valley, below the 5 ms floor, where the probe from the nominal fit had named it."""
+    return {p.name: p.null for p in e.params}
 
 
 SERVO_NULL = "servo restarted"  # the key of the nominal fit restarted from the preset servo, without an effect
