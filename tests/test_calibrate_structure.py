@@ -299,19 +299,18 @@ def test_a_servo_timing_started_absent_from_the_nulls_end_can_only_improve_on_it
     """A joint fit is a trust-region least squares: every step it keeps lowers the training error. Started
     with the timing absent from the end of the fit without it, it therefore ends no worse in training than
     that fit, so the comparison of the two is between converged fits. Checked on a built problem whose
-    residual a timing of 12 ms removes (the second start) and on one that no timing helps: there the fit
-    ends exactly at its start."""
+    residual a timing of 12 ms removes and on one that no timing helps, each started at the timing's null
+    (``Effect.null``, the third start's value in ``stages.nominal_stage``: no lag, no dead time)."""
     import types
     from smarticle_mjx.calibrate.effects import BY_NAME
     from smarticle_mjx.calibrate.nominal import NOMINAL
-    from smarticle_mjx.calibrate.stages import servo_starts
     from smarticle_mjx.presets import params as preset_params
     ref = preset_params("lab-lag")
     params = tuple(p for p in NOMINAL if p.name in ("servo_speed", "servo_kp"))
     for name, key in (("servo_lag", "extra_lag_s"), ("servo_dead_time", "dead_time_s")):
         e = BY_NAME[name]
-        start = servo_starts(e)
-        assert start == {key: 0.0} == {p.name: p.null for p in e.params}
+        start = e.null()
+        assert start == {key: 0.0}
 
         for true in (0.012, 0.0):
             def vector_with(vals, eff, true=true):

@@ -223,7 +223,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             if est:
                 say(f"  robots' arm curves align at a phase offset of {est['offset']:.3f} periods")
         tasks.append((name, e, nom0, e_start))
-        # (a servo timing's third start, absent from its baseline where needed, comes after: servo_starts)
+        # (a servo timing's third start, absent from its baseline where needed, comes after these fits)
         # the nominal fit alone bends the servo to mimic a lag or dead time (a 30 ms dead time: speed
         # x0.83, gain x0.52) and, started there, the joint fit stays in that valley (14 ms); so it is
         # started a second time from the preset's servo, and the start that ends with the lower training
@@ -256,18 +256,24 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             nulls[name] = fe
             continue
         done.setdefault(name, (e, []))[1].append(fe)
-    # a timing whose starts at the probe both ended above its baseline in training did not converge: it is
-    # fitted a third time, started absent from that baseline (servo_starts)
+    restarts = {name: scores(train, test, fe) for name, fe in nulls.items()}  # each null's restart, scored once
+    # a servo timing whose two probe starts both ended above its baseline in training (which a converged fit,
+    # containing the baseline, cannot) is fitted a third time, started absent from that baseline (version 0.4.5:
+    # 9 first-pass timings stored with seed 2063 and the development runs of seeds 2060 and 2062 had BIC gains
+    # of -102 to -2669; seed 2060, set 29: a lag's training error 38.3 and 96.0 from its two starts, BIC gain
+    # -777). It does not replace the probe's starts: started absent alone, the 26 ms dead time of seed 2063,
+    # set 16, stayed in the bent servo's valley below the 5 ms floor, where the probe from the nominal fit had
+    # named it (docs/calibration.md)
     timings = [name for name in done if name in SERVO_HYPOTHESES]
     if timings:
         start, from_null, base_chi2 = nom0, "the nominal fit", chi2_0
-        if SERVO_NULL in nulls and (chi2_n := scores(train, test, nulls[SERVO_NULL])[2]) < chi2_0:
-            start, base_chi2 = {k: nulls[SERVO_NULL].values[k] for k in nulls[SERVO_NULL].preset}, chi2_n
+        if SERVO_NULL in restarts and restarts[SERVO_NULL][2] < chi2_0:
+            start, _, base_chi2, _ = restarts[SERVO_NULL]
             from_null = "the nominal fit's restart from the preset servo"
         timings = [name for name in timings
                    if scores(train, test, min(done[name][1], key=lambda f: f.err_after), (name,))[2] >= base_chi2]
         again = pmap(lambda name: fit_nominal(train, effect=BY_NAME[name], start=start, max_nfev=HYPOTHESIS_NFEV,
-                                              effect_start=servo_starts(BY_NAME[name])), timings)
+                                              effect_start=BY_NAME[name].null()), timings)
         for name, fe in zip(timings, again):
             done[name][1].append(fe)
     for name, (e, fes) in done.items():
@@ -284,9 +290,9 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         interval = {p.name: fe.interval[p.name] for p in e.params}
         base_chi2, base_err = chi2_0, err0
         null_name = SERVO_NULL if name in SERVO_HYPOTHESES else name
-        if null_name in nulls:  # the better of the nominal fit and its restart (at the grid's mu, or from the
+        if null_name in restarts:  # the better of the nominal fit and its restart (at the grid's mu, or from the
             # preset servo) is the baseline
-            nom_n, _, chi2_n, err_n = scores(train, test, nulls[null_name])
+            nom_n, _, chi2_n, err_n = restarts[null_name]
             if chi2_n < chi2_0:
                 base_chi2, base_err = chi2_n, err_n
                 where = ("from the preset servo" if null_name == SERVO_NULL
@@ -324,25 +330,6 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             nominal_fit = dataclasses.replace(fe2, values=dict(nom_2))
             say(f"added {e2.name} beside {e.name} (both fitted with the nominal parameters)")
     return NominalStage(nominal_fit, nom0, alone, hypotheses, dtest, rtest)
-
-
-def servo_starts(e: Effect) -> dict:
-    """Where a servo timing's third joint fit with the nominal parameters starts it (version 0.4.5): absent,
-    from the better, in training, of the nominal fit and its restart from the preset servo (the servo's
-    null, the timing's baseline). It is run where both of the first two fits ended above that baseline in
-    training (chi^2 with the priors), which a converged fit, containing the baseline, cannot; started there
-    it ends no worse, so the timing is judged on a fit that has reached its baseline at least.
-
-    The first two starts are the timing's probe (20 ms) from the nominal fit and from the preset's servo
-    (the nominal fit alone bends the servo to mimic a lag or dead time and, started in that valley, a joint
-    fit can stay there). On a servo already bent to mimic the timing, neither needs to converge: 9
-    first-pass servo timings stored with seed 2063 and the development runs of seeds 2060 and 2062 ended
-    with a negative BIC gain, worse in training than their baseline (seed 2060, set 29: a lag's training
-    error 38.3 and 96.0 from its two starts, BIC gain -777). The start that ends with the lowest training
-    error is kept (:func:`nominal_stage`). The absent start alone does not replace the probe's: in the
-    development run of seed 2063, set 16 (a 26 ms dead time), started absent the dead time stayed in the
-    bent servo's valley, below the 5 ms floor, where the probe from the nominal fit had named it."""
-    return {p.name: p.null for p in e.params}
 
 
 SERVO_NULL = "servo restarted"  # the key of the nominal fit restarted from the preset servo, without an effect
