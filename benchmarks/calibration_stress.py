@@ -332,6 +332,9 @@ def main():
     ap.add_argument("--no-plate-level-gate", action="store_true",
                     help="try the anisotropic plate whatever the plate-frame drift shows (the rule before the gate; "
                          "for a counterfactual run, with --tag)")
+    ap.add_argument("--servo-without-arms", action="store_true",
+                    help="try a servo lag or dead time on sets without arm tracks too, as before the arm-track rule "
+                         "(for a counterfactual run, with --tag)")
     ap.add_argument("--set", dest="set_", action="append", default=[], metavar="FIELD=VALUE",
                     help="change the library's model as smx calibrate --set does (for the set and its clean twin; "
                          "needs --tag, so that the results stay apart)")
@@ -343,6 +346,11 @@ def main():
         ap.error(str(e))
     if overrides and not args.tag:
         ap.error("--set needs --tag: results made with a changed model are kept apart")
+    if (args.no_plate_level_gate or args.servo_without_arms) and not args.tag:
+        ap.error("a counterfactual rule needs --tag: its results are kept apart")
+    if args.servo_without_arms:
+        from smarticle_mjx.calibrate import stages
+        stages.SERVO_WITHOUT_ARMS = True
     if args.no_plate_level_gate:
         from smarticle_mjx.calibrate import stages
         stages.P_LEVEL = math.inf  # no p reaches it: plate_skip_reason never withholds the plate

@@ -265,6 +265,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     # set 16, stayed in the bent servo's valley below the 5 ms floor, where the probe from the nominal fit had
     # named it (docs/calibration.md)
     timings = [name for name in done if name in SERVO_HYPOTHESES]
+    third_baseline = None  # the null continued beside the third starts, where it ended below their baseline
     if timings:
         start, from_null, base_chi2 = nom0, "the nominal fit", chi2_0
         if SERVO_NULL in restarts and restarts[SERVO_NULL][2] < chi2_0:
@@ -272,10 +273,21 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             from_null = "the nominal fit's restart from the preset servo"
         timings = [name for name in timings
                    if scores(train, test, min(done[name][1], key=lambda f: f.err_after), (name,))[2] >= base_chi2]
-        again = pmap(lambda name: fit_nominal(train, effect=BY_NAME[name], start=start, max_nfev=HYPOTHESIS_NFEV,
-                                              effect_start=BY_NAME[name].null()), timings)
+        # and the null continued from the same start with the same budget, beside them (added after version
+        # 0.4.5): a third start that keeps its timing at the null is the baseline fitted further, and ends
+        # below it by that alone (fresh seed 2064, set 21: a lag kept at 0.03 ms, BIC gain 941 and +11 % held
+        # out; seed 2061, set 19, with timings tried in body-only tracks: a lag at 0.04 ms, BIC gain 2064 and
+        # +21 %). So a timing fitted a third time is judged against that continued null where it fits better
+        again = pmap(lambda name: fit_nominal(train, effect=None if name == SERVO_NULL else BY_NAME[name], start=start,
+                                              max_nfev=HYPOTHESIS_NFEV,
+                                              effect_start=None if name == SERVO_NULL else BY_NAME[name].null()),
+                     timings + [SERVO_NULL] if timings else [])
         for name, fe in zip(timings, again):
             done[name][1].append(fe)
+        if timings:
+            continued = scores(train, test, again[-1])
+            if continued[2] < base_chi2:
+                third_baseline = (*continued, again[-1].err_after)
     for name, (e, fes) in done.items():
         fe = fes[0]
         if len(fes) >= 2:
@@ -298,6 +310,10 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
                 where = ("from the preset servo" if null_name == SERVO_NULL
                          else f"at plate_friction {nom_n['plate_friction']:.3g}")
                 say(f"  nominal parameters restarted {where}: held-out error {base_err:.2f}, the baseline for {name}")
+        if len(fes) == 3 and name in SERVO_HYPOTHESES and third_baseline is not None:
+            base_chi2, base_err = third_baseline[2], third_baseline[3]
+            say(f"  nominal parameters continued from {from_null}: training error {third_baseline[4]:.2f}, "
+                f"held-out error {base_err:.2f}, the baseline for {name}")
         j, rule = measured_structure(name, otest, *judged(e, fe.interval, base_chi2, chi2_e, n, base_err, err_e,
                                                           dtest), drag=drag)
         hypotheses.append({"effect": name, "tried": True, "values": fe.values[name], "interval": interval,
@@ -510,6 +526,9 @@ def plate_grid_start(train: Problem, nom0: dict, e: Effect) -> tuple[dict, dict]
     return nom, eff.as_dict()[e.name]
 
 
+# True: try a servo timing without arm tracks, by the held-out rule (a counterfactual for the stress suite's
+# --servo-without-arms, run apart with --tag; not the rule)
+SERVO_WITHOUT_ARMS = False
 NO_ARMS = ("no arm angles were tracked: body motion alone cannot tell a servo's timing from a servo law unlike "
            "the model's")
 
@@ -521,7 +540,7 @@ def servo_skip_reason(trials, dtest: DelayTest) -> str | None:
     servo law unlike the model's (the stress suite's seven false lags and dead times of version 0.3.5 were
     all on sets without arm tracks; docs/calibration.md), so without any arm angle it is not tried; with
     arms, a delay test that finds no constant excess rules it out."""
-    if not any(tr.arms is not None and np.isfinite(tr.arms).any() for tr in trials):
+    if not SERVO_WITHOUT_ARMS and not any(tr.arms is not None and np.isfinite(tr.arms).any() for tr in trials):
         return NO_ARMS
     if dtest.no_constant_delay:
         return "the arm delay has no constant excess over the preset model's"
