@@ -348,11 +348,10 @@ def main():
         ap.error("--set needs --tag: results made with a changed model are kept apart")
     if (args.no_plate_level_gate or args.servo_without_arms) and not args.tag:
         ap.error("a counterfactual rule needs --tag: its results are kept apart")
+    from smarticle_mjx.calibrate import stages
     if args.servo_without_arms:
-        from smarticle_mjx.calibrate import stages
         stages.SERVO_WITHOUT_ARMS = True
     if args.no_plate_level_gate:
-        from smarticle_mjx.calibrate import stages
         stages.P_LEVEL = math.inf  # no p reaches it: plate_skip_reason never withholds the plate
     try:
         plates = plate_hypotheses_with(args.plate_hypothesis)
