@@ -1038,3 +1038,34 @@ def test_the_calibrations_model_runs_the_discrete_integrator_unless_set_and_synt
     side = json.loads(csv.with_suffix(".json").read_text())
     assert "integrator" not in (side.get("overrides") or {})  # the data record the robot, not the numerics
     assert load(csv)[0].params.integrator == "discrete"
+
+
+def test_the_stress_split_by_condition_takes_the_first_condition_a_draw_meets():
+    """The report's split (not a rule): a timing without arm tracks is 'body only' before anything else; a
+    lag behind a stepped reference next (a dead time behind one is not); a tilt beside tracking noise
+    before an outside effect; an anisotropic plate only where nothing earlier applies; clean sets and
+    outside-only sets have no condition; by_condition counts right and held-out per condition."""
+    import calibration_stress as S
+    base = {"hidden": [], "outside": [], "arms_tracked": True, "build": {"servo_slew": 8.0}}
+
+    def c(**kw):
+        return S.condition({**base, **kw})
+
+    names = [n for n, _ in S.CONDITIONS]
+    assert c() is None and c(outside=["arm_bias"]) is None
+    assert c(hidden=["servo_lag"], arms_tracked=False, build={"servo_slew": None}, outside=["arm_bias"]) == names[0]
+    assert c(hidden=["servo_dead_time"], arms_tracked=False) == names[0]
+    assert c(hidden=["plate_tilt"], arms_tracked=False) == names[5]  # body only matters for a timing
+    assert c(hidden=["servo_lag"], build={"servo_slew": None}) == names[1]
+    assert c(hidden=["servo_dead_time"], build={"servo_slew": None}) == names[5]
+    assert c(hidden=["tracking_noise", "plate_tilt"], outside=["heading_friction"]) == names[2]
+    assert c(hidden=["anisotropic_friction"], outside=["heading_friction"]) == names[3]
+    assert c(hidden=["anisotropic_friction", "phase_offset"]) == names[4]
+    assert c(hidden=["servo_lag"]) == names[5]
+    rows = [{"set": {**base, "hidden": h}, "score": {"right": r, "heldout_vs_twin": x}}
+            for h, r, x in ((["servo_lag"], True, 1.2), (["servo_lag"], False, 2.0), (["plate_tilt"], True, None),
+                            (["anisotropic_friction"], False, 1.5), ([], True, None))]
+    by = S.by_condition(rows)
+    assert by[names[5]] == {"sets": 3, "right": 2, "heldout_within_1_5_of_twin": 1, "with_twin": 2}
+    assert by[names[4]] == {"sets": 1, "right": 0, "heldout_within_1_5_of_twin": 1, "with_twin": 1}
+    assert sum(v["sets"] for v in by.values()) == 4
