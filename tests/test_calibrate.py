@@ -140,10 +140,14 @@ def test_clean_data_gets_no_effect(tmp_path, seed):
 
 
 def test_an_effect_outside_the_library_is_reported_unexplained(tmp_path):
-    # every robot's second arm is misread by 5 deg: no library effect makes a constant arm offset
+    # every robot's second arm is misread by 5 deg: no library effect makes a constant arm offset. It is read
+    # off the arms' rests without the model (calibrate.armoffset, version 0.4.7), named first in the verdict
+    # as unexplained and taken out of the tracks, so no effect is added for it
     res, _, added = _check_case(tmp_path, "unexplained_arm_bias")
-    assert added == [] and res["verdict"] == "unexplained residual"
-    assert max(res["after"]["where_heldout"], key=res["after"]["where_heldout"].get) == "arms"
+    assert added == [] and res["verdict"].startswith("unexplained: robot 0 arm 2 rests ")
+    ao = res["arm_offset"]
+    assert ao["taken_out"] and {(a["arm"], a["present"]) for a in ao["arms"]} == {(0, False), (1, True)}
+    assert all(a["offset_deg"] == pytest.approx(5.0, abs=0.3) for a in ao["arms"] if a["arm"] == 1)
 
 
 def test_smx_synth_and_calibrate_write_the_report_and_refuse_to_clobber(tmp_path):

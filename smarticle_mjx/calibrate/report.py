@@ -118,6 +118,27 @@ HELDOUT_RULE = ("a lag or dead time is kept only if, fitted with the nominal par
                 "error by 20 % or more")
 
 
+def arm_offset_markdown(ao: dict | None) -> list[str]:
+    """The report's lines on arms resting off their commanded corners (``armoffset.ArmOffsetReading``), or
+    none where no arm was read (reports before the reading, arms not tracked, too few rests)."""
+    if not ao or not ao.get("applicable"):
+        return []
+    lines = ["## Arms at rest against their commanded corners, without the model", "",
+             "Where each tracked arm rests (the middle third of each run of frames nearest one commanded corner), "
+             "averaged over the upper and lower corners: a servo that falls short of its corners falls short of "
+             "both alike (the shortfall), an arm read or mounted off by a constant rests off both the same way "
+             f"(the offset; present beyond {ao['min_offset_deg']:g}° and {ao['z']:g} standard errors). "
+             + ("**An arm rests off its corners**: outside the library's effects, it is taken out of that arm's "
+                "track before any fit, and named as unexplained in the verdict. Whether the tracker misreads the "
+                "arm or the arm is mounted off its servo, the data cannot say; a mounted one moves the robot as "
+                "the model's arm does not."
+                if ao.get("taken_out") else "No arm rests off its corners."), "",
+             "| robot | arm | offset (°) | standard error (°) | shortfall (°) | rests |", "|---|---|---|---|---|---|"]
+    lines += [f"| {a['robot']} | {a['arm'] + 1} | {a['offset_deg']:+.2f}{' (present)' if a['present'] else ''} | "
+              f"{a['se_deg']:.2f} | {a['shortfall_deg']:+.2f} | {a['rests']} |" for a in ao["arms"]]
+    return lines + [""]
+
+
 def offset_markdown(ot: dict | None) -> list[str]:
     """The report's lines on the phase offset read off the robots' own curves (``phase.OffsetTest``), or
     none where it was not read (one robot, or fewer than two pairs)."""
@@ -221,6 +242,7 @@ def markdown(r: dict) -> str:
                       + ("lag" if rt["reading"] == "servo_lag" else "dead time")
                       + "**, which is kept should a lag and a dead time both pass."]
         lines.append("")
+    lines += arm_offset_markdown(r.get("arm_offset"))
     lines += offset_markdown(r.get("offset_test"))
     lines += drag_markdown(r.get("drag_test"))
     lines += hypotheses_markdown(r.get("nominal_hypotheses") or [])
