@@ -17,7 +17,7 @@ import argparse
 import json
 import tempfile
 
-from calibration_stress import RESULTS, _indices, draw_set, write_set
+from calibration_stress import RESULTS, draw_set, seed_indices, write_set
 from smarticle_mjx.calibrate.armoffset import MIN_OFFSET_DEG, Z, read_offsets
 from smarticle_mjx.calibrate.data import load
 
@@ -41,25 +41,24 @@ def main():
     ap.add_argument("--out", default=str(RESULTS / "arm_offset_dev.json"))
     args = ap.parse_args()
     rows = []
-    for seed in _indices(args.suite_seeds):
-        for i in _indices(args.sets):
-            r = one(seed, i)
-            if r is None:
-                continue
-            rows.append(r)
-            arms = r["reading"]["arms"]
-            print(f"{seed}/{i:<3d} {'+'.join(r['hidden']) or 'clean':40s} bias {r['arm2_bias_deg']:+5.2f}  "
-                  + "  ".join(f"r{a['robot']}a{a['arm'] + 1} {a['offset_deg']:+6.2f}+-{a['se_deg']:.2f}"
-                              f"{'*' if a['present'] else ' '} (short {a['shortfall_deg']:+.2f})" for a in arms),
-                  flush=True)
+    for seed, i in seed_indices(args.suite_seeds, args.sets):
+        r = one(seed, i)
+        if r is None:
+            continue
+        rows.append(r)
+        arms = r["reading"]["arms"]
+        print(f"{seed}/{i:<3d} {'+'.join(r['hidden']) or 'clean':40s} bias {r['arm2_bias_deg']:+5.2f}  "
+              + "  ".join(f"r{a['robot']}a{a['arm'] + 1} {a['offset_deg']:+6.2f}+-{a['se_deg']:.2f}"
+                          f"{'*' if a['present'] else ' '} (short {a['shortfall_deg']:+.2f})" for a in arms),
+              flush=True)
     biased = [r for r in rows if r["arm2_bias_deg"]]
     plain = [r for r in rows if not r["arm2_bias_deg"]]
     summary = {
         "sets": len(rows), "min_offset_deg": MIN_OFFSET_DEG, "z": Z,
         "misread_sets": len(biased),
         "misread_read_present_on_arm2_only": sum(
-            [(a["arm"], a["present"]) for a in r["reading"]["arms"] if a["present"]] and
-            all(a["present"] == (a["arm"] == 1) for a in r["reading"]["arms"]) for r in biased),
+            any(a["present"] for a in r["reading"]["arms"])
+            and all(a["present"] == (a["arm"] == 1) for a in r["reading"]["arms"]) for r in biased),
         "other_sets": len(plain),
         "other_sets_with_an_offset_present": sum(any(a["present"] for a in r["reading"]["arms"]) for r in plain),
         "largest_offset_elsewhere_deg": max((abs(a["offset_deg"]) for r in plain for a in r["reading"]["arms"]),

@@ -372,6 +372,11 @@ def _indices(spec: str) -> list[int]:
     return out
 
 
+def seed_indices(seeds: str, sets: str) -> list[tuple[int, int]]:
+    """(suite seed, index) of every set the two specs name (e.g. "2061-2065", "0-29"), seed by seed."""
+    return [(seed, i) for seed in _indices(seeds) for i in _indices(sets)]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--suite-seed", type=int, default=REPORTED_SEED)

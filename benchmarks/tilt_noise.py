@@ -23,7 +23,7 @@ import json
 import pathlib
 import tempfile
 
-from calibration_stress import RESULTS, _indices, draw_set, write_set
+from calibration_stress import RESULTS, draw_set, seed_indices, write_set
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.drift import P_DRIFT, drift_test
 
@@ -61,28 +61,27 @@ def main():
     ap.add_argument("--out", default=str(RESULTS / "tilt_noise.json"))
     args = ap.parse_args()
     rows = []
-    for seed in _indices(args.suite_seeds):
-        for i in _indices(args.sets):
-            s = draw_set(seed, i)
-            if "plate_tilt" not in s["hidden"]:
-                continue
-            outcome = stored_outcome(seed, i)
-            if args.only_run and outcome is None:
-                continue
-            noisy = "tracking_noise" in s["hidden"]
-            row = {"suite_seed": seed, "index": i, "hidden": s["hidden"], "outside": s["outside"],
-                   "tilt_deg": list(s["generator"]["tilt_deg"]), "frame_rate_hz": s["frame_rate_hz"],
-                   "arms_tracked": s["arms_tracked"], "amplitudes": s["amplitudes"],
-                   "noise": {k: s["generator"][k] for k in NOISE} if noisy else None,
-                   "as_drawn": read(s), "without_noise": read(without_noise(s)) if noisy else None,
-                   "stored": outcome}
-            rows.append(row)
-            w = row["without_noise"]
-            print(f"{seed}/{i:<3} {'+'.join(s['hidden']):<40} p {row['as_drawn']['p']:9.2g} "
-                  f"(chi2 {row['as_drawn']['chi2']:8.1f} / {row['as_drawn']['dof']})"
-                  + (f"  without noise p {w['p']:9.2g} (chi2 {w['chi2']:8.1f})" if w else "")
-                  + (f"  stored: {'named' if outcome['tilt_named'] else 'not named'}" if outcome else ""),
-                   flush=True)
+    for seed, i in seed_indices(args.suite_seeds, args.sets):
+        s = draw_set(seed, i)
+        if "plate_tilt" not in s["hidden"]:
+            continue
+        outcome = stored_outcome(seed, i)
+        if args.only_run and outcome is None:
+            continue
+        noisy = "tracking_noise" in s["hidden"]
+        row = {"suite_seed": seed, "index": i, "hidden": s["hidden"], "outside": s["outside"],
+               "tilt_deg": list(s["generator"]["tilt_deg"]), "frame_rate_hz": s["frame_rate_hz"],
+               "arms_tracked": s["arms_tracked"], "amplitudes": s["amplitudes"],
+               "noise": {k: s["generator"][k] for k in NOISE} if noisy else None,
+               "as_drawn": read(s), "without_noise": read(without_noise(s)) if noisy else None,
+               "stored": outcome}
+        rows.append(row)
+        w = row["without_noise"]
+        print(f"{seed}/{i:<3} {'+'.join(s['hidden']):<40} p {row['as_drawn']['p']:9.2g} "
+              f"(chi2 {row['as_drawn']['chi2']:8.1f} / {row['as_drawn']['dof']})"
+              + (f"  without noise p {w['p']:9.2g} (chi2 {w['chi2']:8.1f})" if w else "")
+              + (f"  stored: {'named' if outcome['tilt_named'] else 'not named'}" if outcome else ""),
+               flush=True)
 
     def count(sel):
         return {"sets": len(sel), "significant": sum(r["as_drawn"]["significant"] for r in sel),

@@ -100,3 +100,14 @@ def test_an_untracked_frame_does_not_cut_a_rest():
     gappy = AO.read_offsets([Trial(tr.name, tr.t, tr.pose, arms, tr.gait, tr.params, tr.frame_rate_hz)])
     assert [a.rests for a in gappy.arms] == [a.rests for a in full.arms]
     assert all(abs(a.offset_deg) < 0.05 and abs(a.shortfall_deg) < 0.05 for a in gappy.arms)
+
+
+def test_the_report_tables_every_arm_and_says_whether_an_offset_was_taken_out():
+    from smarticle_mjx.calibrate.report import arm_offset_markdown
+    r = AO.read_offsets([_trial(offset_deg=(0.0, 5.0))])
+    md = "\n".join(arm_offset_markdown({**r.as_dict(), "taken_out": True}))
+    assert "**An arm rests off its corners**" in md and ("| 0 | 2 | +4.9" in md or "| 0 | 2 | +5.0" in md)
+    assert md.count("\n| 0 |") == 2 and "(present)" in md
+    plain = "\n".join(arm_offset_markdown({**AO.read_offsets([_trial()]).as_dict(), "taken_out": False}))
+    assert "No arm rests off its corners." in plain and "(present)" not in plain
+    assert arm_offset_markdown(None) == [] and arm_offset_markdown(AO.read_offsets([]).as_dict()) == []
