@@ -280,43 +280,38 @@ def summarise(rows: list[dict]) -> dict:
 
 
 # Conditions under which the calibration is known to miss an effect, each documented on earlier seeds
-# (docs/calibration.md): read off the draw alone, in this order, the first that applies. A split for the
-# report, beside the frozen targets; no rule of the calibration reads it (written before seed 2066 ran).
+# (docs/calibration.md, "Where the misses are"): read off the draw alone, in this order, the first that
+# applies. A split for the report, beside the frozen targets; no rule of the calibration reads it (written
+# before seed 2066 ran).
 CONDITIONS = (
-    ("servo timing, body only", "a lag or dead time hidden where no arm is tracked: not tried (the arm-track "
-                                "rule; clean body-only robots gain as much from a timing as true ones)"),
-    ("lag behind a stepped reference", "a lag hidden in a servo whose reference jumps to each corner: the "
-                                       "arm runs at its speed limit and its delay moves by a few ms"),
-    ("tilt beside tracking noise", "the noise takes the plate-frame drift's chi2 down 100-400x"),
-    ("beside an outside effect", "a library effect hidden beside an arm misread or a heading-dependent grip"),
-    ("anisotropic plate", "a plate slipperier along one axis, seen at two or three headings per gait"),
-    ("none of these", ""),
+    "servo timing, body only",  # a lag or dead time where no arm is tracked: not tried (the arm-track rule)
+    "lag behind a stepped reference",  # the arm runs at its speed limit; its delay moves by a few ms
+    "tilt beside tracking noise",  # the noise takes the plate-frame drift's chi2 down 100-400x
+    "beside an outside effect",  # an arm misread or a heading-dependent grip beside a library effect
+    "anisotropic plate",  # a plate slipperier along one axis, seen at two or three headings per gait
+    "none of these",
 )
 
 
 def condition(s: dict) -> str | None:
     """The first of ``CONDITIONS`` that a set with hidden library effects meets, from its draw alone;
     None for a clean set or one that hides only an outside effect."""
-    hidden = s["hidden"]
+    hidden = set(s["hidden"])
     if not hidden:
         return None
-    if set(hidden) & set(SERVO) and not s["arms_tracked"]:
-        return CONDITIONS[0][0]
-    if "servo_lag" in hidden and s["build"]["servo_slew"] is None:
-        return CONDITIONS[1][0]
-    if {"plate_tilt", "tracking_noise"} <= set(hidden):
-        return CONDITIONS[2][0]
-    if s["outside"]:
-        return CONDITIONS[3][0]
-    if "anisotropic_friction" in hidden:
-        return CONDITIONS[4][0]
-    return CONDITIONS[5][0]
+    met = (bool(hidden & set(SERVO)) and not s["arms_tracked"],
+           "servo_lag" in hidden and s["build"]["servo_slew"] is None,
+           {"plate_tilt", "tracking_noise"} <= hidden,
+           bool(s["outside"]),
+           "anisotropic_friction" in hidden,
+           True)
+    return CONDITIONS[met.index(True)]
 
 
 def by_condition(rows: list[dict]) -> dict:
     """Per condition (``CONDITIONS``, in order): sets, right, held-out within 1.5x of the twin."""
     out = {}
-    for name, _ in CONDITIONS:
+    for name in CONDITIONS:
         rs = [r for r in rows if condition(r["set"]) == name]
         twin = [r["score"]["heldout_vs_twin"] for r in rs if r["score"]["heldout_vs_twin"] is not None]
         out[name] = {"sets": len(rs), "right": sum(bool(r["score"]["right"]) for r in rs),

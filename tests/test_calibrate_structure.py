@@ -1051,7 +1051,7 @@ def test_the_stress_split_by_condition_takes_the_first_condition_a_draw_meets():
     def c(**kw):
         return S.condition({**base, **kw})
 
-    names = [n for n, _ in S.CONDITIONS]
+    names = list(S.CONDITIONS)
     assert c() is None and c(outside=["arm_bias"]) is None
     assert c(hidden=["servo_lag"], arms_tracked=False, build={"servo_slew": None}, outside=["arm_bias"]) == names[0]
     assert c(hidden=["servo_dead_time"], arms_tracked=False) == names[0]

@@ -31,6 +31,8 @@ import math
 
 import numpy as np
 
+from .observables import commanded
+
 MIN_OFFSET_DEG = 1.0
 Z = 5.0
 MIN_RESTS = 4  # rests at each corner an arm needs for a reading
@@ -85,10 +87,10 @@ class ArmOffsetReading:
                 "min_offset_deg": MIN_OFFSET_DEG, "z": Z}
 
 
-def corners(gait) -> np.ndarray:
-    """[2, K] the angles (rad) each arm is commanded to rest at, from the gait at an instant servo."""
-    u = (np.arange(1024) + 0.5) / 1024
-    sp = np.asarray(gait.setpoints(u * gait.period(), 1e6), float)  # [G, 2]
+def corners(gait) -> list[np.ndarray]:
+    """Per arm, the angles (rad, sorted) it is commanded to rest at: the values of the command
+    (``observables.commanded``, the gait at an instant servo)."""
+    sp = commanded(gait)
     return [np.unique(np.round(sp[:, k], 9)) for k in range(2)]
 
 
@@ -103,12 +105,11 @@ def rest_levels(angle: np.ndarray, corner_angles: np.ndarray) -> list[tuple[int,
     edges = np.flatnonzero(np.diff(near)) + 1
     starts, ends = np.r_[0, edges], np.r_[edges, len(angle)]
     for s, e in list(zip(starts, ends))[1:-1]:
-        c = near[s]
-        if e - s < 3:
-            continue
         n = e - s
-        mid = angle[s + n // 3:e - n // 3]
-        out.append((int(c), float(np.median(mid) - corner_angles[c])))
+        if n < 3:
+            continue
+        c = near[s]
+        out.append((int(c), float(np.median(angle[s + n // 3:e - n // 3]) - corner_angles[c])))
     return out
 
 

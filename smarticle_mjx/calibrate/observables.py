@@ -59,14 +59,20 @@ LABELS = {"arm_delay_ms": "arm delay (ms)", "phase_lead": "phase lead (periods)"
           "arm_rise_ms": "arm rise, quarter to three quarters (ms)"}  # each observable's name in tables
 
 
+def commanded(gait) -> np.ndarray:
+    """[_GRID, 2] the command (rad): the gait at an instant servo, at the midpoints of ``_GRID`` equal steps
+    of one period."""
+    u = (np.arange(_GRID) + 0.5) / _GRID
+    return np.asarray(gait.setpoints(u * gait.period(), 1e6), float)
+
+
 def _command_switches(gait) -> list[tuple[int, int, float]]:
     """Where the commanded arms cross their midpoint: [(arm, direction, phase)], phase in [0, 1).
 
-    The command is the gait at an instant servo: its midpoint crossings are
+    The command is the gait at an instant servo (:func:`commanded`): its midpoint crossings are
     the switches (the quarter starts of a square gait).
     """
-    u = (np.arange(_GRID) + 0.5) / _GRID
-    sp = np.asarray(gait.setpoints(u * gait.period(), 1e6))  # [G, 2]
+    sp = commanded(gait)  # [G, 2]
     out = []
     for k in range(2):
         s = np.sign(sp[:, k])
