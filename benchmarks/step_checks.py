@@ -28,34 +28,30 @@ from __future__ import annotations
 import json
 import pathlib
 
-from smarticle_mjx import presets
+from glider_step import SEED
+from smarticle_mjx import imperfections as imp
+from smarticle_mjx import presets, scene
 from smarticle_mjx.reduce import stepcheck
+from step_mechanism import variant_params
 
 ROOT = pathlib.Path(__file__).resolve().parent / "results"
 
 
-NUMERICS = {"integrator", "contact_substeps", "substep_gate"}
-
-
 def builds_preset(model: str, imperfections: str, row: dict) -> bool:
     """Does a benchmark row's scene equal the preset's at the row's step and numerics? Rows that change only
-    the numerics do; a row that changes a robot field enters only where that field builds the scene the
-    preset builds anyway (the gear teeth's time constant at the 2 dt the step gives them)."""
-    changes = dict(row["changes"])
-    robot_changes = changes.pop("robot", {})
-    if set(changes) - NUMERICS:
+    the numerics (``stepcheck.KEYED_NUMERICS``) do; a row that changes a robot field enters only where that
+    field builds the scene the preset builds anyway (the gear teeth's time constant at the 2 dt the step
+    gives them), with the check's drawn robots."""
+    changes = row["changes"]
+    numerics = {k: v for k, v in changes.items() if k != "robot"}
+    if set(numerics) - set(stepcheck.KEYED_NUMERICS):
         return False
-    if not robot_changes:
+    if not changes.get("robot"):
         return True
-    import dataclasses
-
-    from smarticle_mjx import imperfections as imp
-    from smarticle_mjx import scene
-    base = dataclasses.replace(presets.params(model), timestep=row["dt_s"], **changes)
-    changed = dataclasses.replace(base, robot=dataclasses.replace(base.robot, **robot_changes))
-    robots = imp.draw(imperfections, 2, 1) if imperfections != "none" else None
+    robots = imp.draw(imperfections, 2, SEED) if imperfections != "none" else None
     poses = [(0.0, 0.0, 0.0, 1.0, 1.0), (0.2, 0.0, 0.5, 1.0, 1.0)]
-    xml = [scene.build_mjcf(p if robots is None else robots.scene(p), poses) for p in (base, changed)]
+    xml = [scene.build_mjcf(p if robots is None else robots.scene(p), poses)
+           for p in (variant_params(row["dt_s"], numerics, model), variant_params(row["dt_s"], changes, model))]
     return xml[0] == xml[1]
 
 

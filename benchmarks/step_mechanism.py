@@ -166,6 +166,17 @@ for _dt, _changes in VARIANTS.values():  # every variant names its sub-stepping:
     _changes.setdefault("contact_substeps", 1)
 
 
+def variant_params(dt: float, changes: dict, model: str = "lab-lag"):
+    """The scene a variant runs: ``model``'s preset at step ``dt`` with ``changes`` (scene fields, and under
+    "robot" robot fields: a robot parameter that is numerics in disguise, the gear stops' 2 dt)."""
+    changes = dict(changes)
+    robot_changes = changes.pop("robot", {})
+    params = dataclasses.replace(presets.params(model), timestep=dt, **changes)
+    if robot_changes:
+        params = dataclasses.replace(params, robot=dataclasses.replace(params.robot, **robot_changes))
+    return params
+
+
 def run(name: str, poses: np.ndarray, imperfections: str | None = None, replica: int | None = None) -> pathlib.Path:
     """Variant ``name``'s tracks from ``poses`` (reused when kept); ``replica``: from those starts moved as
     :func:`replica_poses` moves them with that seed."""
@@ -174,11 +185,7 @@ def run(name: str, poses: np.ndarray, imperfections: str | None = None, replica:
     model = "lab-lag" + (f"+{imperfections}" if imperfections else "") + (f"_replica{replica}" if replica else "")
     if replica:
         poses = replica_poses(poses, replica)
-    changes = dict(changes)
-    robot_changes = changes.pop("robot", {})
-    params = dataclasses.replace(presets.params("lab-lag"), timestep=dt, **changes)
-    if robot_changes:  # a robot parameter that is numerics in disguise (the gear stops' 2 dt)
-        params = dataclasses.replace(params, robot=dataclasses.replace(params.robot, **robot_changes))
+    params = variant_params(dt, changes)
     robots = None
     if imperfections:  # the same two drawn robots in every start, as fidelity_screen.py --imperfections
         from smarticle_mjx import imperfections as imp
