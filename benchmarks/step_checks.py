@@ -14,9 +14,10 @@ drifting clocks leave no pair bound from period 10 to 100 at any step, so the st
 sources measures nothing), results/step_mechanism_lab_runs30_stops-0.5ms_against-default.json (its 0.25 ms
 row again with today's `lab` robots, whose start delays changed in version 0.4.1, against the check's reference
 run again beside it; the row names the gear teeth's 0.5 ms that the default step builds anyway, so its scene
-is the preset's) and results/step_mechanism_lab_runs30_cg.json (its 0.25 ms row and reference with the "auto"
-solver, which solves the `lab` robots' gear play with CG since November 2026, made before 0.4.1; they come in
-that order, before the Newton file, whose 0.5 ms and RK4 rows stay). Only measurements whose scene is the
+is the preset's), results/step_mechanism_lab_runs30_rerun.json (its 0.5 ms and 1 ms RK4 rows again with today's
+robots and the "auto" solver, against that same reference run) and results/step_mechanism_lab_runs30_cg.json (its
+0.25 ms row and reference with the "auto" solver, which solves the `lab` robots' gear play with CG since November
+2026, made before 0.4.1); they come in that order, before the Newton file, whose rows no longer enter. Only measurements whose scene is the
 preset's at their step enter (a field changed that builds the same scene, as the teeth above, does not make
 another model); an integrator switch, and near-contact sub-stepping, are keys of their own.
 
@@ -68,7 +69,8 @@ def collect() -> list[stepcheck.StepCheck]:
                             g["runs"][ref_name])
         out[stepcheck.key_of(e)] = e
     for source in ("step_mechanism.json", "step_mechanism_lab_runs30_stops-0.5ms_against-default.json",
-                   "step_mechanism_lab_runs30_cg.json", "step_mechanism_lab_runs30.json",
+                   "step_mechanism_lab_runs30_rerun.json", "step_mechanism_lab_runs30_cg.json",
+                   "step_mechanism_lab_runs30.json",
                    "step_mechanism_substeps.json", "step_mechanism_substeps_discrete.json",
                    "step_mechanism_discrete_against-default.json"):
         if not (ROOT / source).exists():
