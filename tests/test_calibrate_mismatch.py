@@ -376,3 +376,86 @@ def test_drifts_pointing_different_ways_in_different_gaits_are_not_one_tilt():
     # the weights: a sharp drift holds the mean, so the vaguer one is the one far from it
     d = directions([row(0, se=0.001), row(60, se=0.04)])
     assert d["angles_deg"][0] < 5 and d["angles_deg"][1] > MAX_DIRECTION_SPREAD_DEG and not d["consistent"]
+
+
+def test_a_coulomb_slider_drifts_downhill_whatever_way_it_slides():
+    """Brute force, written here: a puck on a plate with Coulomb friction (kinetic mu g while it moves,
+    held while the pull is under static friction) is kicked along a few fixed ways, each kick from rest.
+    A small pull along the plate (a tilt) changes where each slide ends; over the kicks the extra
+    displacement per unit pull is the drift response R. Whatever the ways it slides (here along one axis
+    mostly, as a robot's body does), the drift has a non-negative component along the pull: u . R u >= 0
+    for every u, which ``drift.downhill`` asks of a model's response along the data's drift. The same
+    response reversed, or turned 150 degrees, is not downhill."""
+    from smarticle_mjx.calibrate.drift import downhill
+    mu_g, dt = 3.6, 1e-4  # m/s^2 (mu 0.37), s
+    kicks = [(0.05, 0.0), (0.04, 0.3), (0.06, -0.2), (0.03, math.pi + 0.1), (0.05, math.pi)]  # speed m/s, way
+
+    def slide(pull):
+        total = np.zeros(2)
+        for speed, way in kicks:
+            x, v = np.zeros(2), speed * np.array([math.cos(way), math.sin(way)])
+            while np.hypot(*v) > 0:
+                sp = np.hypot(*v)
+                a = np.asarray(pull) - mu_g * v / sp
+                v_new = v + a * dt
+                if v_new @ v <= 0:  # stopped within the step; static friction holds the small pull
+                    v_new = np.zeros(2)
+                x = x + 0.5 * (v + v_new) * dt
+                v = v_new
+            total += x
+        return total
+
+    eps = 0.02  # m/s^2: about a third of a degree of tilt
+    base = slide((0.0, 0.0))
+    r = np.column_stack([(slide((eps, 0.0)) - base) / eps, (slide((0.0, eps)) - base) / eps])
+    for ang in np.radians(np.arange(0, 360, 10)):
+        u = np.array([math.cos(ang), math.sin(ang)])
+        assert u @ r @ u >= -1e-9 * np.abs(r).max()
+        if abs(math.sin(ang)) > 0.2:  # off the axis it mostly slides along, clearly downhill
+            assert downhill(r, u)
+        assert not downhill(-r, u)
+    c, s = math.cos(math.radians(150)), math.sin(math.radians(150))
+    turned = np.array([[c, -s], [s, c]]) @ r
+    assert not downhill(turned, (0.0, 1.0)) and downhill(r, (0.0, 1.0))
+
+
+def test_a_gait_whose_model_drifts_uphill_does_not_size_the_tilt(tmp_path):
+    """The independent robot on a plate tilted 1.6 deg (the library's (1.5, 0.5)), two gaits. Sized with the
+    same simulator as its model, both gaits drift downhill and the tilt comes back. With a model that drifts
+    uphill in the 90 deg gait (its response reversed there, as a model robot whose trajectories move for
+    another reason can give), that gait is left out and named, and the 40 deg gait alone still gives the
+    tilt; with both gaits reversed there is no fit at all."""
+    from smarticle_mjx.calibrate.drift import fit_tilt
+    truth = (1.5, 0.5)
+    amps = (40, 90)
+    quiet = dict(noise_xy_mm=0.0, noise_theta_deg=0.0, noise_arm_deg=0.0)
+
+    def write(d, a, tilt, **kw):
+        x, y = tilt  # the library's plate_tilt: gravity pulls toward (x, y); the generator's own convention
+        I.write_case(d, amplitude_deg=float(a), name=f"a{a}", trials=3, periods=5, seed=300 + a,
+                     tilt_deg=(-y, x), **kw)
+
+    for a in amps:
+        write(tmp_path / "data", a, truth)
+    trials = load(tmp_path / "data")
+    assert [tr.gaits[0].amplitude_deg for tr in trials] == [40] * 3 + [90] * 3
+    cache = {}
+
+    def tracks(a, tilt):  # the generator's tracks of one gait, without noise (the same starts and frames)
+        if (a, tilt) not in cache:
+            d = tmp_path / f"model_{a}_{len(cache)}"
+            write(d, a, tilt, **quiet)
+            cache[a, tilt] = [np.concatenate([tr.pose, tr.arms], -1) for tr in load(d)]
+        return cache[a, tilt]
+
+    def model(sign):
+        return lambda tx, ty: [t for a in amps for t in tracks(a, (sign[a] * tx, sign[a] * ty))]
+
+    honest = fit_tilt(trials, model({40: 1, 90: 1}))
+    assert honest["ok"] and honest["uphill_groups"] == [] and honest["groups"] == 2
+    assert np.allclose(honest["tilt_deg"], truth, atol=0.35), honest["tilt_deg"]
+    one = fit_tilt(trials, model({40: 1, 90: -1}))
+    assert one["ok"] and [g["amplitude_deg"] for g in one["uphill_groups"]] == [90]
+    assert one["groups"] == 1 and np.allclose(one["tilt_deg"], truth, atol=0.5), one["tilt_deg"]
+    none = fit_tilt(trials, model({40: -1, 90: -1}))
+    assert not none["ok"] and len(none["uphill_groups"]) == 2

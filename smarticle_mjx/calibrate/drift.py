@@ -355,6 +355,19 @@ def drift_test(trials) -> dict:
             "plate_models": plate_drift_models(list(tracks.values()), list(fits.values())).as_dict()}
 
 
+def downhill(response, direction) -> bool:
+    """Does a model robot pulled the way the data drift (``direction``, a plate-frame vector) drift that way?
+    ``response``: 2 x 2, its plate-frame drift per degree of the library's ``plate_tilt`` along x and along y,
+    which names the way gravity pulls. A tilt pulls a robot along its slope, and a robot whose slides are
+    held by Coulomb friction drifts with the pull's component along each way it slides, so its drift has a
+    non-negative component along the pull whatever the slides' directions (u . R u >= 0 for a pull along u;
+    tests/test_calibrate_mismatch.py checks it on a slider written there). A gait whose model robot, pulled
+    along the data's drift, drifts against it is not making a tilt's drift (its trajectories moved for
+    another reason between the model runs, as with arms dragging on the plate), and it cannot size one."""
+    u = np.asarray(direction, float)
+    return bool(u @ np.asarray(response, float) @ u > 0.0)
+
+
 def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -> dict:
     """The plate tilt (x, y in degrees, the library's ``plate_tilt``) whose
     model drift matches the measured one, by weighted least squares over the
@@ -380,6 +393,11 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
     steeper plate would be seen by eye), and the tilt is shortened along its
     direction to fit them (``tilt_deg_unbounded`` keeps the least-squares value); ``size_determined`` is False where
     the magnitude's interval spans more than a factor 4.
+
+    A gait whose model robot, pulled the way the data drift (their mean direction beyond the model's drift
+    on a level plate, weighted as the fit weighs them), drifts against that way (:func:`downhill`) is left
+    out of the fit, of its chi^2 and of the mismatch term, and listed in ``uphill_groups`` with its response
+    (since November 2026, version 0.4.9); where no gait is left, there is no fit (``ok`` False).
     """
     meas = group_drift(trials)
     zero = run_model(0.0, 0.0)
@@ -387,18 +405,24 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
     vx = group_drift(trials, run_model(step_deg, 0.0))
     vy = group_drift(trials, run_model(0.0, step_deg))
     s_meas, s_model = group_slide(trials), group_slide(trials, zero)
-    rows, ys, ws, keys = [], [], [], []
+    rows, ys, ws, keys, uphill = [], [], [], [], []
     for key, m in meas.items():
         if key not in v0 or key not in vx or key not in vy:
             continue
-        jac = np.column_stack([(vx[key]["v"] - v0[key]["v"]) / step_deg, (vy[key]["v"] - v0[key]["v"]) / step_deg])
-        w = np.linalg.inv(m["cov_v"] + v0[key]["cov_v"])  # measured and model drift both carry error
-        rows.append(jac)
+        rows.append(np.column_stack([(vx[key]["v"] - v0[key]["v"]) / step_deg,
+                                     (vy[key]["v"] - v0[key]["v"]) / step_deg]))
         ys.append(m["v"] - v0[key]["v"])
-        ws.append(w)
+        ws.append(np.linalg.inv(m["cov_v"] + v0[key]["cov_v"]))  # measured and model drift both carry error
         keys.append(key)
+    if rows:  # the way the data drift beyond the model's level-plate drift, weighted as the fit weighs them
+        pull = np.linalg.solve(sum(ws), sum(w @ y for w, y in zip(ws, ys)))
+        pull = pull / max(float(np.hypot(*pull)), 1e-300)
+        kept = [downhill(j, pull) for j in rows]
+        uphill = [{"amplitude_deg": k[0], "chirality": k[1], "period_s": k[3], "response_mm_per_deg": j.tolist(),
+                   "uphill": True} for k, j, ok in zip(keys, rows, kept) if not ok]
+        rows, ys, ws, keys = ([x for x, ok in zip(seq, kept) if ok] for seq in (rows, ys, ws, keys))
     if not rows:
-        return {"ok": False}
+        return {"ok": False, "uphill_groups": uphill}
     ata = sum(j.T @ w @ j for j, w in zip(rows, ws))
     atb = sum(j.T @ w @ y for j, w, y in zip(rows, ws, ys))
     cov = np.linalg.inv(ata)
@@ -409,7 +433,7 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
     # the discrepancy: per-group tilts (each group's two equations alone) and the slide ratio
     groups, logs, slides = [], [], []
     for key, j, y in zip(keys, rows, ys):
-        g = {"amplitude_deg": key[0], "chirality": key[1], "period_s": key[3]}
+        g = {"amplitude_deg": key[0], "chirality": key[1], "period_s": key[3], "response_mm_per_deg": j.tolist()}
         if abs(np.linalg.det(j)) > 1e-12 * max(float(np.abs(j).max()) ** 2, 1e-300):
             tg = np.linalg.solve(j, y)
             g["tilt_deg"] = tg.tolist()
@@ -444,6 +468,7 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
             "magnitude_deg": mag, "magnitude_interval": (mag_lo, mag_hi),
             "size_determined": bool(mag_lo > 0 and mag_hi / mag_lo <= 4.0),
             "direction_deg": float(math.degrees(math.atan2(tilt[1], tilt[0])) % 360.0),
+            "uphill_groups": uphill,
             "discrepancy": {"log_sd": log_sd, "log_sd_gaits": sd_gaits, "log_sd_slide": sd_slide, "per_group": groups}}
 
 

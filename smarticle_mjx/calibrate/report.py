@@ -297,6 +297,12 @@ def markdown(r: dict) -> str:
                     lines.append(f"| {g['amplitude_deg']:g}° {g['chirality']} | "
                                  + (f"({tg[0]:+.3g}, {tg[1]:+.3g})" if tg else "–") + " | "
                                  + (f"{sl[0]:.3g} / {sl[1]:.3g}" if sl else "–") + " |")
+                for g in tf.get("uphill_groups", []):
+                    lines.append(f"| {g['amplitude_deg']:g}° {g['chirality']} | left out: the model robot drifts "
+                                 "uphill on a tilted plate here, so this gait does not size a tilt | – |")
+        elif tf.get("uphill_groups"):
+            lines += ["", "No tilt fitted: in no gait does the model robot drift downhill on a tilted plate "
+                      "(its drift per degree of tilt points uphill on average), so the model cannot size one."]
         lines.append("")
     lines += observables_markdown(r.get("observables"))
     if r["added"]:

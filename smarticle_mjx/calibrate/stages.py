@@ -605,6 +605,14 @@ def tilt_stage(trials: list[Trial], train: Problem, model: Model, say, drift: di
                                phase_for=lambda tr: eff.phases(tr.robots, tr.periods))
 
     tilt = fit_tilt(trials, run_model)
+    for g in tilt.get("uphill_groups", []):
+        say(f"  the model robot drifts uphill on a tilted plate at {g['amplitude_deg']:g} deg {g['chirality']}: "
+            "that gait does not size the tilt")
+    for g in (tilt.get("discrepancy") or {}).get("per_group", []):
+        say(f"  model drift per degree of tilt at {g['amplitude_deg']:g} deg {g['chirality']}: "
+            f"{np.round(g['response_mm_per_deg'], 4).tolist()} mm/cycle; this gait alone: {g.get('tilt_deg')}")
+    if not tilt.get("ok") and tilt.get("uphill_groups"):
+        say("  plate_tilt not fitted: in no gait does the model robot drift downhill")
     if tilt.get("ok"):
         t_vec = np.array(tilt["tilt_deg"])
         z2 = float(t_vec @ np.linalg.solve(np.diag(np.square(tilt["se_deg"])), t_vec))
