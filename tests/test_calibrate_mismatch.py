@@ -459,3 +459,27 @@ def test_a_gait_whose_model_drifts_uphill_does_not_size_the_tilt(tmp_path):
     assert one["groups"] == 1 and np.allclose(one["tilt_deg"], truth, atol=0.5), one["tilt_deg"]
     none = fit_tilt(trials, model({40: -1, 90: -1}))
     assert not none["ok"] and len(none["uphill_groups"]) == 2
+
+
+def test_the_report_names_a_gait_left_out_of_the_tilt_and_a_tilt_not_fitted():
+    """The drift section lists a gait whose model robot drifts uphill as left out, beside the gaits that
+    sized the tilt, and says so where no gait was left to fit one."""
+    from smarticle_mjx.calibrate.report import drift_markdown
+    g = {"amplitude_deg": 25.0, "v_mm": [-1.49, -1.66], "se_mm": [0.43, 0.43], "cycles": 7, "spread_deg": 81.0}
+    up = {"amplitude_deg": 75.0, "chirality": "ccw", "period_s": 1.33, "response_mm_per_deg": [[1.2, -2.5],
+                                                                                             [-2.0, -0.4]],
+          "uphill": True}
+    fit = {"ok": True, "tilt_deg": [-0.82, -0.78], "se_deg": [0.4, 0.5], "chi2_before": 9.0, "chi2_after": 0.0,
+           "accepted": False, "magnitude_deg": 1.13, "magnitude_interval": [0.2, 3.0], "size_determined": False,
+           "direction_deg": 224.0, "uphill_groups": [up],
+           "discrepancy": {"log_sd": 0.1, "log_sd_gaits": 0.0, "log_sd_slide": 0.1,
+                           "per_group": [{"amplitude_deg": 25.0, "chirality": "ccw", "tilt_deg": [-0.82, -0.78],
+                                          "slide_mm": [20.6, 21.9]}]}}
+    dr = {"dof": 4, "chi2": 40.7, "p": 3e-8, "threshold_p": 1e-3, "groups": [g], "directions": {},
+          "tilt_fit": fit}
+    md = "\n".join(drift_markdown(dr, None))
+    assert "| 25° ccw | (-0.82, -0.78) |" in md
+    assert "| 75° ccw | left out: the model robot drifts uphill" in md
+    md = "\n".join(drift_markdown({**dr, "tilt_fit": {"ok": False, "uphill_groups": [up]}}, None))
+    assert "No tilt fitted: in no gait does the model robot drift downhill" in md and "| 75° ccw |" not in md
+    assert drift_markdown(None, None) == [] and drift_markdown({"dof": 0}, None) == []

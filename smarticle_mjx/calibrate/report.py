@@ -246,64 +246,7 @@ def markdown(r: dict) -> str:
     lines += offset_markdown(r.get("offset_test"))
     lines += drag_markdown(r.get("drag_test"))
     lines += hypotheses_markdown(r.get("nominal_hypotheses") or [])
-    dr = r.get("drift")
-    if dr and dr.get("dof"):
-        tf = dr.get("tilt_fit") or {}
-        lines += ["## Plate-frame drift (model-free tilt test)", "",
-                  "Per gait, every lone robot's per-cycle step fitted as R(heading) s + v over all trials: s is the "
-                  "body-frame step (whatever the model gets wrong about the robot), v a drift fixed to the plate "
-                  f"(a tilt). χ² of v = 0: {dr['chi2']:.1f} on {dr['dof']} dof, p = {dr['p']:.2g} "
-                  f"(a finding below p = {dr['threshold_p']:g}).", "",
-                  "| α_max | v (mm/cycle) | standard error | cycles | heading spread |", "|---|---|---|---|---|"]
-        for g in dr["groups"]:
-            lines.append(f"| {g['amplitude_deg']:g}° | ({g['v_mm'][0]:+.4f}, {g['v_mm'][1]:+.4f}) | "
-                         f"({g['se_mm'][0]:.4f}, {g['se_mm'][1]:.4f}) | {g['cycles']} | {g['spread_deg']:.0f}° |")
-        pl = r.get("plate_level") or {}
-        if pl.get("reason"):
-            lines += ["", f"An anisotropic plate was not tried: {pl['reason']}."]
-        elif pl.get("anisotropic_plate_tried"):
-            lines += ["", f"The drift's p is below {pl['threshold_p']:g}: the plate may be other than level and "
-                      "isotropic, so an anisotropic plate was tried."]
-        if tf.get("ok"):
-            lines += ["", f"Tilt whose model drift matches: ({tf['tilt_deg'][0]:+.3f}, {tf['tilt_deg'][1]:+.3f})° "
-                      f"± ({tf['se_deg'][0]:.3f}, {tf['se_deg'][1]:.3f})°, drift χ² {tf['chi2_before']:.1f} → "
-                      f"{tf['chi2_after']:.1f}; {'added' if tf.get('accepted') else 'not added'} (kept when "
-                      "the drift test finds drift, the tilt's 95 % region excludes a level plate, the drift χ² at "
-                      "least halves and the gaits' drifts point one way)."]
-            di = dr.get("directions") or {}
-            if di.get("compared"):
-                lines += ["", f"Directions of the {di['groups']} gaits' significant drifts: up to "
-                          f"{di['max_angle_deg']:.0f}° from their mean ({di['mean_deg']:.0f}°); "
-                          + ("one way, as a tilt pulls." if di["consistent"] else
-                             "**they point different ways**: not a tilt, which pulls every gait downhill, but a "
-                             "plate that is not level in another way (slipperier along one axis, a grip that depends "
-                             "on the robot's heading), which the library's tilt does not describe.")]
-            disc = tf.get("discrepancy")
-            if disc:
-                mi = tf["magnitude_interval"]
-                lines += ["", f"Magnitude {tf['magnitude_deg']:.3g}° toward {tf['direction_deg']:.0f}°; 95 % interval "
-                          f"with the model robot's mismatch [{mi[0]:.3g}, {mi[1]:.3g}]° (a log-sd of "
-                          f"{disc['log_sd']:.2f}: {disc['log_sd_gaits']:.2f} from the gaits' disagreement, "
-                          f"{disc['log_sd_slide']:.2f} from how differently the model robot slides)"
-                          + ("" if tf.get("size_determined") else "; **the size is not determined by this model**")
-                          + ". The drift a tilt "
-                          "causes scales with how the robot slides, which a model robot built differently gets wrong: "
-                          "the direction is read off the drift, the size only as well as the model slides like the "
-                          "robot.", "", "| gait | tilt from this gait alone (°) | slide per cycle, measured / model (mm) |",
-                          "|---|---|---|"]
-                for g in disc["per_group"]:
-                    tg = g.get("tilt_deg")
-                    sl = g.get("slide_mm")
-                    lines.append(f"| {g['amplitude_deg']:g}° {g['chirality']} | "
-                                 + (f"({tg[0]:+.3g}, {tg[1]:+.3g})" if tg else "–") + " | "
-                                 + (f"{sl[0]:.3g} / {sl[1]:.3g}" if sl else "–") + " |")
-                for g in tf.get("uphill_groups", []):
-                    lines.append(f"| {g['amplitude_deg']:g}° {g['chirality']} | left out: the model robot drifts "
-                                 "uphill on a tilted plate here, so this gait does not size a tilt | – |")
-        elif tf.get("uphill_groups"):
-            lines += ["", "No tilt fitted: in no gait does the model robot drift downhill on a tilted plate "
-                      "(its drift per degree of tilt points uphill on average), so the model cannot size one."]
-        lines.append("")
+    lines += drift_markdown(r.get("drift"), r.get("plate_level"))
     lines += observables_markdown(r.get("observables"))
     if r["added"]:
         lines += ["## Added effects", "",
@@ -370,6 +313,71 @@ def markdown(r: dict) -> str:
         "frame; step = per-cycle step in the plate frame; increments = frame-to-frame jitter.", ""]
     lines += [f"![{n}]({n})" for n in r["figures"]]
     return "\n".join(lines) + "\n"
+
+
+def drift_markdown(dr: dict | None, pl: dict | None) -> list[str]:
+    """The report's plate-frame drift section: the model-free test, the tilt whose model drift matches, the
+    gaits' directions and, per gait, the tilt that gait alone gives (or that it was left out: its model robot
+    drifts uphill)."""
+    lines: list[str] = []
+    if dr and dr.get("dof"):
+        tf = dr.get("tilt_fit") or {}
+        lines += ["## Plate-frame drift (model-free tilt test)", "",
+                  "Per gait, every lone robot's per-cycle step fitted as R(heading) s + v over all trials: s is the "
+                  "body-frame step (whatever the model gets wrong about the robot), v a drift fixed to the plate "
+                  f"(a tilt). χ² of v = 0: {dr['chi2']:.1f} on {dr['dof']} dof, p = {dr['p']:.2g} "
+                  f"(a finding below p = {dr['threshold_p']:g}).", "",
+                  "| α_max | v (mm/cycle) | standard error | cycles | heading spread |", "|---|---|---|---|---|"]
+        for g in dr["groups"]:
+            lines.append(f"| {g['amplitude_deg']:g}° | ({g['v_mm'][0]:+.4f}, {g['v_mm'][1]:+.4f}) | "
+                         f"({g['se_mm'][0]:.4f}, {g['se_mm'][1]:.4f}) | {g['cycles']} | {g['spread_deg']:.0f}° |")
+        pl = pl or {}
+        if pl.get("reason"):
+            lines += ["", f"An anisotropic plate was not tried: {pl['reason']}."]
+        elif pl.get("anisotropic_plate_tried"):
+            lines += ["", f"The drift's p is below {pl['threshold_p']:g}: the plate may be other than level and "
+                      "isotropic, so an anisotropic plate was tried."]
+        if tf.get("ok"):
+            lines += ["", f"Tilt whose model drift matches: ({tf['tilt_deg'][0]:+.3f}, {tf['tilt_deg'][1]:+.3f})° "
+                      f"± ({tf['se_deg'][0]:.3f}, {tf['se_deg'][1]:.3f})°, drift χ² {tf['chi2_before']:.1f} → "
+                      f"{tf['chi2_after']:.1f}; {'added' if tf.get('accepted') else 'not added'} (kept when "
+                      "the drift test finds drift, the tilt's 95 % region excludes a level plate, the drift χ² at "
+                      "least halves and the gaits' drifts point one way)."]
+            di = dr.get("directions") or {}
+            if di.get("compared"):
+                lines += ["", f"Directions of the {di['groups']} gaits' significant drifts: up to "
+                          f"{di['max_angle_deg']:.0f}° from their mean ({di['mean_deg']:.0f}°); "
+                          + ("one way, as a tilt pulls." if di["consistent"] else
+                             "**they point different ways**: not a tilt, which pulls every gait downhill, but a "
+                             "plate that is not level in another way (slipperier along one axis, a grip that depends "
+                             "on the robot's heading), which the library's tilt does not describe.")]
+            disc = tf.get("discrepancy")
+            if disc:
+                mi = tf["magnitude_interval"]
+                lines += ["", f"Magnitude {tf['magnitude_deg']:.3g}° toward {tf['direction_deg']:.0f}°; 95 % interval "
+                          f"with the model robot's mismatch [{mi[0]:.3g}, {mi[1]:.3g}]° (a log-sd of "
+                          f"{disc['log_sd']:.2f}: {disc['log_sd_gaits']:.2f} from the gaits' disagreement, "
+                          f"{disc['log_sd_slide']:.2f} from how differently the model robot slides)"
+                          + ("" if tf.get("size_determined") else "; **the size is not determined by this model**")
+                          + ". The drift a tilt "
+                          "causes scales with how the robot slides, which a model robot built differently gets wrong: "
+                          "the direction is read off the drift, the size only as well as the model slides like the "
+                          "robot.", "", "| gait | tilt from this gait alone (°) | slide per cycle, measured / model (mm) |",
+                          "|---|---|---|"]
+                for g in disc["per_group"]:
+                    tg = g.get("tilt_deg")
+                    sl = g.get("slide_mm")
+                    lines.append(f"| {g['amplitude_deg']:g}° {g['chirality']} | "
+                                 + (f"({tg[0]:+.3g}, {tg[1]:+.3g})" if tg else "–") + " | "
+                                 + (f"{sl[0]:.3g} / {sl[1]:.3g}" if sl else "–") + " |")
+                for g in tf.get("uphill_groups", []):
+                    lines.append(f"| {g['amplitude_deg']:g}° {g['chirality']} | left out: the model robot drifts "
+                                 "uphill on a tilted plate here, so this gait does not size a tilt | – |")
+        elif tf.get("uphill_groups"):
+            lines += ["", "No tilt fitted: in no gait does the model robot drift downhill on a tilted plate "
+                      "(its drift per degree of tilt points uphill on average), so the model cannot size one."]
+        lines.append("")
+    return lines
 
 
 def hypotheses_markdown(hyps: list) -> list[str]:
