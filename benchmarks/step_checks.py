@@ -8,16 +8,15 @@ results/step_mechanism_substeps.json and step_mechanism_substeps_discrete.json (
 with implicitfast and with discrete, against the same reference, same starts),
 results/step_mechanism_discrete_against-default.json (discrete at 0.0625-0.25 ms and discrete and Euler with
 near-contact sub-stepping, against the same reference, same starts),
-results/step_mechanism_lab_runs30.json (the same with the `lab` imperfection set, against its own
-reference; a glider there is a start's longest bound run of >= 30 periods, because the drawn robots'
-drifting clocks leave no pair bound from period 10 to 100 at any step, so the steady rule of the other
-sources measures nothing), results/step_mechanism_lab_runs30_stops-0.5ms_against-default.json (its 0.25 ms
-row again with today's `lab` robots, whose start delays changed in version 0.4.1, against the check's reference
-run again beside it; the row names the gear teeth's 0.5 ms that the default step builds anyway, so its scene
-is the preset's), results/step_mechanism_lab_runs30_rerun.json (its 0.5 ms and 1 ms RK4 rows again with today's
-robots and the "auto" solver, against that same reference run) and results/step_mechanism_lab_runs30_cg.json (its
-0.25 ms row and reference with the "auto" solver, which solves the `lab` robots' gear play with CG since November
-2026, made before 0.4.1); they come in that order, before the Newton file, whose rows no longer enter. Only measurements whose scene is the
+and the `lab` imperfection set's rows, measured with today's `lab` robots (whose start delays changed in
+version 0.4.1) and the solver the preset gives their gear play, against the check's 0.0625 ms reference run again
+beside them (a glider there is a start's longest bound run of >= 30 periods, because the drawn robots' drifting
+clocks leave no pair bound from period 10 to 100 at any step, so the steady rule of the other sources measures
+nothing): results/step_mechanism_lab_runs30_stops-0.5ms_against-default.json (0.25 ms; the row names the gear
+teeth's 0.5 ms that the default step builds anyway, so its scene is the preset's) and
+results/step_mechanism_lab_runs30_rerun.json (0.5 ms and 1 ms RK4). The earlier `lab` files
+(step_mechanism_lab_runs30.json, made with Newton, and step_mechanism_lab_runs30_cg.json, both before 0.4.1)
+stay in results/ and no longer enter. Only measurements whose scene is the
 preset's at their step enter (a field changed that builds the same scene, as the teeth above, does not make
 another model); an integrator switch, and near-contact sub-stepping, are keys of their own.
 
@@ -69,8 +68,7 @@ def collect() -> list[stepcheck.StepCheck]:
                             g["runs"][ref_name])
         out[stepcheck.key_of(e)] = e
     for source in ("step_mechanism.json", "step_mechanism_lab_runs30_stops-0.5ms_against-default.json",
-                   "step_mechanism_lab_runs30_rerun.json", "step_mechanism_lab_runs30_cg.json",
-                   "step_mechanism_lab_runs30.json",
+                   "step_mechanism_lab_runs30_rerun.json",
                    "step_mechanism_substeps.json", "step_mechanism_substeps_discrete.json",
                    "step_mechanism_discrete_against-default.json"):
         if not (ROOT / source).exists():

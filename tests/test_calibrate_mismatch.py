@@ -466,9 +466,8 @@ def test_the_report_names_a_gait_left_out_of_the_tilt_and_a_tilt_not_fitted():
     sized the tilt, and says so where no gait was left to fit one."""
     from smarticle_mjx.calibrate.report import drift_markdown
     g = {"amplitude_deg": 25.0, "v_mm": [-1.49, -1.66], "se_mm": [0.43, 0.43], "cycles": 7, "spread_deg": 81.0}
-    up = {"amplitude_deg": 75.0, "chirality": "ccw", "period_s": 1.33, "response_mm_per_deg": [[1.2, -2.5],
-                                                                                             [-2.0, -0.4]],
-          "uphill": True}
+    up = {"amplitude_deg": 75.0, "chirality": "ccw", "period_s": 1.33,
+          "response_mm_per_deg": [[1.2, -2.5], [-2.0, -0.4]]}
     fit = {"ok": True, "tilt_deg": [-0.82, -0.78], "se_deg": [0.4, 0.5], "chi2_before": 9.0, "chi2_after": 0.0,
            "accepted": False, "magnitude_deg": 1.13, "magnitude_interval": [0.2, 3.0], "size_determined": False,
            "direction_deg": 224.0, "uphill_groups": [up],

@@ -418,8 +418,8 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
         pull = np.linalg.solve(sum(ws), sum(w @ y for w, y in zip(ws, ys)))
         pull = pull / max(float(np.hypot(*pull)), 1e-300)
         kept = [downhill(j, pull) for j in rows]
-        uphill = [{"amplitude_deg": k[0], "chirality": k[1], "period_s": k[3], "response_mm_per_deg": j.tolist(),
-                   "uphill": True} for k, j, ok in zip(keys, rows, kept) if not ok]
+        uphill = [{"amplitude_deg": k[0], "chirality": k[1], "period_s": k[3], "response_mm_per_deg": j.tolist()}
+                  for k, j, ok in zip(keys, rows, kept) if not ok]
         rows, ys, ws, keys = ([x for x, ok in zip(seq, kept) if ok] for seq in (rows, ys, ws, keys))
     if not rows:
         return {"ok": False, "uphill_groups": uphill}

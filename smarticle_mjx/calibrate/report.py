@@ -375,7 +375,7 @@ def drift_markdown(dr: dict | None, pl: dict | None) -> list[str]:
                                  "uphill on a tilted plate here, so this gait does not size a tilt | – |")
         elif tf.get("uphill_groups"):
             lines += ["", "No tilt fitted: in no gait does the model robot drift downhill on a tilted plate "
-                      "(its drift per degree of tilt points uphill on average), so the model cannot size one."]
+                      "(pulled the way the data drift, it drifts against that way), so the model cannot size one."]
         lines.append("")
     return lines
 

@@ -610,7 +610,8 @@ def tilt_stage(trials: list[Trial], train: Problem, model: Model, say, drift: di
             "that gait does not size the tilt")
     for g in (tilt.get("discrepancy") or {}).get("per_group", []):
         say(f"  model drift per degree of tilt at {g['amplitude_deg']:g} deg {g['chirality']}: "
-            f"{np.round(g['response_mm_per_deg'], 4).tolist()} mm/cycle; this gait alone: {g.get('tilt_deg')}")
+            f"{np.round(g['response_mm_per_deg'], 4).tolist()} mm/cycle"
+            + (f"; this gait alone: {np.round(g['tilt_deg'], 2).tolist()} deg" if g.get("tilt_deg") else ""))
     if not tilt.get("ok") and tilt.get("uphill_groups"):
         say("  plate_tilt not fitted: in no gait does the model robot drift downhill")
     if tilt.get("ok"):
