@@ -290,7 +290,12 @@ def main():
     family = FAMILIES.get(args.family, {})
     reference = next((n for n in family if "(reference)" in n), REFERENCE)
     pool = family or {n: v for n, v in VARIANTS.items() if n not in FAMILY_ONLY}
-    names = [n for n in pool if n != reference and (not args.only or n in args.only.split(","))] + [reference]
+    wanted = [w.strip() for w in args.only.split(",")] if args.only else []
+    unknown = [w for w in wanted if w not in pool]
+    if unknown:
+        raise SystemExit(f"error: --only names no variant {', '.join(map(repr, unknown))} here; "
+                         f"the variants are {', '.join(map(repr, pool))}")
+    names = [n for n in pool if n != reference and (not wanted or n in wanted)] + [reference]
     if family and (args.default_reference or args.against_default):
         names.append(REFERENCE)  # the family's reference against the default's: what the change does converged
     if family and args.against_default:

@@ -37,3 +37,21 @@ def test_the_packages_table_is_what_its_sources_give():
         assert {k: v for k, v in e.items() if k != "key"} == collected[key], key
     lab = table["lab-lag|lab|0.25 ms|implicitfast"]
     assert lab["source"] == "step_mechanism_lab_runs30_stops-0.5ms_against-default.json"
+
+
+def test_the_mechanism_study_refuses_a_variant_it_does_not_have(tmp_path):
+    """`step_mechanism.py --only` with a name that is no variant stops with one line naming it, before any
+    run and without writing a results file (it used to run only the reference, silently)."""
+    import subprocess
+    root = pathlib.Path(__file__).resolve().parents[1]
+    out = tmp_path / "never.json"
+    p = subprocess.run([sys.executable, str(root / "benchmarks" / "step_mechanism.py"),
+                        "--only", "0.25 ms implicitfast,0.3 ms nothing", "--out", str(out)],
+                       capture_output=True, text=True, timeout=120, cwd=root,
+                       env={**__import__("os").environ, "PYTHONPATH": str(root)})
+    assert p.returncode != 0
+    err = p.stderr.strip().splitlines()
+    named, listed = err[0].split("the variants are")
+    assert len(err) == 1 and "'0.3 ms nothing'" in named and "'0.25 ms implicitfast'" not in named
+    assert "'0.25 ms implicitfast'" in listed
+    assert not out.exists()
