@@ -580,6 +580,8 @@ def _plate_groups(kind: str, seed: int, noise_mm: float = 0.003) -> list:
                 z = z + e * np.conj(z)  # E acting on a plate-frame vector, in complex numbers
             elif kind == "grip":  # mu (1 + 0.3 cos 2(h - 30 deg)) under the robot: a step shorter by about that
                 z = z * (1.0 - 0.3 * np.cos(2 * (h - math.radians(30.0))))
+            elif kind == "level":  # the same steps and headings (the same draws) on a level isotropic plate
+                pass
             else:
                 z = z + 0.05 * size * np.exp(0.7j)
             z = z + noise_mm * (rng.normal(size=4) + 1j * rng.normal(size=4))
@@ -607,6 +609,44 @@ def test_a_plate_slipperier_along_one_axis_drifts_with_the_robots_step_and_a_til
     assert t.groups == 3 and t.chi2_drift > 100
     assert not t.follows_the_robot and t.chi2_one_vector < t.chi2_anisotropy
     assert a.anisotropic and a.chi2_anisotropy < a.chi2_grip
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_the_drift_a_model_leaves_is_read_for_a_tilt_beside_a_step_following_drift_the_model_holds(seed):
+    """calibrate.drift.plate_drift_models with ``offsets`` (since version 0.4.10), on steps built without any
+    model. Arms dragging on the plate (or an anisotropic plate) make the drift each gait's regression reads
+    follow the robot's own step; a tilt beside them adds one plate-frame vector. Read on the data alone, the
+    step-following part wins and the tilt is stopped by the gate. A model that holds the drag reproduces the
+    step-following part at the same headings; what it leaves is the tilt's one vector, which the reading
+    beyond the model finds (one vector fits better than one anisotropy). A model that does not hold it
+    (its drift on a level plate nil) leaves the data's own reading, step-following, unchanged; one that holds
+    half the drag leaves a rest that still follows the step, which one drift vector does not fit."""
+    from smarticle_mjx.calibrate.drift import plate_drift_beyond, plate_drift_models
+    follow = _plate_groups("anisotropic", seed, noise_mm=0.0)  # noise-free: what a model with the drag gives
+    rng = np.random.default_rng(100 + seed)
+    tilt = 0.006 * np.exp(0.7j)  # mm/cycle, under the step-following part (0.3 of steps of 0.05-0.15 mm)
+
+    def tracked(d):  # a tracker's error: each cycle position off by 1.5 um, each step the difference of two
+        return d + np.diff(0.0015 * rng.normal(size=(len(d) + 1, 2)), axis=0)
+
+    data = [(hs, [tracked(d + np.array([tilt.real, tilt.imag])) for d in ds]) for hs, ds in follow]
+    own = plate_drift_models(data)
+    beyond = plate_drift_beyond(data, follow)
+    assert own.groups == beyond.groups == 3
+    assert own.follows_the_robot  # the data alone: the step-following part dominates, a tilt would be stopped
+    assert not beyond.follows_the_robot and beyond.chi2_one_vector < 0.5 * beyond.chi2_anisotropy
+    assert beyond.chi2_drift > 30  # the tilt is well beyond the noise in what the model leaves
+    assert beyond.p_one_vector > 1e-3  # one vector fits what the model leaves
+    nil = [(np.zeros(2), np.zeros((2, 2)))] * 3
+    again = plate_drift_models(data, offsets=nil)
+    assert again.follows_the_robot and again.chi2_one_vector == pytest.approx(own.chi2_one_vector)
+    # a model holding half the drag leaves half the step-following drift (the regression is linear in the
+    # steps, and R(h) s itself leaves none): one vector does not fit that rest, one anisotropy does
+    level = _plate_groups("level", seed, noise_mm=0.0)  # the same robots' steps on a level isotropic plate
+    half_model = [(hs, [0.5 * (d + d0) for d, d0 in zip(ds, ds0)]) for (hs, ds), (_, ds0) in zip(follow, level)]
+    no_tilt = [(hs, [tracked(d) for d in ds]) for hs, ds in follow]
+    half = plate_drift_beyond(no_tilt, half_model)
+    assert half.follows_the_robot and half.p_one_vector < 0.05
 
 
 @pytest.mark.parametrize("seed", range(4))

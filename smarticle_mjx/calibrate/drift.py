@@ -278,6 +278,13 @@ class PlateDrift:
         return self.applicable and self.chi2_anisotropy < self.chi2_one_vector
 
     @property
+    def p_one_vector(self) -> float:
+        """p-value of one drift vector for every gait (chi^2 on 2 (groups - 1) dof; nan with one group): how
+        well a tilt's drift alone accounts for the gaits' drifts."""
+        from scipy.stats import chi2 as chi2_dist
+        return float(chi2_dist.sf(self.chi2_one_vector, 2 * (self.groups - 1))) if self.applicable else float("nan")
+
+    @property
     def anisotropic(self) -> bool:
         """The drifts fit one plate anisotropy better than one drift vector and better than a grip that
         depends on the robot's heading."""
@@ -285,18 +292,26 @@ class PlateDrift:
 
     def as_dict(self) -> dict:
         return {**dataclasses.asdict(self), "anisotropy": list(self.anisotropy), "applicable": self.applicable,
-                "follows_the_robot": self.follows_the_robot, "anisotropic": self.anisotropic}
+                "follows_the_robot": self.follows_the_robot, "anisotropic": self.anisotropic,
+                "p_one_vector": self.p_one_vector}
 
 
-def plate_drift_models(groups: list[tuple[list, list]], fits: list[dict | None] | None = None) -> PlateDrift:
+def plate_drift_models(groups: list[tuple[list, list]], fits: list[dict | None] | None = None,
+                       offsets: list[tuple[np.ndarray, np.ndarray] | None] | None = None) -> PlateDrift:
     """:class:`PlateDrift` from the tracks of each gait group [([headings per track], [steps per track,
     mm]), ...] (groups whose headings do not separate s and v are left out, as in the drift test); ``fits``:
     their :func:`regress` results where already made. Each group's v is weighted by its covariance taken as
-    isotropic (the mean of its two variances)."""
+    isotropic (the mean of its two variances).
+
+    ``offsets`` (per group: a model's drift v [2] and its covariance [2, 2], or None to leave the group out):
+    the drift is read beyond that model's, v - v_model, with both covariances, so the comparison asks what
+    the model leaves unexplained (:func:`fit_tilt`, since version 0.4.10). The robot's own step s_g and the
+    headings stay the measured ones."""
     rows = []
     fits = fits if fits is not None else [regress(list(zip(hs, ds))) for hs, ds in groups]
-    for (hs, _), r in zip(groups, fits):
-        if r is None:
+    offsets = offsets if offsets is not None else [(np.zeros(2), np.zeros((2, 2)))] * len(groups)
+    for (hs, _), r, off in zip(groups, fits, offsets):
+        if r is None or off is None:
             continue
         s_g = complex(*r["s"])
 
@@ -311,7 +326,8 @@ def plate_drift_models(groups: list[tuple[list, list]], fits: list[dict | None] 
         w = read(lambda h: np.conj(s_g) * np.exp(-1j * h))
         u1 = read(lambda h: s_g * np.exp(1j * h) * np.cos(2 * h))
         u2 = read(lambda h: s_g * np.exp(1j * h) * np.sin(2 * h))
-        rows.append((complex(*r["v"]), w, float(np.mean(np.diag(r["cov_v"]))), u1, u2))
+        v_off, cov_off = (np.asarray(x, float) for x in off)
+        rows.append((complex(*(r["v"] - v_off)), w, float(np.mean(np.diag(r["cov_v"] + cov_off))), u1, u2))
     if not rows:
         return PlateDrift(0, 0.0, 0.0, 0.0, (0.0, 0.0), 0.0)
     v = np.array([x[0] for x in rows])
@@ -328,6 +344,22 @@ def plate_drift_models(groups: list[tuple[list, list]], fits: list[dict | None] 
     chi2_grip = float(np.sum((y - a @ c) ** 2))
     return PlateDrift(len(rows), float(np.sum(np.abs(v) ** 2 / var)), float(np.sum(np.abs(v - one) ** 2 / var)),
                       float(np.sum(np.abs(v - k * w) ** 2 / var)), (k.real, k.imag), chi2_grip)
+
+
+def plate_drift_beyond(data: list[tuple[list, list]], model: list[tuple[list, list]]) -> PlateDrift:
+    """:class:`PlateDrift` of the drift a model leaves: per gait group, the measured tracks ``data`` and the
+    model's tracks ``model`` of the same trials ([([headings per track], [steps per track, mm]), ...], aligned).
+    The model's drift is read with the measured group's weights (its step variation and position error), so
+    that the two regressions are the same linear map and what the model reproduces cancels exactly; its
+    error is the model's own (the spread of its steps about the regression). Since version 0.4.10."""
+    fits, offsets = [], []
+    for (hs, ds), (mh, md) in zip(data, model):
+        f = regress(list(zip(hs, ds)))
+        own = regress(list(zip(mh, md)))
+        same = regress(list(zip(mh, md)), noise=(f["var_step"], f["var_pos"])) if f is not None else None
+        fits.append(f)
+        offsets.append(None if own is None or same is None else (same["v"], own["cov_v"]))
+    return plate_drift_models(data, fits, offsets)
 
 
 def drift_test(trials) -> dict:
@@ -421,8 +453,12 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
         uphill = [{"amplitude_deg": k[0], "chirality": k[1], "period_s": k[3], "response_mm_per_deg": j.tolist()}
                   for k, j, ok in zip(keys, rows, kept) if not ok]
         rows, ys, ws, keys = ([x for x, ok in zip(seq, kept) if ok] for seq in (rows, ys, ws, keys))
+    # does the drift the model leaves follow the robot's own step? (PlateDrift, beyond the level-plate model)
+    tracks, model_tracks = _gait_tracks(trials), _gait_tracks(trials, zero)
+    keys_all = [k for k in tracks if k in model_tracks]
+    beyond = plate_drift_beyond([tracks[k] for k in keys_all], [model_tracks[k] for k in keys_all]).as_dict()
     if not rows:
-        return {"ok": False, "uphill_groups": uphill}
+        return {"ok": False, "uphill_groups": uphill, "plate_models_beyond_model": beyond}
     ata = sum(j.T @ w @ j for j, w in zip(rows, ws))
     atb = sum(j.T @ w @ y for j, w, y in zip(rows, ws, ys))
     cov = np.linalg.inv(ata)
@@ -468,7 +504,7 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
             "magnitude_deg": mag, "magnitude_interval": (mag_lo, mag_hi),
             "size_determined": bool(mag_lo > 0 and mag_hi / mag_lo <= 4.0),
             "direction_deg": float(math.degrees(math.atan2(tilt[1], tilt[0])) % 360.0),
-            "uphill_groups": uphill,
+            "uphill_groups": uphill, "plate_models_beyond_model": beyond,
             "discrepancy": {"log_sd": log_sd, "log_sd_gaits": sd_gaits, "log_sd_slide": sd_slide, "per_group": groups}}
 
 
