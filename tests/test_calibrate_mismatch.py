@@ -482,3 +482,24 @@ def test_the_report_names_a_gait_left_out_of_the_tilt_and_a_tilt_not_fitted():
     md = "\n".join(drift_markdown({**dr, "tilt_fit": {"ok": False, "uphill_groups": [up]}}, None))
     assert "No tilt fitted: in no gait does the model robot drift downhill" in md and "| 75° ccw |" not in md
     assert drift_markdown(None, None) == [] and drift_markdown({"dof": 0}, None) == []
+
+
+def test_the_report_says_which_reading_of_the_drift_the_tilt_gate_used():
+    """Beside a tilt fit, the drift section says whether the gaits' drifts follow the robot's own step, read
+    on the data alone, or, where the model drags its arms on the plate, on the drift the model leaves
+    (since version 0.4.10), with the two chi^2's that decided it."""
+    from smarticle_mjx.calibrate.report import drift_markdown
+    g = {"amplitude_deg": 25.0, "v_mm": [-1.49, -1.66], "se_mm": [0.43, 0.43], "cycles": 7, "spread_deg": 81.0}
+    own = {"applicable": True, "chi2_one_vector": 31.1, "chi2_anisotropy": 6.7, "p_one_vector": 1e-6}
+    left = {"applicable": True, "chi2_one_vector": 3.6, "chi2_anisotropy": 0.8, "p_one_vector": 0.46}
+    fit = {"ok": True, "tilt_deg": [-0.32, 0.46], "se_deg": [0.1, 0.1], "chi2_before": 54.0, "chi2_after": 5.0,
+           "accepted": True, "follows_the_robot": False, "gate_beyond_model": True,
+           "plate_models_beyond_model": left}
+    dr = {"dof": 6, "chi2": 54.2, "p": 7e-10, "threshold_p": 1e-3, "groups": [g], "directions": {},
+          "plate_models": own, "tilt_fit": fit}
+    md = "\n".join(drift_markdown(dr, None))
+    assert "Read on the drift the model leaves" in md and "one vector χ² 3.6 (p 0.46), one anisotropy χ² 0.8" in md
+    assert "one vector, as a tilt's." in md
+    md = "\n".join(drift_markdown({**dr, "tilt_fit": {**fit, "gate_beyond_model": False, "follows_the_robot": True,
+                                                       "accepted": False}}, None))
+    assert "Read on the data alone: one vector χ² 31.1" in md and "**it follows the step**" in md

@@ -343,6 +343,19 @@ def drift_markdown(dr: dict | None, pl: dict | None) -> list[str]:
                       f"{tf['chi2_after']:.1f}; {'added' if tf.get('accepted') else 'not added'} (kept when "
                       "the drift test finds drift, the tilt's 95 % region excludes a level plate, the drift χ² at "
                       "least halves and the gaits' drifts point one way)."]
+            beyond = bool(tf.get("gate_beyond_model"))
+            pm = (tf.get("plate_models_beyond_model") if beyond else dr.get("plate_models")) or {}
+            if "follows_the_robot" in tf and pm.get("applicable"):
+                lines += ["", "Does the drift follow each gait's own step (as a plate slipperier along one axis or "
+                          "arms dragging on the plate make it) rather than one vector (a tilt's)? Read on "
+                          + ("the drift the model leaves beyond its own on a level plate (the model drags its arms "
+                             "on the plate or holds an anisotropic plate, whose drift follows the step)" if beyond
+                             else "the data alone")
+                          + f": one vector χ² {pm['chi2_one_vector']:.1f}"
+                          + (f" (p {pm['p_one_vector']:.2g})" if pm.get("p_one_vector") is not None else "")
+                          + f", one anisotropy χ² {pm['chi2_anisotropy']:.1f}: "
+                          + ("**it follows the step**, so no tilt is named from it." if tf["follows_the_robot"]
+                             else "one vector, as a tilt's.")]
             di = dr.get("directions") or {}
             if di.get("compared"):
                 lines += ["", f"Directions of the {di['groups']} gaits' significant drifts: up to "
