@@ -430,6 +430,10 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
     on a level plate, weighted as the fit weighs them), drifts against that way (:func:`downhill`) is left
     out of the fit, of its chi^2 and of the mismatch term, and listed in ``uphill_groups`` with its response
     (since November 2026, version 0.4.9); where no gait is left, there is no fit (``ok`` False).
+
+    ``plate_models_beyond_model``: :func:`plate_drift_beyond` of the data against the level-plate model run,
+    whether or not a tilt is fitted (since version 0.4.10; the tilt stage's gate reads it where the model
+    drags its arms on the plate or holds an anisotropic plate).
     """
     meas = group_drift(trials)
     zero = run_model(0.0, 0.0)
