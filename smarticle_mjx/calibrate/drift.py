@@ -201,16 +201,20 @@ def _gait_tracks(trials, tracks=None) -> dict:
     return groups
 
 
-def group_drift(trials, tracks=None) -> dict:
-    """v per gait group, from the measured tracks (``tracks`` None) or from
-    model tracks [F, N, 5] aligned with ``trials`` (masked like the data)."""
-    groups = _gait_tracks(trials, tracks)
+def _drifts(groups: dict) -> dict:
+    """:func:`regress` per gait group of :func:`_gait_tracks`, where the headings separate s and v."""
     out = {}
     for key, (hs, ds) in groups.items():
         res = regress(list(zip(hs, ds)))
         if res is not None:
             out[key] = res
     return out
+
+
+def group_drift(trials, tracks=None) -> dict:
+    """v per gait group, from the measured tracks (``tracks`` None) or from
+    model tracks [F, N, 5] aligned with ``trials`` (masked like the data)."""
+    return _drifts(_gait_tracks(trials, tracks))
 
 
 def directions(rows: list[dict]) -> dict:
@@ -346,20 +350,22 @@ def plate_drift_models(groups: list[tuple[list, list]], fits: list[dict | None] 
                       float(np.sum(np.abs(v - k * w) ** 2 / var)), (k.real, k.imag), chi2_grip)
 
 
-def plate_drift_beyond(data: list[tuple[list, list]], model: list[tuple[list, list]]) -> PlateDrift:
+def plate_drift_beyond(data: list[tuple[list, list]], model: list[tuple[list, list]],
+                       data_fits: list[dict | None] | None = None,
+                       model_fits: list[dict | None] | None = None) -> PlateDrift:
     """:class:`PlateDrift` of the drift a model leaves: per gait group, the measured tracks ``data`` and the
-    model's tracks ``model`` of the same trials ([([headings per track], [steps per track, mm]), ...], aligned).
+    model's tracks ``model`` of the same trials ([([headings per track], [steps per track, mm]), ...], aligned);
+    ``data_fits``, ``model_fits``: their own :func:`regress` results where already made.
     The model's drift is read with the measured group's weights (its step variation and position error), so
     that the two regressions are the same linear map and what the model reproduces cancels exactly; its
     error is the model's own (the spread of its steps about the regression). Since version 0.4.10."""
-    fits, offsets = [], []
-    for (hs, ds), (mh, md) in zip(data, model):
-        f = regress(list(zip(hs, ds)))
-        own = regress(list(zip(mh, md)))
+    data_fits = data_fits if data_fits is not None else [regress(list(zip(hs, ds))) for hs, ds in data]
+    model_fits = model_fits if model_fits is not None else [regress(list(zip(hs, ds))) for hs, ds in model]
+    offsets = []
+    for (mh, md), f, own in zip(model, data_fits, model_fits):
         same = regress(list(zip(mh, md)), noise=(f["var_step"], f["var_pos"])) if f is not None else None
-        fits.append(f)
         offsets.append(None if own is None or same is None else (same["v"], own["cov_v"]))
-    return plate_drift_models(data, fits, offsets)
+    return plate_drift_models(data, data_fits, offsets)
 
 
 def drift_test(trials) -> dict:
@@ -435,9 +441,11 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
     whether or not a tilt is fitted (since version 0.4.10; the tilt stage's gate reads it where the model
     drags its arms on the plate or holds an anisotropic plate).
     """
-    meas = group_drift(trials)
+    tracks = _gait_tracks(trials)
+    meas = _drifts(tracks)
     zero = run_model(0.0, 0.0)
-    v0 = group_drift(trials, zero)
+    model_tracks = _gait_tracks(trials, zero)
+    v0 = _drifts(model_tracks)
     vx = group_drift(trials, run_model(step_deg, 0.0))
     vy = group_drift(trials, run_model(0.0, step_deg))
     s_meas, s_model = group_slide(trials), group_slide(trials, zero)
@@ -458,9 +466,9 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
                   for k, j, ok in zip(keys, rows, kept) if not ok]
         rows, ys, ws, keys = ([x for x, ok in zip(seq, kept) if ok] for seq in (rows, ys, ws, keys))
     # does the drift the model leaves follow the robot's own step? (PlateDrift, beyond the level-plate model)
-    tracks, model_tracks = _gait_tracks(trials), _gait_tracks(trials, zero)
-    keys_all = [k for k in tracks if k in model_tracks]
-    beyond = plate_drift_beyond([tracks[k] for k in keys_all], [model_tracks[k] for k in keys_all]).as_dict()
+    both = [k for k in meas if k in v0]
+    beyond = plate_drift_beyond([tracks[k] for k in both], [model_tracks[k] for k in both],
+                                [meas[k] for k in both], [v0[k] for k in both]).as_dict()
     if not rows:
         return {"ok": False, "uphill_groups": uphill, "plate_models_beyond_model": beyond}
     ata = sum(j.T @ w @ j for j, w in zip(rows, ws))
