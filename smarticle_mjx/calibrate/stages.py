@@ -634,9 +634,8 @@ def tilt_stage(trials: list[Trial], train: Problem, model: Model, say, drift: di
         # 2077/7; docs/calibration.md). That drift is stopped only where one drift vector does not fit it
         # (p < P_ONE_VECTOR) and one anisotropy fits it better: the model already holds a step-following
         # drift, so a step-following rest must show. Elsewhere the data's own reading, as before.
-        beyond = tilt.get("plate_models_beyond_model")
-        tilt["gate_beyond_model"] = bool(beyond is not None and (ARM_PLATE in model.base or ANISO in model.base))
-        read = beyond if tilt["gate_beyond_model"] else drift["plate_models"]
+        tilt["gate_beyond_model"] = ARM_PLATE in model.base or ANISO in model.base
+        read = tilt["plate_models_beyond_model"] if tilt["gate_beyond_model"] else drift["plate_models"]
         tilt["follows_the_robot"] = bool(read["follows_the_robot"]
                                          and (not tilt["gate_beyond_model"] or read["p_one_vector"] < P_ONE_VECTOR))
         if tilt["gate_beyond_model"]:
