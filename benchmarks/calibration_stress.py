@@ -327,6 +327,60 @@ def condition_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def recording(s: dict, effect: str) -> str:
+    """How a set records what an effect shows in: a servo timing needs the arms and depends on the servo's
+    reference ("arms, slewed reference", "arms, stepped reference", "body only"); every other effect, ""."""
+    if effect not in SERVO:
+        return ""
+    if not s["arms_tracked"]:
+        return "body only"
+    return "arms, " + ("stepped" if s["build"]["servo_slew"] is None else "slewed") + " reference"
+
+
+def by_effect(rows: list[dict]) -> dict:
+    """Per hidden library effect and recording (``recording``): sets hiding it, sets where it was added
+    (first or not), and of those added, for a same-law effect, sizes within 1.5x and intervals that hold the
+    truth (None for an effect whose law is not the library's)."""
+    out: dict = {}
+    for r in rows:
+        added = r["score"]["added"]
+        law = {e["effect"]: e for e in r["score"]["same_law"]}
+        for e in r["set"]["hidden"]:
+            key = (e, recording(r["set"], e))
+            t = out.setdefault(key, {"hidden": 0, "added": 0, "within_1_5": 0 if e in SAME_LAW else None,
+                                     "covered": 0 if e in SAME_LAW else None})
+            t["hidden"] += 1
+            if e in added:
+                t["added"] += 1
+                if e in SAME_LAW:
+                    t["within_1_5"] += bool(law[e]["within_1_5"])
+                    t["covered"] += bool(law[e]["covered"])
+    return dict(sorted(out.items()))
+
+
+def effect_table(rows: list[dict]) -> str:
+    lines = ["| hidden effect | recorded | sets | added | of added: size within 1.5x | of added: interval covers |",
+             "|---|---|---|---|---|---|"]
+    for (e, rec), t in by_effect(rows).items():
+        law = ("not scored: not the library's law", "not scored") if t["within_1_5"] is None else (t["within_1_5"], t["covered"])
+        lines.append(f"| {e} | {rec or '-'} | {t['hidden']} | {t['added']} | {law[0]} | {law[1]} |")
+    return "\n".join(lines)
+
+
+def pooled_rows(seeds: str, results=None) -> list[dict]:
+    """Every stored row of the whole seeds named (e.g. "2049-2051,2058"), read from their summaries
+    (results/calibration_stress_<seed>.json, as the runs wrote them); FileNotFoundError in one line for a
+    seed never summarised."""
+    results = RESULTS if results is None else results
+    rows = []
+    for seed in _indices(seeds):
+        path = results / f"calibration_stress_{seed}.json"
+        if not path.exists():
+            raise FileNotFoundError(f"no stored summary for suite seed {seed} ({path.name})")
+        rows += json.loads(path.read_text())["rows"]
+    return rows
+
+
 def confusion(rows: list[dict]) -> str:
     """Hidden (first library effect, or clean / outside) x first structural effect added."""
     names = sorted({(r["score"]["added"] or ["(none)"])[0] for r in rows} | {"(none)"})
@@ -379,6 +433,9 @@ def main():
     ap.add_argument("--max-minutes", type=float, default=None, help="start no set after this long")
     ap.add_argument("--summary", action="store_true", help="print the tables of what is stored and stop")
     ap.add_argument("--draw-only", action="store_true", help="print what each set hides and stop")
+    ap.add_argument("--pool", default=None, metavar="SEEDS",
+                    help="with --summary: pool the stored summaries of these whole seeds (e.g. 2049-2051,2058) "
+                         "and print their tables instead of one seed's")
     ap.add_argument("--plate-hypothesis", action="append", default=[],
                     help="also fit this plate effect jointly with the nominal parameters (smx calibrate's option)")
     ap.add_argument("--tag", default="", help="keep this run's results apart (calibration_stress/<seed>-<tag>/): "
@@ -393,6 +450,19 @@ def main():
                     help="change the library's model as smx calibrate --set does (for the set and its clean twin; "
                          "needs --tag, so that the results stay apart)")
     args = ap.parse_args()
+    if args.pool is not None:
+        if not args.summary:
+            ap.error("--pool needs --summary: it reads stored results and runs nothing")
+        try:
+            rows = pooled_rows(args.pool)
+        except (FileNotFoundError, ValueError) as e:
+            ap.error(str(e))
+        print(f"{len(rows)} sets of suite seeds {args.pool}, versions "
+              f"{', '.join(sorted({r.get('version', '?') for r in rows}))}")
+        print(json.dumps(summarise(rows), indent=1))
+        for table in (confusion, coverage, condition_table, effect_table):
+            print(table(rows))
+        return
     from smarticle_mjx import presets
     try:
         overrides = presets.overrides(args.set_)
@@ -448,6 +518,7 @@ def main():
     print(confusion(rows))
     print(coverage(rows))
     print(condition_table(rows))
+    print(effect_table(rows))
 
 
 if __name__ == "__main__":

@@ -1109,3 +1109,46 @@ def test_the_stress_split_by_condition_takes_the_first_condition_a_draw_meets():
     assert by[names[5]] == {"sets": 3, "right": 2, "heldout_within_1_5_of_twin": 1, "with_twin": 2}
     assert by[names[4]] == {"sets": 1, "right": 0, "heldout_within_1_5_of_twin": 1, "with_twin": 1}
     assert sum(v["sets"] for v in by.values()) == 4
+
+
+def test_the_stress_split_by_effect_counts_what_was_added_and_scores_only_the_librarys_laws(tmp_path):
+    """The per-effect table (a report, not a rule): a servo timing is split by how it was recorded (arms and
+    the servo's reference, or body only), every other effect is not; an effect counts as added wherever it
+    was added, first or not; size and coverage count over added same-law effects only, and a lag (not the
+    library's law) has none. Pooling reads whole seeds' stored summaries and names a missing seed."""
+    import calibration_stress as S
+
+    def row(hidden, added, same_law=(), arms=True, slew=8.0):
+        return {"set": {"hidden": hidden, "arms_tracked": arms, "build": {"servo_slew": slew}},
+                "score": {"added": added, "same_law": [{"effect": e, "added": e in added, "within_1_5": w,
+                                                        "covered": c} for e, w, c in same_law]}}
+
+    rows = [row(["servo_dead_time"], ["servo_dead_time"], [("servo_dead_time", True, False)]),
+            row(["servo_dead_time"], [], [("servo_dead_time", False, False)], slew=None),
+            row(["servo_dead_time"], [], [("servo_dead_time", False, False)], arms=False),
+            row(["servo_lag", "plate_tilt"], ["plate_tilt", "servo_lag"], [("plate_tilt", False, True)]),
+            row(["plate_tilt"], ["tracking_noise"], [("plate_tilt", False, False)], arms=False)]
+    by = S.by_effect(rows)
+    assert by[("servo_dead_time", "arms, slewed reference")] == {"hidden": 1, "added": 1, "within_1_5": 1,
+                                                                  "covered": 0}
+    assert by[("servo_dead_time", "arms, stepped reference")]["added"] == 0
+    assert by[("servo_dead_time", "body only")]["hidden"] == 1
+    assert by[("servo_lag", "arms, slewed reference")] == {"hidden": 1, "added": 1, "within_1_5": None,
+                                                            "covered": None}
+    assert by[("plate_tilt", "")] == {"hidden": 2, "added": 1, "within_1_5": 0, "covered": 1}
+    assert "| plate_tilt | - | 2 | 1 | 0 | 1 |" in S.effect_table(rows)
+    (tmp_path / "calibration_stress_5.json").write_text(json.dumps({"rows": rows[:2]}))
+    (tmp_path / "calibration_stress_6.json").write_text(json.dumps({"rows": rows[2:]}))
+    assert S.pooled_rows("5-6", tmp_path) == rows
+    with pytest.raises(FileNotFoundError, match="suite seed 7"):
+        S.pooled_rows("5-7", tmp_path)
+
+
+def test_the_stress_pool_reads_stored_results_only_and_refuses_in_one_line():
+    import subprocess
+    import calibration_stress as S
+    script = pathlib.Path(S.__file__)
+    for args, msg in ((["--pool", "2073"], "--pool needs --summary"),
+                      (["--summary", "--pool", "987654"], "no stored summary for suite seed 987654")):
+        r = subprocess.run([sys.executable, str(script), *args], capture_output=True, text=True)
+        assert r.returncode == 2 and msg in r.stderr.strip().splitlines()[-1]
