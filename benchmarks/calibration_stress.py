@@ -413,6 +413,13 @@ def coverage(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def print_summary(rows: list[dict], summary: dict | None = None) -> None:
+    """The summary (``summarise``, unless given) and every table, as a run and ``--summary --pool`` print them."""
+    print(json.dumps(summarise(rows) if summary is None else summary, indent=1))
+    for table in (confusion, coverage, condition_table, effect_table):
+        print(table(rows))
+
+
 def _indices(spec: str) -> list[int]:
     out = []
     for part in spec.split(","):
@@ -459,9 +466,7 @@ def main():
             ap.error(str(e))
         print(f"{len(rows)} sets of suite seeds {args.pool}, versions "
               f"{', '.join(sorted({r.get('version', '?') for r in rows}))}")
-        print(json.dumps(summarise(rows), indent=1))
-        for table in (confusion, coverage, condition_table, effect_table):
-            print(table(rows))
+        print_summary(rows)
         return
     from smarticle_mjx import presets
     try:
@@ -514,11 +519,7 @@ def main():
     out = RESULTS / f"calibration_stress_{name}.json"
     out.write_text(json.dumps({"suite_seed": args.suite_seed, "source": src, "summary": summary,
                                "rows": rows}, indent=1, default=_plain))
-    print(json.dumps(summary, indent=1))
-    print(confusion(rows))
-    print(coverage(rows))
-    print(condition_table(rows))
-    print(effect_table(rows))
+    print_summary(rows, summary)
 
 
 if __name__ == "__main__":
