@@ -421,10 +421,14 @@ def print_summary(rows: list[dict], summary: dict | None = None) -> None:
 
 
 def _indices(spec: str) -> list[int]:
+    """The integers a spec such as "0-29" or "2049-2051,2058" names; ValueError in one line otherwise."""
     out = []
     for part in spec.split(","):
         a, _, b = part.partition("-")
-        out += list(range(int(a), int(b or a) + 1))
+        try:
+            out += list(range(int(a), int(b or a) + 1))
+        except ValueError:
+            raise ValueError(f"not a list of numbers and ranges: {spec!r} (e.g. 0-29 or 2049-2051,2058)") from None
     return out
 
 
@@ -457,6 +461,10 @@ def main():
                     help="change the library's model as smx calibrate --set does (for the set and its clean twin; "
                          "needs --tag, so that the results stay apart)")
     args = ap.parse_args()
+    try:
+        sets = _indices(args.sets)
+    except ValueError as e:
+        ap.error(str(e))
     if args.pool is not None:
         if not args.summary:
             ap.error("--pool needs --summary: it reads stored results and runs nothing")
@@ -491,7 +499,7 @@ def main():
     folder.mkdir(parents=True, exist_ok=True)
     src = source_hash()
     t0 = time.perf_counter()
-    for i in _indices(args.sets):
+    for i in sets:
         if args.summary:
             break
         s = draw_set(args.suite_seed, i)

@@ -1149,6 +1149,8 @@ def test_the_stress_pool_reads_stored_results_only_and_refuses_in_one_line():
     import calibration_stress as S
     script = pathlib.Path(S.__file__)
     for args, msg in ((["--pool", "2073"], "--pool needs --summary"),
-                      (["--summary", "--pool", "987654"], "no stored summary for suite seed 987654")):
+                      (["--summary", "--pool", "987654"], "no stored summary for suite seed 987654"),
+                      (["--summary", "--pool", "2049-x"], "not a list of numbers and ranges: '2049-x'"),
+                      (["--suite-seed", "987654", "--sets", "0,a"], "not a list of numbers and ranges: '0,a'")):
         r = subprocess.run([sys.executable, str(script), *args], capture_output=True, text=True)
         assert r.returncode == 2 and msg in r.stderr.strip().splitlines()[-1]
