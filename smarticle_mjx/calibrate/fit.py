@@ -92,6 +92,7 @@ class Problem:
         self.meas: list[Features] = [features(tr.t, tr.pose, tr.arms, tr.periods) for tr in trials]
         self._cache: dict = {}
         self._lock = threading.Lock()
+        self._running: dict = {}  # cache keys being run now, each with an event set when it is stored
         self.runs = 0
         self.nominal: dict = {}
         self.priors: dict = {}  # {name: (measured value, sd)}: priors of the nominal fit (calibrate.data.priors)
@@ -123,7 +124,20 @@ class Problem:
 
     def model(self, eff: EffectSet, nominal: dict | None = None):
         key, nom, ck = self._key(eff, nominal)
-        if ck not in self._cache:
+        with self._lock:
+            hit = self._cache.get(ck)
+            if hit is not None:
+                return hit
+            running = self._running.get(ck)
+            if running is None:
+                running = self._running[ck] = threading.Event()
+                mine = True
+            else:
+                mine = False
+        if not mine:  # another thread is running this very point (two fits side by side): wait for it
+            running.wait()
+            return self.model(eff, nominal)
+        try:
             tracks = simulate_trials(self.trials, scene_for=lambda tr: key.scene(apply_nominal(tr.params, nom)),
                                      phase_for=lambda tr: key.phases(tr.robots, tr.periods))
             feats = []
@@ -133,6 +147,10 @@ class Problem:
             with self._lock:
                 self._cache[ck] = (tracks, feats)
                 self.runs += 1
+        finally:
+            with self._lock:
+                del self._running[ck]
+            running.set()
         return self._cache[ck]
 
     def blocks(self, eff: EffectSet, nominal: dict | None = None) -> list[dict[str, np.ndarray]]:

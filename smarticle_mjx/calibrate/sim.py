@@ -12,6 +12,7 @@ move from its corner, as it did, not from the middle of the steady gait's move.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import os
@@ -37,13 +38,37 @@ def _mark_worker() -> None:
     _local.worker = True
 
 
+# Model runs made by pmap's workers take one of these slots, one per core, for the whole run (scene, backend,
+# rollout). The workers themselves are cheap: every item of a pmap, nested or not, gets its own thread, and the
+# slots keep the cores busy with whatever run is ready, whichever fit or Jacobian column asked for it (since
+# version 0.4.11; before, a pmap inside a worker ran its items one after another, so five joint fits on two
+# cores left one idle while the fifth ran alone). Each run is the same computation either way, so the results
+# are too. NESTED = False restores the earlier schedule, for benchmarks/calibration_schedule.py.
+_SLOTS = threading.BoundedSemaphore(max(1, os.cpu_count() or 1))
+NESTED = True
+MAX_THREADS = 64  # threads of one pmap (its items beyond that wait for one)
+
+
+def slot():
+    """The context a model run holds: one core's slot inside a pmap worker, nothing outside one (the caller's
+    run then has every core to itself)."""
+    return _SLOTS if in_pool() else contextlib.nullcontext()
+
+
 def pmap(fn, items: list, workers: int | None = None) -> list:
-    """``[fn(x) for x in items]`` on one thread per core: model runs release the GIL in MuJoCo's rollout,
-    so independent runs (a Jacobian's columns, a grid's points, a scene's gait groups) go side by side
-    (2 cores: 2.0x measured on the calibration's runs). Inside a worker, in order."""
+    """``[fn(x) for x in items]``, side by side: model runs release the GIL in MuJoCo's rollout, so
+    independent runs (a Jacobian's columns, a grid's points, a scene's gait groups, joint fits) go on every
+    core (2 cores: 2.0x measured on the calibration's runs). Nested calls spread too; ``slot`` keeps the runs
+    to one per core. ``workers``: at most that many threads (1: in order, here)."""
     items = list(items)
-    n = min(len(items), workers or os.cpu_count() or 1)
-    if n <= 1 or in_pool():
+    cores = os.cpu_count() or 1
+    if NESTED:
+        n = min(len(items), workers or MAX_THREADS)
+        if cores <= 1:
+            n = 1
+    else:  # the schedule before version 0.4.11: one thread per core, and in order inside a worker
+        n = 1 if in_pool() else min(len(items), workers or cores)
+    if n <= 1:
         return [fn(x) for x in items]
     with ThreadPoolExecutor(n, initializer=_mark_worker) as ex:
         return list(ex.map(fn, items))
@@ -95,11 +120,15 @@ def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int
     for k, tr in enumerate(trials):
         groups.setdefault((tr.robots, tr.gaits, scene_for(tr)), []).append(k)
     out: list[np.ndarray | None] = [None] * len(trials)
-    # groups run side by side, one thread each (rollout releases the GIL); inside a pmap, one after another
+    # groups run side by side, one thread and one core's slot each (rollout releases the GIL)
     if nthread is None:
         nthread = 1 if (in_pool() or len(groups) > 1) else None
 
     def run_group(item):
+        with slot():
+            _run_group(item)
+
+    def _run_group(item):
         (n, gaits, params), idx = item
         scene = Scene.build(params, n)
         be = make_backend("native", scene, nthread=nthread)
@@ -142,5 +171,5 @@ def simulate_trials(trials: list[Trial], scene_for, phase_for=None, nthread: int
         finally:
             be.close()
 
-    pmap(run_group, list(groups.items()))  # in order inside a worker
+    pmap(run_group, list(groups.items()))
     return out  # type: ignore[return-value]
