@@ -1,0 +1,99 @@
+"""How much the calibration gains from spreading nested model runs over the cores (version 0.4.11).
+
+Before version 0.4.11 a ``calibrate.sim.pmap`` inside a worker ran its items one after another: the
+nominal stage's five joint fits (a lag and a dead time, each from two starts, and the null restarted from
+the preset servo) went two at a time on two cores, and the fifth ran alone beside an idle core. Since then
+every item of a pmap, nested or not, has its own thread, and each model run holds one core's slot
+(``sim.slot``); a point two fits ask for at once is run once (``fit.Problem.model``).
+
+This script calibrates stress-suite sets (benchmarks/calibration_stress.py's draw, data written as the
+suite writes them) both ways in one process, alternating which goes first, and prints the wall times and
+their ratio. The two calibrations must agree in everything but the count of model runs (every run is the
+same computation either way); a set where they do not is reported and the script exits non-zero.
+
+    python benchmarks/calibration_schedule.py --set 2141/4 --set 2140/7
+
+Writes results/calibration_schedule.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import platform
+import tempfile
+import time
+
+from calibration_stress import RESULTS, draw_set, write_set
+from smarticle_mjx import __version__
+from smarticle_mjx.calibrate import sim
+from smarticle_mjx.calibrate.data import load
+from smarticle_mjx.calibrate.stages import calibrate
+
+OUT = RESULTS / "calibration_schedule.json"
+
+
+def _comparable(summary: dict) -> str:
+    """The calibration's summary without its run count (the only thing the schedule may change)."""
+    return json.dumps({k: v for k, v in summary.items() if k != "model_runs"}, sort_keys=True, default=str)
+
+
+def timed(trials, nested: bool) -> tuple[float, dict]:
+    sim.NESTED = nested
+    try:
+        t = time.perf_counter()
+        res = calibrate(trials).summary
+        return time.perf_counter() - t, res
+    finally:
+        sim.NESTED = True
+
+
+def parse_set(spec: str) -> tuple[int, int]:
+    try:
+        seed, index = spec.split("/")
+        return int(seed), int(index)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a set is SEED/INDEX, e.g. 2141/4, not {spec!r}") from None
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--set", dest="sets", action="append", type=parse_set, required=True, metavar="SEED/INDEX")
+    ap.add_argument("--out", type=pathlib.Path, default=OUT)
+    args = ap.parse_args()
+    rows, same_all = [], True
+    for k, (seed, index) in enumerate(args.sets):
+        s = draw_set(seed, index)
+        with tempfile.TemporaryDirectory() as d:
+            write_set(s, pathlib.Path(d))
+            trials = load(pathlib.Path(d), None, ())
+        order = (False, True) if k % 2 == 0 else (True, False)
+        got = {nested: timed(trials, nested) for nested in order}
+        (t_old, r_old), (t_new, r_new) = got[False], got[True]
+        same = _comparable(r_old) == _comparable(r_new)
+        same_all &= same
+        row = {"set": f"{seed}/{index}", "robots": s["robots"], "trials": len(trials),
+               "arms_tracked": s["arms_tracked"], "first": "nested" if order[0] else "before",
+               "wall_s_before": t_old, "wall_s_nested": t_new, "ratio": t_new / t_old,
+               "model_runs_before": r_old["model_runs"], "model_runs_nested": r_new["model_runs"],
+               "same_result": same}
+        rows.append(row)
+        print(f"{row['set']}: {s['robots']} robot(s), {len(trials)} trials: {t_old:6.1f} s before, "
+              f"{t_new:6.1f} s nested (x{row['ratio']:.2f}); runs {row['model_runs_before']} / "
+              f"{row['model_runs_nested']}; results {'identical' if same else 'DIFFER'}", flush=True)
+    total_old = sum(r["wall_s_before"] for r in rows)
+    total_new = sum(r["wall_s_nested"] for r in rows)
+    out = {"version": __version__, "machine": platform.processor() or platform.machine(),
+           "cores": sim.os.cpu_count(), "sets": rows,
+           "summary": {"wall_s_before": total_old, "wall_s_nested": total_new, "ratio": total_new / total_old,
+                       "all_identical": same_all}}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(out, indent=1))
+    print(f"all sets: {total_old:.1f} s before, {total_new:.1f} s nested (x{total_new / total_old:.2f}); "
+          f"results {'identical' if same_all else 'DIFFER'} -> {args.out}")
+    return 0 if same_all else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
