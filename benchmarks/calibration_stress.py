@@ -274,6 +274,7 @@ def summarise(rows: list[dict]) -> dict:
                                                   if e["added"] and "intervals_statistical" in r),
             "heldout_within_1_5_of_twin": _rate(x <= 1.5 for x in twin),
             "wall_s_median": float(np.median([r["wall_s"] for r in rows])) if rows else None,
+            "wall_s_by_trials": {str(k): v for k, v in by_trials(rows).items()},
             "by_condition": by_condition(rows),
             "targets": {"right_with_effects": 0.9, "nothing_added_clean": 0.95, "size_within_1_5": 0.8,
                         "covered": 0.8, "heldout_within_1_5_of_twin": 1.0}}
@@ -413,10 +414,35 @@ def coverage(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+SPEED_TARGET_S = 300.0  # an 8-trial set calibrated within 5 minutes on 2 cores (issue #44)
+
+
+def trials_of(s: dict) -> int:
+    return len(s["amplitudes"]) * s["trials_per_amplitude"]
+
+
+def by_trials(rows: list[dict]) -> dict:
+    """Per count of trials in a set: sets, median and slowest wall time of the calibration (the clean twin's
+    not counted), and how many ran within ``SPEED_TARGET_S``."""
+    out = {}
+    for k in sorted({trials_of(r["set"]) for r in rows}):
+        w = [r["wall_s"] for r in rows if trials_of(r["set"]) == k]
+        out[k] = {"sets": len(w), "median_s": float(np.median(w)), "slowest_s": float(max(w)),
+                  "within_5_min": sum(x <= SPEED_TARGET_S for x in w)}
+    return out
+
+
+def speed_table(rows: list[dict]) -> str:
+    lines = ["| trials in the set | sets | median | slowest | within 5 minutes |", "|---|---|---|---|---|"]
+    for k, v in by_trials(rows).items():
+        lines.append(f"| {k} | {v['sets']} | {v['median_s']:.0f} s | {v['slowest_s']:.0f} s | {v['within_5_min']} |")
+    return "\n".join(lines)
+
+
 def print_summary(rows: list[dict], summary: dict | None = None) -> None:
     """The summary (``summarise``, unless given) and every table, as a run and ``--summary --pool`` print them."""
     print(json.dumps(summarise(rows) if summary is None else summary, indent=1))
-    for table in (confusion, coverage, condition_table, effect_table):
+    for table in (confusion, coverage, condition_table, effect_table, speed_table):
         print(table(rows))
 
 

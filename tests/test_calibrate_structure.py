@@ -1144,6 +1144,24 @@ def test_the_stress_split_by_effect_counts_what_was_added_and_scores_only_the_li
         S.pooled_rows("5-7", tmp_path)
 
 
+def test_the_stress_speed_table_counts_sets_by_their_trials_against_five_minutes():
+    """The speed split (a report): sets grouped by their trial count (amplitudes x trials per amplitude),
+    each group's median and slowest calibration wall time, and how many ran within 300 s (300 s itself
+    is within)."""
+    import calibration_stress as S
+
+    def row(amps, per, wall):
+        return {"set": {"amplitudes": amps, "trials_per_amplitude": per}, "wall_s": wall}
+
+    rows = [row([15, 40, 60, 90], 2, 100.0), row([15, 40], 4, 300.0), row([15, 40, 60, 90], 2, 451.0),
+            row([15, 40], 2, 20.0)]
+    by = S.by_trials(rows)
+    assert list(by) == [4, 8]
+    assert by[8] == {"sets": 3, "median_s": 300.0, "slowest_s": 451.0, "within_5_min": 2}
+    assert by[4] == {"sets": 1, "median_s": 20.0, "slowest_s": 20.0, "within_5_min": 1}
+    assert "| 8 | 3 | 300 s | 451 s | 2 |" in S.speed_table(rows)
+
+
 def test_the_stress_pool_reads_stored_results_only_and_refuses_in_one_line():
     import subprocess
     import calibration_stress as S
