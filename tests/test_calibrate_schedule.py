@@ -161,3 +161,15 @@ def test_model_runs_give_the_same_tracks_on_either_schedule(tmp_path, monkeypatc
         for u, v in zip(x, y):
             np.testing.assert_array_equal(u, v)
     assert not np.array_equal(a[0][0], a[2][0])  # the servo speed does move the arms
+
+
+def test_the_schedule_benchmark_refuses_a_malformed_set_in_one_line():
+    """benchmarks/calibration_schedule.py names a set SEED/INDEX; anything else stops before any run,
+    with one line naming what was given and exit status 2."""
+    import pathlib
+    import subprocess
+    import sys
+    script = pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "calibration_schedule.py"
+    r = subprocess.run([sys.executable, str(script), "--set", "2141-4"], capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "a set is SEED/INDEX, e.g. 2141/4, not '2141-4'" in r.stderr.strip().splitlines()[-1]
