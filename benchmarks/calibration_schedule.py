@@ -40,13 +40,13 @@ def _comparable(summary: dict) -> str:
 
 
 def timed(trials, nested: bool) -> tuple[float, dict]:
-    sim.NESTED = nested
+    was, sim.NESTED = sim.NESTED, nested
     try:
         t = time.perf_counter()
         res = calibrate(trials).summary
         return time.perf_counter() - t, res
     finally:
-        sim.NESTED = True
+        sim.NESTED = was
 
 
 def parse_set(spec: str) -> tuple[int, int]:

@@ -4,8 +4,8 @@ Stress set 2140/19 hides a tilt; the anisotropic plate's joint hypothesis, tried
 before the tilt stage, was added first, although the plate-frame drift fitted one drift vector far better
 than one anisotropy of the robot's step (``drift.PlateDrift``: chi2 45 against 3306). The lead was to
 withhold the plate where the drift says one vector. This script reads, without any model, the drift of
-every stored set of the given whole seeds where the plate was added (data written again as the suite
-writes them), so that the rule's price can be counted before anyone runs it: a set whose plate was named
+every stored set of the given whole seeds where the plate was added (their stored summaries,
+``calibration_stress.pooled_rows``; data written again as the suite writes them), so that the rule's price can be counted before anyone runs it: a set whose plate was named
 rightly and whose drift fits one vector at least as well as one anisotropy would lose its plate.
 
     python benchmarks/plate_vs_vector.py --pool 2049-2051,2058-2066,2073,2140-2142
@@ -20,7 +20,7 @@ import json
 import pathlib
 import tempfile
 
-from calibration_stress import RESULTS, _indices, draw_set, write_set
+from calibration_stress import RESULTS, draw_set, pooled_rows, write_set
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.drift import drift_test
 
@@ -30,29 +30,27 @@ def main() -> int:
     ap.add_argument("--pool", required=True, metavar="SEEDS")
     args = ap.parse_args()
     try:
-        seeds = _indices(args.pool)
-    except ValueError as e:
+        stored = pooled_rows(args.pool)
+    except (FileNotFoundError, ValueError) as e:
         ap.error(str(e))
     rows = []
-    for seed in seeds:
-        for f in sorted((RESULTS / "calibration_stress" / str(seed)).glob("set_*.json")):
-            d = json.loads(f.read_text())
-            if "anisotropic_friction" not in d["score"]["added"]:
-                continue
-            s = draw_set(seed, d["set"]["index"])
-            with tempfile.TemporaryDirectory() as t:
-                write_set(s, pathlib.Path(t))
-                drift = drift_test(load(pathlib.Path(t)))
-            m = drift["plate_models"]
-            row = {"set": f"{seed}/{s['index']}", "hidden": s["hidden"], "outside": s["outside"],
-                   "added": d["score"]["added"], "plate_right": "anisotropic_friction" in s["hidden"],
-                   "drift_p": drift["p"], "groups": m["groups"], "chi2_one_vector": m["chi2_one_vector"],
-                   "chi2_anisotropy": m["chi2_anisotropy"], "p_one_vector": m["p_one_vector"],
-                   "one_vector_fits_better": bool(m["applicable"] and not m["follows_the_robot"])}
-            rows.append(row)
-            print(f"{row['set']}: hidden {s['hidden']} outside {s['outside']} added {row['added']}: "
-                  f"{m['groups']} gaits drift, chi2 one vector {m['chi2_one_vector']:.1f}, one anisotropy "
-                  f"{m['chi2_anisotropy']:.1f}", flush=True)
+    for d in stored:
+        if "anisotropic_friction" not in d["score"]["added"]:
+            continue
+        s = draw_set(d["set"]["suite_seed"], d["set"]["index"])
+        with tempfile.TemporaryDirectory() as t:
+            write_set(s, pathlib.Path(t))
+            drift = drift_test(load(pathlib.Path(t)))
+        m = drift["plate_models"]
+        row = {"set": f"{s['suite_seed']}/{s['index']}", "hidden": s["hidden"], "outside": s["outside"],
+               "added": d["score"]["added"], "plate_right": "anisotropic_friction" in s["hidden"],
+               "drift_p": drift["p"], "groups": m["groups"], "chi2_one_vector": m["chi2_one_vector"],
+               "chi2_anisotropy": m["chi2_anisotropy"], "p_one_vector": m["p_one_vector"],
+               "one_vector_fits_better": bool(m["applicable"] and not m["follows_the_robot"])}
+        rows.append(row)
+        print(f"{row['set']}: hidden {s['hidden']} outside {s['outside']} added {row['added']}: "
+              f"{m['groups']} gaits drift, chi2 one vector {m['chi2_one_vector']:.1f}, one anisotropy "
+              f"{m['chi2_anisotropy']:.1f}", flush=True)
     lost = [r["set"] for r in rows if r["plate_right"] and r["one_vector_fits_better"]]
     saved = [r["set"] for r in rows if not r["plate_right"] and r["one_vector_fits_better"]]
     out = {"pool": args.pool, "rows": rows,

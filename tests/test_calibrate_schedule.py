@@ -85,6 +85,14 @@ def test_a_run_outside_any_worker_takes_no_slot(two_slots):
             sim._SLOTS.release()
 
 
+def _bare_problem(F, monkeypatch, n):
+    """A fit.Problem built the usual way over ``n`` stand-in trials, its features and masks stubbed (the
+    tests below are about who runs a point, not about what it gives)."""
+    monkeypatch.setattr(F, "features", lambda *a, **k: "features")
+    monkeypatch.setattr(F, "masked", lambda mt, tr: (None, None))
+    return F.Problem([types.SimpleNamespace(t=None, pose=None, arms=None, periods=None)] * n)
+
+
 def test_a_point_two_threads_ask_for_at_once_is_run_once(monkeypatch):
     """Two fits side by side asking for the same (effects, nominal values) share one model run: the
     second waits for the first's and reads it from the cache."""
@@ -101,11 +109,7 @@ def test_a_point_two_threads_ask_for_at_once_is_run_once(monkeypatch):
         return [None] * len(trials)
 
     monkeypatch.setattr(F, "simulate_trials", slow_sim)
-    monkeypatch.setattr(F, "features", lambda *a, **k: "features")
-    monkeypatch.setattr(F, "masked", lambda mt, tr: (None, None))
-    p = F.Problem.__new__(F.Problem)
-    p.trials = [types.SimpleNamespace(t=None, periods=None)] * 2
-    p._cache, p._lock, p._running, p.runs, p.nominal = {}, threading.Lock(), {}, 0, {}
+    p = _bare_problem(F, monkeypatch, 2)
     got = []
     first = threading.Thread(target=lambda: got.append(p.model(EffectSet())))
     first.start()
@@ -128,8 +132,7 @@ def test_a_failed_run_is_not_left_waited_on(monkeypatch):
         raise RuntimeError("model failed")
 
     monkeypatch.setattr(F, "simulate_trials", broken)
-    p = F.Problem.__new__(F.Problem)
-    p.trials, p._cache, p._lock, p._running, p.runs, p.nominal = ["a"], {}, threading.Lock(), {}, 0, {}
+    p = _bare_problem(F, monkeypatch, 1)
     with pytest.raises(RuntimeError):
         p.model(EffectSet())
     assert not p._running and not p._cache
