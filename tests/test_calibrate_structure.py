@@ -372,6 +372,53 @@ def test_a_third_start_that_keeps_its_timing_absent_gains_nothing_over_the_null_
     assert judge(e, iv, chi2(continued) * 50, chi2(third, ("servo_lag",)) * 50, n, 1.0, 1.0).bic_gain <= 0
 
 
+
+def test_a_hypothesis_is_fitted_a_third_time_only_where_its_best_start_ended_above_its_baseline():
+    """A joint fit contains its null, so converged it ends no higher in training than the null's best fit;
+    one that ended at or above it has not converged and gets a third start from that baseline's end (servo
+    timings since version 0.4.5, plate hypotheses since 0.4.12). Built chi^2 values: the plate that ended
+    above its baseline (the stress suite's 2142/22 shape) and the timing that ended level with its own are
+    refitted, each from its own baseline; the ones below are not."""
+    from smarticle_mjx.calibrate.stages import third_starts
+    restart, nominal = {"plate_friction": 0.2}, {"plate_friction": 0.5}
+    baselines = {"anisotropic_friction": (900.0, restart, "restarted"), "servo_lag": (1000.0, nominal, "nominal"),
+                 "servo_dead_time": (1000.0, nominal, "nominal"), "arm_plate_contact": (800.0, nominal, "nominal")}
+    ended = {"anisotropic_friction": 1721.0, "servo_lag": 1000.0, "servo_dead_time": 400.0,
+             "arm_plate_contact": 799.9}
+    got = third_starts(ended, baselines)
+    assert set(got) == {"anisotropic_friction", "servo_lag"}
+    assert got["anisotropic_friction"][0] is restart and got["servo_lag"] == (nominal, "nominal")
+    assert third_starts({}, baselines) == {}
+
+
+@pytest.mark.parametrize("true_ratio, want", [(1.0, 1.0), (0.45, 0.4), (2.2, 2.5)])
+def test_a_plates_third_start_takes_the_grid_value_or_null_that_fits_best_at_the_baselines_end(true_ratio, want):
+    """The third start of a plate hypothesis begins at its baseline's nominal values with the effect at
+    whichever of its grid values and its null fits training best there: on a level isotropic plate the null
+    (so the fit can only improve on the baseline), on a plate slipperier or rougher along one axis the grid
+    value nearest in log ratio. Built: a residual that grows with the log distance to the true ratio, and is
+    counted only at the nominal values it is asked at."""
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.stages import PLATE_GRIDS, plate_third_start
+    e = BY_NAME["anisotropic_friction"]
+    nom = {"plate_friction": 0.3}
+    asked = []
+
+    def vector_with(vals, eff):
+        assert vals is nom
+        r = eff.as_dict()["anisotropic_friction"]["friction_y_ratio"]
+        return np.array([math.log(r / true_ratio), 0.1])
+
+    train = types.SimpleNamespace(prefetch=asked.extend, vector_with=vector_with)
+    got = plate_third_start(train, nom, e)
+    assert got == {"friction_y_ratio": want}
+    assert len(asked) == 1 + len(PLATE_GRIDS["anisotropic_friction"][1])  # the null and each grid value, once
+    # where an earlier start ended nearer the truth, the third start begins there
+    ended = [{"friction_y_ratio": true_ratio * 1.05}, {"friction_y_ratio": 1.0}]
+    asked.clear()
+    assert plate_third_start(train, nom, e, ended) == ({"friction_y_ratio": 1.0} if true_ratio == 1.0 else ended[0])
+    assert len(asked) == 2 + len(PLATE_GRIDS["anisotropic_friction"][1])  # the null is not asked twice
+
 def test_the_noise_estimator_reads_white_noise_and_not_smooth_motion():
     """Third differences remove motion that is quadratic over four frames and leave white noise of s.d.
     sqrt(20) sigma: a smooth track (a body swinging 3 mm at 0.6 Hz with a drift, sampled at 60 Hz) reads
