@@ -372,7 +372,6 @@ def test_a_third_start_that_keeps_its_timing_absent_gains_nothing_over_the_null_
     assert judge(e, iv, chi2(continued) * 50, chi2(third, ("servo_lag",)) * 50, n, 1.0, 1.0).bic_gain <= 0
 
 
-
 def test_a_hypothesis_is_fitted_a_third_time_only_where_its_best_start_ended_above_its_baseline():
     """A joint fit contains its null, so converged it ends no higher in training than the null's best fit;
     one that ended at or above it has not converged and gets a third start from that baseline's end (servo
@@ -418,6 +417,7 @@ def test_a_plates_third_start_takes_the_grid_value_or_null_that_fits_best_at_the
     asked.clear()
     assert plate_third_start(train, nom, e, ended) == ({"friction_y_ratio": 1.0} if true_ratio == 1.0 else ended[0])
     assert len(asked) == 2 + len(PLATE_GRIDS["anisotropic_friction"][1])  # the null is not asked twice
+
 
 def test_the_noise_estimator_reads_white_noise_and_not_smooth_motion():
     """Third differences remove motion that is quadratic over four frames and leave white noise of s.d.

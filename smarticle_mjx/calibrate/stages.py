@@ -204,7 +204,6 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         say("no arm angles tracked: a servo lag or dead time is not tried (body motion alone cannot tell a "
             "servo's timing from its law)")
     hypotheses, passed, tasks, first = [], [], [], {}
-    plate_grid = {}  # plate hypothesis -> its effect values at the grid's best point
     preset_servo = {k: v for k, v in nom0.items() if k not in SERVO_NOMINAL}  # the second start of a timing
     for name in joint:
         if name not in {e.name for e in library}:
@@ -236,7 +235,6 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             # from the nominal fit, mu and the anisotropy each alone barely move the model robot (it hardly
             # slides); the second start is the best point of a coarse grid over the two together
             start, e_start = plate_grid_start(train, nom0, e)
-            plate_grid[name] = e_start
             say(f"  nominal + {name}: grid start plate_friction {start['plate_friction']:.3g}, "
                 f"{', '.join(f'{k} {v:.3g}' for k, v in e_start.items())}")
             tasks.append((name, e, start, e_start))
@@ -273,16 +271,20 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     # training error above the nominal parameters restarted at the grid's mu, so not named. Such a plate is
     # fitted a third time from that baseline's end, the effect started at whichever of its null, its grid values
     # and the values its two starts ended at fits best there, and judged against the null continued beside it
-    baselines = {}  # hypothesis -> (training chi^2, nominal values, in words) of the better null
+
+    # the baseline of each hypothesis: the better in training of the nominal fit and its restart (at the grid's
+    # mu, or from the preset servo): hypothesis -> (training chi^2, nominal values, in words, held-out error)
+    baselines = {}
     for name in done:
         null_name = SERVO_NULL if name in SERVO_HYPOTHESES else name
-        baselines[name] = (chi2_0, nom0, "the nominal fit")
+        baselines[name] = (chi2_0, nom0, "the nominal fit", err0)
         if null_name in restarts and restarts[null_name][2] < chi2_0:
-            baselines[name] = (restarts[null_name][2], restarts[null_name][0],
-                               "the nominal fit's restart from the preset servo" if null_name == SERVO_NULL
-                               else "the nominal parameters restarted at the grid's mu")
+            nom_n, _, chi2_n, err_n = restarts[null_name]
+            where = ("the nominal fit's restart from the preset servo" if null_name == SERVO_NULL
+                     else f"the nominal parameters restarted at plate_friction {nom_n['plate_friction']:.3g}")
+            baselines[name] = (chi2_n, nom_n, where, err_n)
     ended = {name: scores(train, test, min(fes, key=lambda f: f.err_after), (name,))[2]
-             for name, (_, fes) in done.items() if name in SERVO_HYPOTHESES or name in plate_grid}
+             for name, (_, fes) in done.items() if name in SERVO_HYPOTHESES or name in plate_hypotheses}
     third = {}  # hypothesis -> (nominal values, effect values) of its third start
     from_null = {}  # hypothesis -> where its third start began, in words
     for name, (start, where) in third_starts(ended, baselines).items():
@@ -324,16 +326,9 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         first[name] = fe
         nom_e, _, chi2_e, err_e = scores(train, test, fe, (name,))
         interval = {p.name: fe.interval[p.name] for p in e.params}
-        base_chi2, base_err = chi2_0, err0
-        null_name = SERVO_NULL if name in SERVO_HYPOTHESES else name
-        if null_name in restarts:  # the better of the nominal fit and its restart (at the grid's mu, or from the
-            # preset servo) is the baseline
-            nom_n, _, chi2_n, err_n = restarts[null_name]
-            if chi2_n < chi2_0:
-                base_chi2, base_err = chi2_n, err_n
-                where = ("from the preset servo" if null_name == SERVO_NULL
-                         else f"at plate_friction {nom_n['plate_friction']:.3g}")
-                say(f"  nominal parameters restarted {where}: held-out error {base_err:.2f}, the baseline for {name}")
+        base_chi2, _, where, base_err = baselines[name]
+        if base_chi2 < chi2_0:
+            say(f"  {where}: held-out error {base_err:.2f}, the baseline for {name}")
         if name in third_baselines and third_baselines[name][0] < base_chi2:  # fitted a third time: the null
             # continued from the same start, where it ended below the baseline
             base_chi2, base_err, train_err = third_baselines[name]
@@ -551,13 +546,12 @@ def plate_grid_start(train: Problem, nom0: dict, e: Effect) -> tuple[dict, dict]
     return nom, eff.as_dict()[e.name]
 
 
-
 def third_starts(ended: dict, baselines: dict) -> dict:
     """The joint hypotheses to fit a third time: those whose best start ended at or above their baseline's
     training chi^2, which a converged fit containing the baseline cannot. ``ended``: hypothesis -> training
-    chi^2 of its best start; ``baselines``: hypothesis -> (chi^2, nominal values, where in words). Returns
+    chi^2 of its best start; ``baselines``: hypothesis -> (chi^2, nominal values, where in words, ...). Returns
     hypothesis -> (the baseline's nominal values, where in words), the third start's nominal values."""
-    return {name: baselines[name][1:] for name, chi2 in ended.items() if chi2 >= baselines[name][0]}
+    return {name: baselines[name][1:3] for name, chi2 in ended.items() if chi2 >= baselines[name][0]}
 
 
 def plate_third_start(train: Problem, nom: dict, e: Effect, ended=()) -> dict:
@@ -572,6 +566,7 @@ def plate_third_start(train: Problem, nom: dict, e: Effect, ended=()) -> dict:
     train.prefetch(points)
     chi2 = [float(np.sum(train.vector_with(nom, eff) ** 2)) for eff, _ in points]
     return candidates[int(np.argmin(chi2))]
+
 
 # True: try a servo timing without arm tracks, by the held-out rule (a counterfactual for the stress suite's
 # --servo-without-arms, run apart with --tag; not the rule)
