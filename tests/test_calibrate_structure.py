@@ -1219,3 +1219,71 @@ def test_the_stress_pool_reads_stored_results_only_and_refuses_in_one_line():
                       (["--suite-seed", "987654", "--sets", "0,a"], "not a list of numbers and ranges: '0,a'")):
         r = subprocess.run([sys.executable, str(script), *args], capture_output=True, text=True)
         assert r.returncode == 2 and msg in r.stderr.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize("true_ratio", [4.0, 0.2])
+def test_an_effect_that_ends_on_the_librarys_bound_away_from_its_null_gets_a_one_sided_interval(true_ratio):
+    """Least squares inside bounds stops on a bound where the data want more than the library allows: an
+    anisotropic plate rougher along one axis than the ratio 3.0 allows (or slipperier than 0.3). The data
+    then say the effect is at least that large, so its 95 % interval runs from the Gauss-Newton spread
+    inward to the bound and excludes the isotropic plate (``is_present``); until version 0.4.13 it had no
+    interval there, and a clear plate was refused (stress set 2143/1). Built: a residual linear in the log
+    ratio with 1 % noise-free scatter per sample, so the inward end is known in closed form, and two servo
+    parameters the data pin at their presets."""
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.fit import is_present
+    from smarticle_mjx.calibrate.stages import at_library_bound
+    from smarticle_mjx.presets import params as preset_params
+    ref = preset_params("lab-lag")
+    params = tuple(p for p in NOMINAL if p.name in ("servo_speed", "servo_kp"))
+    e = BY_NAME["anisotropic_friction"]
+    q = e.params[0]
+    slope = 20.0  # residual per unit of ln ratio, each of 50 samples
+
+    def vector_with(vals, eff):
+        r = eff.as_dict().get("anisotropic_friction", {}).get("friction_y_ratio", 1.0)
+        data = np.full(50, slope * math.log(r / true_ratio)) + 0.01 * np.sin(np.arange(50))
+        return np.concatenate([data, [(vals[p.name] - p.preset(ref)) * 10.0 for p in params]])
+
+    problem = types.SimpleNamespace(trials=[types.SimpleNamespace(params=ref)], vector_with=vector_with)
+    fe = fit_nominal(problem, params, max_nfev=20, effect=e)
+    bound = q.hi if true_ratio > 1 else q.lo
+    assert fe.values["anisotropic_friction"]["friction_y_ratio"] == pytest.approx(bound, rel=0.02)
+    lo, hi = fe.interval["friction_y_ratio"]
+    assert np.isfinite([lo, hi]).all()
+    inward, at = (lo, hi) if true_ratio > 1 else (hi, lo)
+    assert at == pytest.approx(bound)
+    # closed form: sd of ln r = sqrt(red / (50 slope^2)), red = chi^2 / (n - k) at the bound
+    n_res = 52
+    chi2 = 50 * (slope * math.log(bound / true_ratio)) ** 2
+    sd = math.sqrt(max(1.0, chi2 / (n_res - 3)) / (50 * slope ** 2))
+    assert 0.01 < 1.96 * sd < 0.5 * abs(math.log(bound))  # an interval short of the isotropic plate
+    assert math.log(inward) == pytest.approx(math.log(bound) - math.copysign(1.96 * sd, math.log(bound)),
+                                             abs=0.1 * 1.96 * sd)
+    assert is_present(e, {"friction_y_ratio": (lo, hi)})
+    assert at_library_bound(e, fe.values["anisotropic_friction"]) == ["friction_y_ratio"]
+
+
+def test_an_effect_at_its_null_on_a_bound_gets_no_interval():
+    """A servo dead time the data do not want ends at 0 s, which is both its null and the library's lower
+    bound: there the effect is absent, and no one-sided interval is made for it (it would say "at least
+    nothing"). Built: a residual that only a negative dead time would lower."""
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.fit import is_present
+    from smarticle_mjx.calibrate.stages import at_library_bound
+    from smarticle_mjx.presets import params as preset_params
+    ref = preset_params("lab-lag")
+    params = tuple(p for p in NOMINAL if p.name in ("servo_speed", "servo_kp"))
+    e = BY_NAME["servo_dead_time"]
+
+    def vector_with(vals, eff):
+        t = eff.as_dict().get("servo_dead_time", {}).get("dead_time_s", 0.0)
+        return np.concatenate([np.full(50, (t + 0.01) * 1e3),
+                               [(vals[p.name] - p.preset(ref)) * 10.0 for p in params]])
+
+    problem = types.SimpleNamespace(trials=[types.SimpleNamespace(params=ref)], vector_with=vector_with)
+    fe = fit_nominal(problem, params, max_nfev=20, effect=e, effect_start={"dead_time_s": 0.02})
+    assert fe.values["servo_dead_time"]["dead_time_s"] < 1e-3
+    assert not np.isfinite(fe.interval["dead_time_s"]).any()
+    assert not is_present(e, {"dead_time_s": fe.interval["dead_time_s"]})
+    assert at_library_bound(e, fe.values["servo_dead_time"]) == []

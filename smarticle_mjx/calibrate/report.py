@@ -262,7 +262,9 @@ def markdown(r: dict) -> str:
                 lo, hi = e["interval"][k]
                 slo, shi = stat[k]
                 sd = (e.get("mismatch_log_sd") or {}).get(k)
-                lines.append(f"| {e['title']} | {k} ({e['units'][k]}) | {_num(v, '.4g')} | "
+                bound = " (on the library's bound: the data want at least this)" if k in (e.get("at_bound") or []) \
+                    else ""
+                lines.append(f"| {e['title']} | {k} ({e['units'][k]}) | {_num(v, '.4g')}{bound} | "
                              f"[{_num(lo, '.4g')}, {_num(hi, '.4g')}] | [{_num(slo, '.4g')}, {_num(shi, '.4g')}] | "
                              + ("slide mismatch" if e["effect"] == "plate_tilt" and sd is None else
                                 "–" if sd is None else f"{sd:.2f}") + " |")

@@ -21,7 +21,7 @@ from .discrepancy import carry, log_sd
 from .armoffset import ArmOffsetReading, read_offsets, without_offsets
 from .drift import drift_test, fit_tilt
 from .noise import effect_values as noise_values, noise_test
-from .effects import BY_NAME, LIBRARY, Effect, EffectSet
+from .effects import BY_NAME, LIBRARY, Effect, EffectSet, value_to_unit
 from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN, MIN_SHARE,
                   NOMINAL_EFFECTS, NOMINAL_NFEV, PLATE_HYPOTHESES, SERVO_HYPOTHESES, SERVO_NOMINAL, TILT_Z2,
                   UNEXPLAINED, Fit,
@@ -806,7 +806,22 @@ def added_entry(e: Effect, values: dict, interval: dict, statistical: dict | Non
     return {"effect": e.name, "title": e.title, "values": values,
             "interval": {k: list(v) for k, v in total.items()},
             "interval_statistical": {k: list(v) for k, v in interval.items()},
-            "mismatch_log_sd": sds, "units": {p.name: p.unit for p in e.params}}
+            "mismatch_log_sd": sds, "units": {p.name: p.unit for p in e.params},
+            "at_bound": at_library_bound(e, values)}
+
+
+def at_library_bound(e: Effect, values: dict) -> list:
+    """The parameters of ``e`` whose value lies on one of the library's bounds (within 1 % of the fit's
+    unit range) away from the effect's null: the data want at least that much, and the interval is
+    one-sided (``nominal.fit_nominal``)."""
+    out = []
+    for p in e.params:
+        if p.name not in values or not math.isfinite(values[p.name]):
+            continue
+        x, x0 = value_to_unit(p, values[p.name]), value_to_unit(p, p.null)
+        if (x >= 0.99 and x0 < 0.99) or (x <= 0.01 and x0 > 0.01):
+            out.append(p.name)
+    return out
 
 
 def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_step: Callable | None = None,
