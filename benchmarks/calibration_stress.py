@@ -240,6 +240,8 @@ def run_set(s: dict, plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES, overr
             # every joint hypothesis of the nominal stage as judged (values, gains, baseline, rule), and the
             # delay test, so that a miss can be read without running the set again (stored after 0.4.3)
             "hypotheses": res.get("nominal_hypotheses"), "delay_test": res.get("delay_test"),
+            # the held-out error before and with a tilt named from the drift (stored since 0.4.14)
+            "tilt_heldout": (res.get("drift") or {}).get("tilt_heldout"),
             "version": __version__, "source": source_hash(),
             **({"overrides": dict(overrides)} if overrides else {})}
 

@@ -128,6 +128,11 @@ def test_a_hidden_plate_tilt_is_named_by_the_plate_frame_drift(tmp_path):
     assert res["before"]["err_heldout"] < 1.0
     assert res["drift"]["significant"] and added[:1] == ["plate_tilt"], res["verdict"]
     fitted = res["added"][0]
+    # the held-out error before and with the tilt is recorded beside it (stages.TiltHeldout)
+    th = res["drift"]["tilt_heldout"]
+    assert th is not None and th["rose"] == (th["with_tilt"] > th["without"])
+    if added == ["plate_tilt"]:
+        assert th["with_tilt"] == pytest.approx(res["after"]["err_heldout"])
     for k, v in truth["plate_tilt"].items():
         lo, hi = fitted["interval"][k]
         assert lo <= v <= hi, (k, v, fitted["values"][k], (lo, hi))

@@ -503,3 +503,24 @@ def test_the_report_says_which_reading_of_the_drift_the_tilt_gate_used():
     md = "\n".join(drift_markdown({**dr, "tilt_fit": {**fit, "gate_beyond_model": False, "follows_the_robot": True,
                                                        "accepted": False}}, None))
     assert "Read on the data alone: one vector χ² 31.1" in md and "**it follows the step**" in md
+
+
+def test_the_report_says_where_the_tilt_named_from_the_drift_raised_the_held_out_error():
+    """The tilt is named without the model and sized by it, so no held-out rule decides it; the drift section
+    gives the held-out error before and with it, and says so in bold where it rose (``stages.TiltHeldout``):
+    the drift is there, but the model's tilt does not carry it to the held-out trials."""
+    from smarticle_mjx.calibrate.report import drift_markdown
+    from smarticle_mjx.calibrate.stages import TiltHeldout
+    rose, fell = TiltHeldout(43.7, 45.5), TiltHeldout(69.1, 33.6)
+    assert rose.rose and not fell.rose
+    assert rose.gain == pytest.approx(1 - 45.5 / 43.7) and fell.gain == pytest.approx(1 - 33.6 / 69.1)
+    g = {"amplitude_deg": 25.0, "v_mm": [-1.49, -1.66], "se_mm": [0.43, 0.43], "cycles": 7, "spread_deg": 81.0}
+    fit = {"ok": True, "tilt_deg": [-0.32, 0.46], "se_deg": [0.1, 0.1], "chi2_before": 54.0, "chi2_after": 5.0,
+           "accepted": True}
+    dr = {"dof": 6, "chi2": 54.2, "p": 7e-10, "threshold_p": 1e-3, "groups": [g], "directions": {},
+          "tilt_fit": fit, "tilt_heldout": rose.as_dict()}
+    md = "\n".join(drift_markdown(dr, None))
+    assert "before the tilt: 43.7; with the tilt: 45.5. **It rose**" in md
+    md = "\n".join(drift_markdown({**dr, "tilt_heldout": fell.as_dict()}, None))
+    assert "before the tilt: 69.1; with the tilt: 33.6." in md and "It rose" not in md
+    assert "before the tilt" not in "\n".join(drift_markdown({**dr, "tilt_heldout": None}, None))

@@ -345,6 +345,14 @@ def drift_markdown(dr: dict | None, pl: dict | None) -> list[str]:
                       f"{tf['chi2_after']:.1f}; {'added' if tf.get('accepted') else 'not added'} (kept when "
                       "the drift test finds drift, the tilt's 95 % region excludes a level plate, the drift χ² at "
                       "least halves and the gaits' drifts point one way)."]
+            th = dr.get("tilt_heldout")
+            if th:
+                lines += ["", f"Held-out error with the model as it stood before the tilt: {th['without']:.3g}; with "
+                          f"the tilt: {th['with_tilt']:.3g}"
+                          + (". **It rose**: the drift is there, but the model's tilt does not carry it to the "
+                             "held-out trials. On the stress suite a tilt named this way was the hidden effect in "
+                             "a third of the sets (a plate slipperier along one axis or a grip that depends on the "
+                             "robot's heading drifts alike); check it at more headings." if th["rose"] else ".")]
             beyond = bool(tf.get("gate_beyond_model"))
             pm = (tf.get("plate_models_beyond_model") if beyond else dr.get("plate_models")) or {}
             if "follows_the_robot" in tf and pm.get("applicable"):
