@@ -61,6 +61,19 @@ def unit_to_value(p: Param, u: float) -> float:
     return p.lo + u * (p.hi - p.lo)
 
 
+def bound_side(u: float) -> int:
+    """Which bound a value on the fit's unit interval lies on: +1 the upper, -1 the lower (within 1 % of
+    the range, where a bounded least-squares fit stops), 0 inside."""
+    return 1 if u >= 0.99 else -1 if u <= 0.01 else 0
+
+
+def on_bound_away_from_null(p: Param, u: float) -> int:
+    """:func:`bound_side` of ``u``, or 0 where the effect's null lies on that same bound (a dead time at
+    0 s is absent, not "at least" anything)."""
+    side = bound_side(u)
+    return side if side and bound_side(value_to_unit(p, p.null)) != side else 0
+
+
 def _same(p: SceneParams, v: dict) -> SceneParams:
     return p
 

@@ -146,7 +146,7 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     a model preset). Returns the fit; ``problem`` is left at the preset.
     """
     from scipy.optimize import least_squares
-    from .effects import EffectSet, unit_to_value, value_to_unit
+    from .effects import EffectSet, bound_side, on_bound_away_from_null, unit_to_value, value_to_unit
     ref = problem.trials[0].params
     start = start or {}
     effs = () if effect is None else tuple(effect) if isinstance(effect, (tuple, list)) else (effect,)
@@ -221,7 +221,7 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     n, k = len(r), len(names)
     J = res.jac
     red = max(1.0, float(r @ r) / max(n - k, 1))
-    at_bound = [nm for nm, x in zip(names, u) if x <= 0.01 or x >= 0.99]
+    at_bound = [nm for nm, x in zip(names, u) if bound_side(x)]
     free = [j for j, nm in enumerate(names) if nm not in at_bound]
     # the covariance of the parameters inside their bounds (one on a bound has no Gauss-Newton interval)
     sd = np.full(k, np.nan)
@@ -255,13 +255,12 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
     # "present" however clear it is (stress set 2143/1: an anisotropic plate at ratio 2.99 of the bound 3.0,
     # +27 % held out, refused for a missing interval)
     for j in range(kn, k):
-        q, x = eparams[j - kn], u[j]
-        side = 1.0 if x >= 0.99 else -1.0 if x <= 0.01 else 0.0
-        if not side or abs(value_to_unit(q, q.null) - (1.0 if side > 0 else 0.0)) <= 0.01:
+        side = on_bound_away_from_null(eparams[j - kn], u[j])
+        if not side:
             continue
         s_j = one_sided_sd(J, free, j, red)
         if np.isfinite(s_j):
-            inward = conv(j, min(max(x - side * 1.96 * s_j, 0.0), 1.0))
+            inward = conv(j, min(max(u[j] - side * 1.96 * s_j, 0.0), 1.0))
             interval[names[j]] = (inward, conv(j, 1.0)) if side > 0 else (conv(j, 0.0), inward)
     interval.update({q.name: tuple(fixed[q.name][1]) for e in effs for q in e.params if q.name in fixed})
     corr = [(names[a], names[b], float(cc[a, b])) for a in range(k) for b in range(a + 1, k)

@@ -21,7 +21,7 @@ from .discrepancy import carry, log_sd
 from .armoffset import ArmOffsetReading, read_offsets, without_offsets
 from .drift import drift_test, fit_tilt
 from .noise import effect_values as noise_values, noise_test
-from .effects import BY_NAME, LIBRARY, Effect, EffectSet, value_to_unit
+from .effects import BY_NAME, LIBRARY, Effect, EffectSet, on_bound_away_from_null, value_to_unit
 from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN, MIN_SHARE,
                   NOMINAL_EFFECTS, NOMINAL_NFEV, PLATE_HYPOTHESES, SERVO_HYPOTHESES, SERVO_NOMINAL, TILT_Z2,
                   UNEXPLAINED, Fit,
@@ -841,14 +841,8 @@ def at_library_bound(e: Effect, values: dict) -> list:
     """The parameters of ``e`` whose value lies on one of the library's bounds (within 1 % of the fit's
     unit range) away from the effect's null: the data want at least that much, and the interval is
     one-sided (``nominal.fit_nominal``)."""
-    out = []
-    for p in e.params:
-        if p.name not in values or not math.isfinite(values[p.name]):
-            continue
-        x, x0 = value_to_unit(p, values[p.name]), value_to_unit(p, p.null)
-        if (x >= 0.99 and x0 < 0.99) or (x <= 0.01 and x0 > 0.01):
-            out.append(p.name)
-    return out
+    return [p.name for p in e.params if p.name in values and math.isfinite(values[p.name])
+            and on_bound_away_from_null(p, value_to_unit(p, values[p.name]))]
 
 
 def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_step: Callable | None = None,
@@ -928,15 +922,12 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         # no second robot; or the offset was read off the robots' curves: none to fit, or one held at its
         # reading and judged by the nominal stage
         library = tuple(e for e in library if e.name != "phase_offset")
-    tilt_heldout = None
+    before_tilt = None  # the held-out error of the model as it stood, where the tilt stage adds a tilt
     if "plate_tilt" in {e.name for e in library}:
         base_before = dict(model.base)
         tilt = tilt_stage(trials, train, model, say, drift)
         if "plate_tilt" in model.fixed and "plate_tilt" not in base_before:
-            tilt_heldout = TiltHeldout(test.error(EffectSet.of(base_before)), test.error(EffectSet.of(model.base)))
-            say(f"  held-out error {tilt_heldout.without:.3g} -> {tilt_heldout.with_tilt:.3g} with the tilt"
-                + (" (it rose: the model's tilt does not carry the drift to the held-out trials)"
-                   if tilt_heldout.rose else ""))
+            before_tilt = test.error(EffectSet.of(base_before))
         library = tuple(x for x in library if not (x.name == "plate_tilt" and "plate_tilt" in model.fixed))
     else:
         tilt = TiltStage(drift, None, 0)
@@ -946,6 +937,11 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     # the tilt stage added (until version 0.4.1 the held-out error of the nominal parameters alone where no
     # tilt was fixed, which credited a round with a joint hypothesis's gain)
     current = {"err_heldout": test.error(EffectSet.of(model.base)), "chi2_train": float(v @ v)}
+    tilt_heldout = None if before_tilt is None else TiltHeldout(before_tilt, current["err_heldout"])
+    if tilt_heldout is not None:
+        say(f"  held-out error {tilt_heldout.without:.3g} -> {tilt_heldout.with_tilt:.3g} with the tilt"
+            + (" (it rose: the model's tilt does not carry the drift to the held-out trials)"
+               if tilt_heldout.rose else ""))
     rounds = rounds_stage(train, test, library, model, current, say)
     final = EffectSet.of(model.base)
     after = errors(train, test, final)
@@ -990,7 +986,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
                   for e in model.chosen],
         "verdict": verdict(after["err_heldout"], model.chosen, aoff), "model_runs": train.runs + test.runs + tilt.runs,
         "drift": {**tilt.drift, "tilt_fit": tilt.tilt,
-                  "tilt_heldout": tilt_heldout.as_dict() if tilt_heldout else None},
+                  "tilt_heldout": tilt_heldout.as_dict() if tilt_heldout is not None else None},
         "noise_test": noise, "observables": obs,
         "plate_level": {"p": drift["p"], "dof": drift["dof"], "threshold_p": P_LEVEL,
                         "anisotropic_plate_tried": aniso_asked and plate_skip is None, "reason": plate_skip},
