@@ -798,6 +798,58 @@ def test_a_second_joint_hypothesis_beside_the_accepted_one_is_named_only_where_i
         assert second.effect is None and not second.tried[0]["accepted"]
 
 
+class _HiddenDeadTime(_TwoEffects):
+    """As ``_TwoEffects``, but the dead time's 30 residuals are a well around the truth, flat farther than
+    ~8 ms from it (10 (1 - exp(-((dt - truth) / 5 ms)^2))), with a small pull toward 0 s (0.05 per ms): from
+    0 s, where a fit that did not see the well ends, no local step finds it."""
+
+    def vector_with(self, values, eff):
+        d = eff.as_dict()
+        dt = d.get("servo_dead_time", {}).get("dead_time_s", 0.0)
+        ph = d.get("phase_offset", {}).get("phase_offset", 0.0)
+        well = 10.0 * (1.0 - np.exp(-(((dt - self.dead) / 0.005) ** 2))) + 0.05 * dt / 0.001
+        return np.concatenate([np.full(30, well), np.full(30, (ph - self.phase) / 0.002)]) + self.noise
+
+
+@pytest.mark.parametrize("constant_delay", [True, False])
+def test_a_second_servo_timing_starts_at_the_delay_tests_reading_where_it_reads_a_constant(constant_delay):
+    """calibrate.stages.second_hypothesis (version 0.4.15): a phase offset was accepted first and the dead
+    time's own first-pass fit ended at 0 s (as on fresh stress set 2144/2, where the nominal servo had taken
+    it up). Where the delay test reads a constant delay (27 ms here, the truth), the dead time is started
+    there too, finds its well and is added beside the offset at its size; without that reading it is
+    started only where its first pass ended and stays at 0 s, not added."""
+    from smarticle_mjx import presets
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.stages import START_DELAY_READING, delay_reading_start, second_hypothesis
+
+    params = presets.params()
+    train, test = _HiddenDeadTime(params, 0.027, 0.1, 1), _HiddenDeadTime(params, 0.027, 0.1, 2)
+    dead, lag, off = BY_NAME["servo_dead_time"], BY_NAME["servo_lag"], BY_NAME["phase_offset"]
+    fe_off = fit_nominal(train, effect=off, max_nfev=10, effect_start={"phase_offset": 0.05})
+    assert fe_off.values["phase_offset"]["phase_offset"] == pytest.approx(0.1, abs=0.002)
+    fe_dead = fit_nominal(train, effect=dead, max_nfev=10, effect_start={"dead_time_s": 0.0})
+    assert fe_dead.values["servo_dead_time"]["dead_time_s"] < 0.002  # the first pass's fit, stuck at 0 s
+    nom0 = {p.name: p.preset(params) for p in NOMINAL}
+    nom1 = {k: fe_off.values[k] for k in fe_off.preset}
+    best = (fe_off, 0.5, off, nom1, {"phase_offset": fe_off.interval["phase_offset"]})
+    tasks = [("servo_dead_time", dead, nom0, None), ("phase_offset", off, nom0, {"phase_offset": 0.05})]
+    dtest = types.SimpleNamespace(constant_delay=constant_delay, constant_ms=27.0)
+    assert delay_reading_start(off, dtest) is None
+    assert delay_reading_start(lag, dtest) == ({"extra_lag_s": 0.027} if constant_delay else None)
+    second = second_hypothesis(train, test, tasks, best, nom0, 60, dtest, lambda msg: None, None,
+                               {"phase_offset": fe_off, "servo_dead_time": fe_dead})
+    assert [t["effect"] for t in second.tried] == ["servo_dead_time"]
+    got = second.tried[0]["values"]["dead_time_s"]
+    assert second.tried[0]["starts"] == (3 if constant_delay else 2)
+    if constant_delay:
+        assert second.tried[0]["start"] == START_DELAY_READING
+        assert second.effect is dead
+        assert got == pytest.approx(0.027, abs=1e-3)
+        assert second.fit.values["phase_offset"]["phase_offset"] == pytest.approx(0.1, abs=0.002)
+    else:
+        assert second.effect is None and got < 0.002
+
+
 def _servo_tracks(gait, speed, frame_hz, dead_s=0.0, lag_s=0.0, periods=5):
     """Arm angles [F, 2] at ``frame_hz`` of a servo that follows the gait's slewed setpoints at ``speed``,
     late by ``dead_s`` or through a first-order lag ``lag_s`` (integrated exactly on a 10 us grid) — built

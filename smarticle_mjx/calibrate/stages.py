@@ -452,7 +452,11 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
     the accepted effect's: once at the accepted fit's nominal values, once at its own fit's (the two basins
     the first pass found). Started from the first pass's starts instead, a dead time beside an anisotropic
     plate stayed in the nominal fit's valley (fresh seed 2045, set 6: held-out -28 %, where alone it had
-    reached +83 %). A plate hypothesis's null restart (``tasks`` without an effect) is run again with the
+    reached +83 %). Where the delay test reads a constant delay, a servo timing gets a third start (version
+    0.4.15): the timing at the test's constant, the servo at its preset, the other nominal values at the
+    accepted fit's (``delay_reading_start``). Its first-pass fits were made without the accepted effect, and
+    beside a phase offset between robots the nominal servo had taken a 27 ms dead time up and both starts
+    ended at 0 ms (fresh seed 2144, set 2; the delay test read 17 +- 4 ms). A plate hypothesis's null restart (``tasks`` without an effect) is run again with the
     accepted effect, moved to its values like the first pass's start, as that hypothesis's baseline."""
     fe1, _, e1, nom_e1, _ = best
     v1 = dict(fe1.values[e1.name])
@@ -464,25 +468,31 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
     # the null restarts: their departures from the nominal fit kept (a plate's grid mu), the rest at the
     # accepted fit's values
     # (the servo's null is not: a second servo hypothesis starts from its own first fit, not the preset)
-    todo = [(name, None, {k: (st[k] if st[k] != nom0.get(k) else nom_e1[k]) for k in st}, v1)
+    todo = [(name, None, {k: (st[k] if st[k] != nom0.get(k) else nom_e1[k]) for k in st}, v1, None)
             for name, e, st, _ in tasks if e is None and name != SERVO_NULL and other(name)]
     for name, fe2 in first.items():
         if other(name):
-            for start in (dict(nom_e1), {k: fe2.values[k] for k in fe2.preset}):
-                todo.append((name, BY_NAME[name], start, {**v1, **fe2.values[name]}))
+            todo.append((name, BY_NAME[name], dict(nom_e1), {**v1, **fe2.values[name]}, START_ACCEPTED))
+            todo.append((name, BY_NAME[name], {k: fe2.values[k] for k in fe2.preset}, {**v1, **fe2.values[name]},
+                         START_OWN))
+            at = delay_reading_start(BY_NAME[name], dtest)
+            if at is not None:  # a third start: the timing at the delay test's reading, the servo at its preset
+                todo.append((name, BY_NAME[name], {k: v for k, v in nom_e1.items() if k not in SERVO_NOMINAL},
+                             {**v1, **at}, START_DELAY_READING))
     if not todo:
         return SecondHypothesis(None, None, [])
     fits = pmap(lambda t: fit_nominal(train, effect=(e1,) if t[1] is None else (e1, t[1]), start=t[2],
                                       max_nfev=HYPOTHESIS_NFEV, effect_start=t[3]), todo)
     done, nulls = {}, {}
-    for (name, e, _, _), fe in zip(todo, fits):
+    for (name, e, _, _, label), fe in zip(todo, fits):
         if e is None:
             nulls[name] = fe
         else:
-            done.setdefault(name, (e, []))[1].append(fe)
+            done.setdefault(name, (e, []))[1].append((fe, label))
     tried, passed = [], []
     for name, (e, fes) in done.items():
-        fe = min(fes, key=lambda f: f.err_after)
+        fe, label = min(fes, key=lambda f: f[0].err_after)
+        fes = [f for f, _ in fes]
         fe = dataclasses.replace(fe, evaluations=sum(f.evaluations for f in fes))
         _, _, chi2, err = scores(train, test, fe, (e1.name, name))
         base_chi2, base_err = chi2_1, err_1
@@ -499,10 +509,10 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
                       "interval": interval, "err_heldout": err, "heldout_gain": j.heldout_gain,
                       "bic_gain": j.bic_gain, "present": j.present, "first_present": first_present,
                       "accepted": ok, "rule": rule, "baseline_err_heldout": base_err,
-                      "evaluations": fe.evaluations})
+                      "evaluations": fe.evaluations, "starts": len(fes), "start": label})
         say(f"  nominal + {e1.name} + {name}: held-out error {err:.2f} ({j.heldout_gain:+.0%} over "
             f"{e1.name} alone), BIC gain {j.bic_gain:.1f}" + ("" if first_present else f"; {e1.name} no longer shown")
-            + floor_note(rule))
+            + ("; started at the delay test's reading" if label == START_DELAY_READING else "") + floor_note(rule))
         if ok:
             passed.append((fe, j.heldout_gain, e))
     passed = servo_choice(passed, tried, reading, say)
@@ -510,6 +520,23 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
     if pick is None:
         return SecondHypothesis(None, None, tried)
     return SecondHypothesis(pick[0], pick[2], tried)
+
+
+# where a second-pass hypothesis's best start began (its stored entry's "start")
+START_ACCEPTED = "the accepted fit's nominal values"
+START_OWN = "its own first-pass fit's nominal values"
+START_DELAY_READING = "the delay test's reading, the servo at its preset"
+
+
+def delay_reading_start(e: Effect, dtest) -> dict | None:
+    """A servo timing's values at the delay test's reading: its one parameter at the test's constant delay
+    (within the parameter's bounds), where the test reads a constant delay; None for any other effect or
+    reading. A lag delays an arm's midpoint crossing by about its time constant, a dead time by itself, so
+    the constant is where either starts."""
+    if e.name not in SERVO_HYPOTHESES or not getattr(dtest, "constant_delay", False):
+        return None
+    (p,) = e.params
+    return {p.name: float(np.clip(dtest.constant_ms / 1e3, p.lo, p.hi))}
 
 
 # each plate hypothesis's grid: the plate's mu at these factors of the nominal fit's, times its parameter's
