@@ -279,6 +279,32 @@ def test_a_servos_timing_is_no_hypothesis_without_arm_tracks_and_none_where_the_
     assert "no constant excess" in servo_skip_reason(tracked, none_found)
 
 
+@pytest.mark.parametrize("constant_ms, tried", [(-3.0, False), (4.0, True)])
+def test_a_delay_test_reading_its_constant_below_zero_rules_a_servo_timing_out(constant_ms, tried):
+    """A lag or dead time only adds to the arm's delay: an undecided delay test (two amplitudes 1.5x apart,
+    so the constant's standard error is 7 ms) whose constant reads below zero rules both out (version
+    0.4.16); one that reads above zero, as undecided, leaves them to the fit. Built arm delays, not a
+    model's: the data's delay exceeds the model's by ``constant_ms`` plus 20 ms per radian of amplitude."""
+    import types
+    from smarticle_mjx.calibrate.observables import delay_test
+    from smarticle_mjx.calibrate.stages import servo_skip_reason
+    amps = (40.0, 60.0)
+    model = {"arm_delay_ms": [{"gait": k, "amplitude_deg": a, "mean": 30.0 + 0.4 * a, "se": 0.0}
+                              for k, a in enumerate(amps)]}
+    data = {"arm_delay_ms": [{"gait": k, "amplitude_deg": a, "se": 0.0,
+                              "mean": 30.0 + 0.4 * a + constant_ms + 20.0 * math.radians(a)}
+                             for k, a in enumerate(amps)]}
+    dtest = delay_test(data, model)
+    assert dtest.constant_ms == pytest.approx(constant_ms)
+    assert dtest.applicable and not dtest.constant_delay and not dtest.no_constant_delay  # undecided
+    tracked = [types.SimpleNamespace(arms=np.zeros((5, 1, 2)))]
+    reason = servo_skip_reason(tracked, dtest)
+    if tried:
+        assert reason is None
+    else:
+        assert "below zero" in reason and "no lag or dead time" in reason
+
+
 def test_a_servo_timing_fitted_wholly_below_the_delay_floor_is_refused_whatever_it_gains():
     """The delay test calls a constant excess whose upper bound is below DELAY_MIN_MS no constant delay (two
     servo laws differ by a few ms); a fitted lag or dead time is held to the same floor: with the same large
