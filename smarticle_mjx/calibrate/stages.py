@@ -203,6 +203,8 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     if servo_skip == NO_ARMS:
         say("no arm angles tracked: a servo lag or dead time is not tried (body motion alone cannot tell a "
             "servo's timing from its law)")
+    elif servo_skip is not None:
+        say(f"a servo lag or dead time is not tried: {servo_skip}")
     hypotheses, passed, tasks, first = [], [], [], {}
     preset_servo = {k: v for k, v in nom0.items() if k not in SERVO_NOMINAL}  # the second start of a timing
     for name in joint:
