@@ -206,7 +206,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
     elif servo_skip is not None:
         say(f"a servo lag or dead time is not tried: {servo_skip}")
     hypotheses, passed, tasks, first = [], [], [], {}
-    preset_servo = {k: v for k, v in nom0.items() if k not in SERVO_NOMINAL}  # the second start of a timing
+    preset_servo = servo_at_preset(nom0)  # the second start of a timing
     for name in joint:
         if name not in {e.name for e in library}:
             continue
@@ -458,8 +458,9 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
     0.4.15): the timing at the test's constant, the servo at its preset, the other nominal values at the
     accepted fit's (``delay_reading_start``). Its first-pass fits were made without the accepted effect, and
     beside a phase offset between robots the nominal servo had taken a 27 ms dead time up and both starts
-    ended at 0 ms (fresh seed 2144, set 2; the delay test read 17 +- 4 ms). A plate hypothesis's null restart (``tasks`` without an effect) is run again with the
-    accepted effect, moved to its values like the first pass's start, as that hypothesis's baseline."""
+    ended at 0 ms (fresh seed 2144, set 2; the delay test read 17 +- 4 ms). A plate hypothesis's null
+    restart (``tasks`` without an effect) is run again with the accepted effect, moved to its values like the
+    first pass's start, as that hypothesis's baseline."""
     fe1, _, e1, nom_e1, _ = best
     v1 = dict(fe1.values[e1.name])
     _, _, chi2_1, err_1 = scores(train, test, fe1, (e1.name,))
@@ -479,8 +480,7 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
                          START_OWN))
             at = delay_reading_start(BY_NAME[name], dtest)
             if at is not None:  # a third start: the timing at the delay test's reading, the servo at its preset
-                todo.append((name, BY_NAME[name], {k: v for k, v in nom_e1.items() if k not in SERVO_NOMINAL},
-                             {**v1, **at}, START_DELAY_READING))
+                todo.append((name, BY_NAME[name], servo_at_preset(nom_e1), {**v1, **at}, START_DELAY_READING))
     if not todo:
         return SecondHypothesis(None, None, [])
     fits = pmap(lambda t: fit_nominal(train, effect=(e1,) if t[1] is None else (e1, t[1]), start=t[2],
@@ -494,8 +494,7 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
     tried, passed = [], []
     for name, (e, fes) in done.items():
         fe, label = min(fes, key=lambda f: f[0].err_after)
-        fes = [f for f, _ in fes]
-        fe = dataclasses.replace(fe, evaluations=sum(f.evaluations for f in fes))
+        fe = dataclasses.replace(fe, evaluations=sum(f.evaluations for f, _ in fes))
         _, _, chi2, err = scores(train, test, fe, (e1.name, name))
         base_chi2, base_err = chi2_1, err_1
         if name in nulls:  # the accepted model restarted at the grid's mu: the baseline if it fits better
@@ -530,12 +529,18 @@ START_OWN = "its own first-pass fit's nominal values"
 START_DELAY_READING = "the delay test's reading, the servo at its preset"
 
 
+def servo_at_preset(nominal: dict) -> dict:
+    """Nominal start values with the servo's parameters (``SERVO_NOMINAL``) left out, so that a fit starts
+    them at the preset: where a servo timing starts, away from the servo the nominal fit bent to mimic it."""
+    return {k: v for k, v in nominal.items() if k not in SERVO_NOMINAL}
+
+
 def delay_reading_start(e: Effect, dtest) -> dict | None:
     """A servo timing's values at the delay test's reading: its one parameter at the test's constant delay
     (within the parameter's bounds), where the test reads a constant delay; None for any other effect or
     reading. A lag delays an arm's midpoint crossing by about its time constant, a dead time by itself, so
     the constant is where either starts."""
-    if e.name not in SERVO_HYPOTHESES or not getattr(dtest, "constant_delay", False):
+    if e.name not in SERVO_HYPOTHESES or not dtest.constant_delay:
         return None
     (p,) = e.params
     return {p.name: float(np.clip(dtest.constant_ms / 1e3, p.lo, p.hi))}
