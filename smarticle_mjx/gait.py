@@ -96,6 +96,61 @@ def setpoints(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0
     return jnp.stack([jnp.where(diag, dg1, sq1), jnp.where(diag, dg2, sq2)], -1)
 
 
+def host_setpoints(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phase=0.0, ratio1=1.0, ratio2=1.0):
+    """:func:`setpoints` on the host in numpy, bit for bit.
+
+    The same operations in the same order and in the float type JAX computes in (float32 unless JAX's
+    64-bit mode is on), without JAX's dispatch of each operation: an eager call of :func:`setpoints`
+    costs milliseconds, this one microseconds. The replay of tracked arms (``engine.core.follow_corners``)
+    calls it several times per model run. It must stay identical to :func:`setpoints` (a model robot
+    rattling in its backlash amplifies a last-bit change of a setpoint into another run), which
+    tests/test_gait.py checks over random and boundary inputs. Returns numpy [..., 2].
+    """
+    f = np.dtype(jax.dtypes.canonicalize_dtype(np.float64))  # float32, or float64 in JAX's 64-bit mode
+
+    def arr(x):  # jnp.asarray(x, dtype=float); numpy arrays keep their type until they meet one of f's
+        return np.asarray(x, dtype=f)
+
+    def div(x, y):  # XLA divides by a divisor broadcast to the quotient's shape as a product with its inverse
+        x, y = cast(x), cast(y)
+        if np.shape(y) != np.broadcast_shapes(np.shape(x), np.shape(y)):
+            return x * (f.type(1.0) / y)
+        return x / y
+
+    def cast(x):  # JAX converts an operand of an operation with f to f, unless a Python number (weakly typed)
+        weak = isinstance(x, (int, float)) and not isinstance(x, np.generic)
+        return x if weak else np.asarray(x).astype(f)
+
+    t, a, T = arr(t), arr(amplitude), arr(period)
+    u = np.mod(div(t, T) + cast(phase), f.type(1.0))
+    u = np.where(u >= 1.0, f.type(0.0), u)
+    tm1 = div(2.0 * a, cast(speed) * arr(ratio1))  # move_time
+    tm2 = div(2.0 * a, cast(speed) * arr(ratio2))
+    q = np.floor(u * f.type(4.0))
+    tq = (u - q / f.type(4.0)) * T
+    arm1_moves_even = np.asarray(chirality) > 0
+    s_f = np.clip(div(tq, np.where(arm1_moves_even, tm1, tm2)), f.type(0.0), f.type(1.0))
+    s_s = np.clip(div(tq, np.where(arm1_moves_even, tm2, tm1)), f.type(0.0), f.type(1.0))
+    first = _select([q == 0, q == 1, q == 2], [a * (1 - 2 * s_f), -a, -a * (1 - 2 * s_f)], a)
+    second = _select([q == 0, q == 1, q == 2], [a, a * (1 - 2 * s_s), -a], -a * (1 - 2 * s_s))
+    sq1 = np.where(arm1_moves_even, first, second)
+    sq2 = np.where(arm1_moves_even, second, first)
+    h = np.floor(u * f.type(2.0))
+    th = (u - h / f.type(2.0)) * T
+    sd1, sd2 = (np.clip(div(th, tm), f.type(0.0), f.type(1.0)) for tm in (tm1, tm2))
+    dg1, dg2 = (np.where(h == 0, a * (1 - 2 * sd), -a * (1 - 2 * sd)) for sd in (sd1, sd2))
+    diag = np.asarray(kind) == DIAGONAL
+    return np.stack(np.broadcast_arrays(np.where(diag, dg1, sq1), np.where(diag, dg2, sq2)), -1).astype(f, copy=False)
+
+
+def _select(conds, choices, default):
+    """``jnp.select`` in numpy: the first choice whose condition holds, broadcast over all of them."""
+    out = np.asarray(default)
+    for c, x in zip(reversed(conds), reversed(choices)):
+        out = np.where(c, x, out)
+    return out
+
+
 def check_fit(amplitude, period, speed, kind, ratios) -> None:
     """ValueError unless every arm's move, at ``speed`` times its ratio, fits in
     its quarter (square) or half (diagonal) period; arrays broadcast."""
@@ -172,5 +227,4 @@ class GaitSpec:
 
     def setpoints(self, t, speed: float, phase=0.0) -> np.ndarray:
         """Host convenience: numpy setpoints [..., 2] at times ``t``."""
-        return np.asarray(setpoints(t, self.amplitude, self.period(), speed,
-                                    self.chirality_sign, self.kind_code, phase))
+        return host_setpoints(t, self.amplitude, self.period(), speed, self.chirality_sign, self.kind_code, phase)

@@ -514,7 +514,7 @@ def follow_corners(start, t, amplitude, period, speed, chirality, kind, phase, s
     base = np.mod(ph, 1.0)
     m0 = np.floor(base * q + 1e-12)  # segment the robot starts in
     r_s = np.array(np.broadcast_to(start, (u_n, n, 2)), float)
-    at0 = np.asarray(gait_mod.setpoints(np.zeros(a.shape), a, per, 1.0, chi, kd, ph, w[..., 0], w[..., 1]))
+    at0 = gait_mod.host_setpoints(np.zeros(a.shape), a, per, 1.0, chi, kd, ph, w[..., 0], w[..., 1])
     r_s = np.where(np.isnan(r_s), at0, r_s)  # NaN: from the gait's own setpoint
     # the rate: the servo's speed while the reference still has a step or more to go, else 0 (a catch-up
     # shorter than a step, e.g. from a start that differs from the gait's setpoint by tracking noise, is
@@ -526,7 +526,7 @@ def follow_corners(start, t, amplitude, period, speed, chirality, kind, phase, s
     for j in range(5):  # a period spans at most 5 segments (4 whole, 2 partial)
         t_e = ((m0 + j + 1) / q - base) * per  # [U, N] end of segment j
         # the target: the gait's setpoint at the segment's end (each move fits in its segment)
-        tgt = np.asarray(gait_mod.setpoints(t_e - 1e-9 * per, a, per, 1.0, chi, kd, ph, w[..., 0], w[..., 1]))
+        tgt = gait_mod.host_setpoints(t_e - 1e-9 * per, a, per, 1.0, chi, kd, ph, w[..., 0], w[..., 1])
         inside = ((tv[None, :, None] >= t_s[:, None]) & (tv[None, :, None] < t_e[:, None]))[..., None]  # [U, T, N, 1]
         d = r_s - tgt  # [U, N, 2]
         left = np.abs(d)[:, None] - w[:, None] * (tv[None, :, None, None] - t_s[:, None, :, None])
