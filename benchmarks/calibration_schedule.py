@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import pathlib
 import platform
 import tempfile
@@ -49,6 +50,36 @@ def timed(trials, nested: bool) -> tuple[float, dict]:
         sim.NESTED = was
 
 
+def both_ways(sets, timed):
+    """For each (seed, index): the set drawn and written as the stress suite writes it, then calibrated by
+    ``timed(trials, way)`` both ways (False, True), the first set the old way first and each next set the
+    other way round. Yields ((seed, index), set, trials, order, {way: timed's answer})."""
+    for k, (seed, index) in enumerate(sets):
+        s = draw_set(seed, index)
+        with tempfile.TemporaryDirectory() as d:
+            write_set(s, pathlib.Path(d))
+            trials = load(pathlib.Path(d), None, ())
+        order = (False, True) if k % 2 == 0 else (True, False)
+        yield (seed, index), s, trials, order, {way: timed(trials, way) for way in order}
+
+
+def finish(rows: list[dict], old: str, new: str, out: pathlib.Path) -> int:
+    """Totals of both ways' wall times (rows' ``wall_s_<old>``, ``wall_s_<new>``), the JSON written to ``out``
+    and a closing line; 0 if every set's two calibrations agreed (``same_result``), else 1."""
+    same_all = all(r["same_result"] for r in rows)
+    total_old = sum(r[f"wall_s_{old}"] for r in rows)
+    total_new = sum(r[f"wall_s_{new}"] for r in rows)
+    doc = {"version": __version__, "machine": platform.processor() or platform.machine(),
+           "cores": os.cpu_count(), "sets": rows,
+           "summary": {f"wall_s_{old}": total_old, f"wall_s_{new}": total_new, "ratio": total_new / total_old,
+                       "all_identical": same_all}}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=1))
+    print(f"all sets: {total_old:.1f} s {old}, {total_new:.1f} s {new} (x{total_new / total_old:.2f}); "
+          f"results {'identical' if same_all else 'DIFFER'} -> {out}")
+    return 0 if same_all else 1
+
+
 def parse_set(spec: str) -> tuple[int, int]:
     try:
         seed, index = spec.split("/")
@@ -57,22 +88,20 @@ def parse_set(spec: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(f"a set is SEED/INDEX, e.g. 2141/4, not {spec!r}") from None
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def arguments(doc: str, out: pathlib.Path) -> argparse.Namespace:
+    """The command line of a both-ways benchmark: ``--set SEED/INDEX`` (repeated) and ``--out``."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("--set", dest="sets", action="append", type=parse_set, required=True, metavar="SEED/INDEX")
-    ap.add_argument("--out", type=pathlib.Path, default=OUT)
-    args = ap.parse_args()
-    rows, same_all = [], True
-    for k, (seed, index) in enumerate(args.sets):
-        s = draw_set(seed, index)
-        with tempfile.TemporaryDirectory() as d:
-            write_set(s, pathlib.Path(d))
-            trials = load(pathlib.Path(d), None, ())
-        order = (False, True) if k % 2 == 0 else (True, False)
-        got = {nested: timed(trials, nested) for nested in order}
+    ap.add_argument("--out", type=pathlib.Path, default=out)
+    return ap.parse_args()
+
+
+def main() -> int:
+    args = arguments(__doc__, OUT)
+    rows = []
+    for (seed, index), s, trials, order, got in both_ways(args.sets, timed):
         (t_old, r_old), (t_new, r_new) = got[False], got[True]
         same = _comparable(r_old) == _comparable(r_new)
-        same_all &= same
         row = {"set": f"{seed}/{index}", "robots": s["robots"], "trials": len(trials),
                "arms_tracked": s["arms_tracked"], "first": "nested" if order[0] else "before",
                "wall_s_before": t_old, "wall_s_nested": t_new, "ratio": t_new / t_old,
@@ -82,17 +111,7 @@ def main() -> int:
         print(f"{row['set']}: {s['robots']} robot(s), {len(trials)} trials: {t_old:6.1f} s before, "
               f"{t_new:6.1f} s nested (x{row['ratio']:.2f}); runs {row['model_runs_before']} / "
               f"{row['model_runs_nested']}; results {'identical' if same else 'DIFFER'}", flush=True)
-    total_old = sum(r["wall_s_before"] for r in rows)
-    total_new = sum(r["wall_s_nested"] for r in rows)
-    out = {"version": __version__, "machine": platform.processor() or platform.machine(),
-           "cores": sim.os.cpu_count(), "sets": rows,
-           "summary": {"wall_s_before": total_old, "wall_s_nested": total_new, "ratio": total_new / total_old,
-                       "all_identical": same_all}}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(out, indent=1))
-    print(f"all sets: {total_old:.1f} s before, {total_new:.1f} s nested (x{total_new / total_old:.2f}); "
-          f"results {'identical' if same_all else 'DIFFER'} -> {args.out}")
-    return 0 if same_all else 1
+    return finish(rows, "before", "nested", args.out)
 
 
 if __name__ == "__main__":

@@ -20,21 +20,15 @@ Writes results/host_gait_cost.json.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import json
-import os
-import pathlib
-import platform
-import tempfile
 import time
 
 import numpy as np
 
-from calibration_schedule import parse_set
-from calibration_stress import RESULTS, draw_set, write_set
-from smarticle_mjx import __version__, gait
-from smarticle_mjx.calibrate.data import load
+from calibration_schedule import arguments, both_ways, finish
+from calibration_stress import RESULTS
+from smarticle_mjx import gait
 from smarticle_mjx.calibrate.stages import calibrate
 
 OUT = RESULTS / "host_gait_cost.json"
@@ -63,21 +57,11 @@ def timed(trials, host: bool) -> tuple[float, dict]:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--set", dest="sets", action="append", type=parse_set, required=True, metavar="SEED/INDEX")
-    ap.add_argument("--out", type=pathlib.Path, default=OUT)
-    args = ap.parse_args()
-    rows, same_all = [], True
-    for k, (seed, index) in enumerate(args.sets):
-        s = draw_set(seed, index)
-        with tempfile.TemporaryDirectory() as d:
-            write_set(s, pathlib.Path(d))
-            trials = load(pathlib.Path(d), None, ())
-        order = (False, True) if k % 2 == 0 else (True, False)
-        got = {host: timed(trials, host) for host in order}
+    args = arguments(__doc__, OUT)
+    rows = []
+    for (seed, index), s, trials, order, got in both_ways(args.sets, timed):
         (t_old, r_old), (t_new, r_new) = got[False], got[True]
         same = json.dumps(r_old, sort_keys=True, default=str) == json.dumps(r_new, sort_keys=True, default=str)
-        same_all &= same
         row = {"set": f"{seed}/{index}", "robots": s["robots"], "trials": len(trials),
                "arms_tracked": s["arms_tracked"], "first": "host" if order[0] else "eager",
                "wall_s_eager": t_old, "wall_s_host": t_new, "ratio": t_new / t_old,
@@ -87,17 +71,7 @@ def main() -> int:
               f"{'tracked' if s['arms_tracked'] else 'not tracked'}: {t_old:6.1f} s eager JAX gait, "
               f"{t_new:6.1f} s host gait (x{row['ratio']:.2f}); {row['model_runs']} runs; results "
               f"{'identical' if same else 'DIFFER'}", flush=True)
-    total_old = sum(r["wall_s_eager"] for r in rows)
-    total_new = sum(r["wall_s_host"] for r in rows)
-    out = {"version": __version__, "machine": platform.processor() or platform.machine(),
-           "cores": os.cpu_count(), "sets": rows,
-           "summary": {"wall_s_eager": total_old, "wall_s_host": total_new, "ratio": total_new / total_old,
-                       "all_identical": same_all}}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(out, indent=1))
-    print(f"all sets: {total_old:.1f} s eager, {total_new:.1f} s host (x{total_new / total_old:.2f}); "
-          f"results {'identical' if same_all else 'DIFFER'} -> {args.out}")
-    return 0 if same_all else 1
+    return finish(rows, "eager", "host", args.out)
 
 
 if __name__ == "__main__":
