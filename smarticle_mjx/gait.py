@@ -131,8 +131,8 @@ def host_setpoints(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phas
     arm1_moves_even = np.asarray(chirality) > 0
     s_f = np.clip(div(tq, np.where(arm1_moves_even, tm1, tm2)), f.type(0.0), f.type(1.0))
     s_s = np.clip(div(tq, np.where(arm1_moves_even, tm2, tm1)), f.type(0.0), f.type(1.0))
-    first = _select([q == 0, q == 1, q == 2], [a * (1 - 2 * s_f), -a, -a * (1 - 2 * s_f)], a)
-    second = _select([q == 0, q == 1, q == 2], [a, a * (1 - 2 * s_s), -a], -a * (1 - 2 * s_s))
+    first = np.select([q == 0, q == 1, q == 2], [a * (1 - 2 * s_f), -a, -a * (1 - 2 * s_f)], a)
+    second = np.select([q == 0, q == 1, q == 2], [a, a * (1 - 2 * s_s), -a], -a * (1 - 2 * s_s))
     sq1 = np.where(arm1_moves_even, first, second)
     sq2 = np.where(arm1_moves_even, second, first)
     h = np.floor(u * f.type(2.0))
@@ -141,14 +141,6 @@ def host_setpoints(t, amplitude, period, speed, chirality=CCW, kind=SQUARE, phas
     dg1, dg2 = (np.where(h == 0, a * (1 - 2 * sd), -a * (1 - 2 * sd)) for sd in (sd1, sd2))
     diag = np.asarray(kind) == DIAGONAL
     return np.stack(np.broadcast_arrays(np.where(diag, dg1, sq1), np.where(diag, dg2, sq2)), -1).astype(f, copy=False)
-
-
-def _select(conds, choices, default):
-    """``jnp.select`` in numpy: the first choice whose condition holds, broadcast over all of them."""
-    out = np.asarray(default)
-    for c, x in zip(reversed(conds), reversed(choices)):
-        out = np.where(c, x, out)
-    return out
 
 
 def check_fit(amplitude, period, speed, kind, ratios) -> None:
