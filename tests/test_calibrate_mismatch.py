@@ -482,6 +482,11 @@ def test_the_report_names_a_gait_left_out_of_the_tilt_and_a_tilt_not_fitted():
     md = "\n".join(drift_markdown({**dr, "tilt_fit": {"ok": False, "uphill_groups": [up]}}, None))
     assert "No tilt fitted: in no gait does the model robot drift downhill" in md and "| 75° ccw |" not in md
     assert drift_markdown(None, None) == [] and drift_markdown({"dof": 0}, None) == []
+    # a drift that cannot be read withholds the anisotropic plate (since version 0.4.18), and the report says so
+    from smarticle_mjx.calibrate.stages import plate_skip_reason
+    why = plate_skip_reason({"dof": 0, "p": float("nan")})
+    md = "\n".join(drift_markdown({"dof": 0, "p": float("nan")}, {"dof": 0, "reason": why}))
+    assert "Not read" in md and why in md
 
 
 def test_the_report_says_which_reading_of_the_drift_the_tilt_gate_used():

@@ -1103,17 +1103,22 @@ def test_a_tilt_is_not_named_where_the_gaits_drifts_follow_the_robots_step():
     assert not tilt_accepted({"ok": False})
 
 
-def test_the_plate_level_gate_reads_the_drift_test_only_where_it_reads_the_trials():
-    """stages.plate_skip_reason: an anisotropic plate is withheld where the plate-frame drift test reads the
-    trials (dof > 0) and finds no drift even at the 5 % level; where no gait's headings span enough to read
-    (dof 0, p NaN) or the drift is there, the fit is tried as before."""
+def test_the_plate_level_gate_tries_an_anisotropic_plate_only_where_the_drift_shows_a_plate():
+    """stages.plate_skip_reason: an anisotropic plate is a heading dependence of the robot's step. It is
+    withheld where the plate-frame drift test reads the trials (dof > 0) and finds no drift even at the 5 %
+    level, and (since version 0.4.18) where no gait's headings span enough to read them (dof 0, p NaN):
+    there nothing in the data tells the plate from a robot that slides unlike the model's. Only a drift
+    read and found lets it be fitted."""
+    from smarticle_mjx.calibrate.drift import MIN_SPREAD_DEG
     from smarticle_mjx.calibrate.stages import P_LEVEL, plate_skip_reason
     assert P_LEVEL == 0.05
     assert "p = 0.7" in plate_skip_reason({"dof": 4, "p": 0.7})
     assert plate_skip_reason({"dof": 4, "p": P_LEVEL}) is not None
     assert plate_skip_reason({"dof": 4, "p": 0.01}) is None
-    assert plate_skip_reason({"dof": 0, "p": float("nan")}) is None
-    assert plate_skip_reason({}) is None
+    assert plate_skip_reason({"dof": 2, "p": 1e-9}) is None
+    for unread in ({"dof": 0, "p": float("nan")}, {}):
+        why = plate_skip_reason(unread)
+        assert why is not None and "cannot be read" in why and f"{MIN_SPREAD_DEG:g} deg" in why
 
 
 def test_a_plate_rougher_along_one_axis_shows_in_the_drift_and_a_level_isotropic_one_does_not(tmp_path):

@@ -10,6 +10,7 @@ import numpy as np
 from ..plots import check_out_dir, pyplot
 from ..report import json_default
 from .data import Trial
+from .drift import MIN_SPREAD_DEG
 from .effects import BY_NAME, EffectSet
 from .nominal import apply as apply_nominal
 from .observables import LABELS, reproduced
@@ -322,6 +323,10 @@ def drift_markdown(dr: dict | None, pl: dict | None) -> list[str]:
     gaits' directions and, per gait, the tilt that gait alone gives (or that it was left out: its model robot
     drifts uphill)."""
     lines: list[str] = []
+    if dr is not None and not dr.get("dof") and (pl or {}).get("reason"):  # since version 0.4.18
+        return ["## Plate-frame drift (model-free tilt test)", "",
+                f"Not read: no gait's lone-robot headings span {MIN_SPREAD_DEG:g}°. An anisotropic plate was not "
+                f"tried: {pl['reason']}.", ""]
     if dr and dr.get("dof"):
         tf = dr.get("tilt_fit") or {}
         lines += ["## Plate-frame drift (model-free tilt test)", "",

@@ -19,7 +19,7 @@ import numpy as np
 from .data import Trial, priors
 from .discrepancy import carry, log_sd
 from .armoffset import ArmOffsetReading, read_offsets, without_offsets
-from .drift import drift_test, fit_tilt
+from .drift import MIN_SPREAD_DEG, drift_test, fit_tilt
 from .noise import effect_values as noise_values, noise_test
 from .effects import BY_NAME, LIBRARY, Effect, EffectSet, on_bound_away_from_null, value_to_unit
 from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, MAX_EFFECTS, MIN_HELDOUT_GAIN, MIN_SHARE,
@@ -646,10 +646,16 @@ def plate_skip_reason(drift: dict) -> str | None:
     which the plate-frame drift test (``drift.drift_test``, model-free) reads as drift: where that test
     reads the trials (some gait's headings span ``drift.MIN_SPREAD_DEG``) and finds no drift even at the
     5 % level, the data show no plate other than level and isotropic, and the anisotropy's fit can only
-    take up how the model robot differs from the measured one (it was named on clean sets that way); where
-    the test cannot read them, the fit is judged as before."""
+    take up how the model robot differs from the measured one (it was named on clean sets that way).
+
+    Where the test cannot read them (no gait's headings span enough: dof 0), the data hold no heading
+    dependence to tell an anisotropic plate by, and since version 0.4.18 it is not tried there either:
+    before, it was fitted and judged by the held-out gain, and on the stored stress sets of seeds
+    2059-2147 it was named there only on clean sets (2146/8, 2147/0; docs/calibration.md)."""
     if not drift.get("dof") or not math.isfinite(drift.get("p", float("nan"))):
-        return None
+        return (f"the plate-frame drift cannot be read (no gait's headings span {MIN_SPREAD_DEG:g} deg), and "
+                "without headings that differ an anisotropic plate is not told from a robot that slides unlike "
+                "the model's")
     if drift["p"] >= P_LEVEL:
         return (f"the plate-frame drift shows no plate other than level and isotropic (p = {drift['p']:.2g} "
                 f">= {P_LEVEL:g} on {drift['dof']} dof)")
