@@ -4,7 +4,8 @@ A replay of tracked arms starts each servo's reference where the arms rest and l
 corners (``engine.core.follow_corners``); that follower asks the gait for its corners six times per
 model run, and the model's starting activations ask again. Before version 0.4.17 each ask was an eager
 call of the JAX gait function (``gait.setpoints``): some sixty array operations, each dispatched by JAX,
-several milliseconds a call, about a tenth of a calibration's time on 2 cores. Since then the same
+several milliseconds a call (measured with this script: calibrations 15-30 % slower on 2 cores than
+with the host gait, results/host_gait_cost.json; docs/calibration.md). Since then the same
 operations run in numpy in the same float type (``gait.host_setpoints``), bit for bit the same numbers
 (tests/test_gait.py), so every model run is the same computation and the calibration's result is too.
 

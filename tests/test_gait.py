@@ -96,8 +96,9 @@ def test_traceable_amplitude_chirality_kind_under_jit_and_vmap():
 
 
 def _draws(rng, n):
-    """Gait arguments shaped as the replay's follower passes them: per lane and robot ([U, N]), times per lane and robot or [K, U, N] (each segment's end), phases on eighths of a period half
-    the time, both chiralities, both kinds, arms of unequal speed."""
+    """Gait arguments shaped as the replay's follower passes them: per lane and robot ([U, N]), times per lane
+    and robot or [K, U, N] (each segment's end), phases on eighths of a period half the time, both
+    chiralities, both kinds, arms of unequal speed."""
     for k in range(n):
         shp = ((1, 1), (3, 2))[k % 2]  # two shapes only: JAX compiles each operation anew for each shape
         a = rng.uniform(0.2, 1.6, shp)
