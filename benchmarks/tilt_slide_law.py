@@ -56,6 +56,8 @@ def _slide_ratio(per_group: list[dict]) -> float | None:
 def measure(seed: int, index: int) -> dict:
     stored = json.loads((RESULTS / "calibration_stress" / str(seed) / f"set_{index:04d}.json").read_text())
     s = stored["set"]
+    if "plate_tilt" not in s["truth"]:
+        raise SystemExit(f"stress set {seed}/{index} hides no plate tilt")
     tr = s["truth"]["plate_tilt"]
     true = math.hypot(tr["tilt_x_deg"], tr["tilt_y_deg"])
     t0 = time.perf_counter()
@@ -127,7 +129,15 @@ def main():
     ap.add_argument("sets", nargs="*", help="seed/index of stored stress sets")
     ap.add_argument("--tilt-sets", default=None, help="every stored one-robot tilt set of these seeds (2140-2148)")
     a = ap.parse_args()
-    specs = [tuple(map(int, x.split("/"))) for x in a.sets]
+    specs = []
+    for x in a.sets:
+        try:
+            seed, index = (int(v) for v in x.split("/"))
+        except ValueError:
+            ap.error(f"{x!r} is not seed/index (e.g. 2140/21)")
+        if not (RESULTS / "calibration_stress" / str(seed) / f"set_{index:04d}.json").exists():
+            ap.error(f"no stored stress set {seed}/{index} (run benchmarks/calibration_stress.py first)")
+        specs.append((seed, index))
     if a.tilt_sets:
         specs += tilt_sets(_indices(a.tilt_sets))
     store = json.loads(OUT.read_text()) if OUT.exists() else {}
