@@ -448,6 +448,22 @@ def print_summary(rows: list[dict], summary: dict | None = None) -> None:
         print(table(rows))
 
 
+def stored_set(spec: str, hides: str | None = None) -> dict:
+    """The stored result of stress set ``spec`` ("seed/index", e.g. "2148/14") as run_set wrote it; exits with
+    a one-line message where the spec is malformed, the set was not run, or it does not hide ``hides``."""
+    try:
+        seed, index = (int(v) for v in spec.split("/"))
+    except ValueError:
+        raise SystemExit(f"{spec!r} is not seed/index (e.g. 2148/14)") from None
+    path = RESULTS / "calibration_stress" / str(seed) / f"set_{index:04d}.json"
+    if not path.exists():
+        raise SystemExit(f"no stored stress set {seed}/{index} (run benchmarks/calibration_stress.py first)")
+    row = json.loads(path.read_text())
+    if hides is not None and hides not in row["set"]["truth"]:
+        raise SystemExit(f"stress set {seed}/{index} hides no {hides}")
+    return row
+
+
 def _indices(spec: str) -> list[int]:
     """The integers a spec such as "0-29" or "2049-2051,2058" names; ValueError in one line otherwise."""
     out = []

@@ -7,7 +7,7 @@ nominal fit alone (the calibration names the plate at 20 %).
 
     python benchmarks/plate_free_from_truth.py 2148/14 2148/4 > results/plate_at_truth/free_from_truth.jsonl
 """
-import json, pathlib, sys, tempfile, time
+import json, pathlib, sys, tempfile, time  # noqa: E401
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 import calibration_stress as CS
 from smarticle_mjx.calibrate.data import load, priors
@@ -17,16 +17,7 @@ from smarticle_mjx.calibrate.effects import EffectSet, BY_NAME
 
 def flat(v): return {k: x for k, x in v.items() if not isinstance(x, dict)}
 for spec in sys.argv[1:]:
-    try:
-        seed, idx = map(int, spec.split('/'))
-    except ValueError:
-        raise SystemExit(f"{spec!r} is not seed/index (e.g. 2148/14)")
-    path = pathlib.Path(__file__).parent / 'results' / 'calibration_stress' / str(seed) / f'set_{idx:04d}.json'
-    if not path.exists():
-        raise SystemExit(f"no stored stress set {spec} (run benchmarks/calibration_stress.py first)")
-    s = json.load(open(path))['set']
-    if 'anisotropic_friction' not in s['truth']:
-        raise SystemExit(f"stress set {spec} hides no anisotropic plate")
+    s = CS.stored_set(spec, hides='anisotropic_friction')['set']
     true = s['truth']['anisotropic_friction']['friction_y_ratio']
     t0 = time.time()
     with tempfile.TemporaryDirectory() as tmp:

@@ -37,7 +37,7 @@ import time
 
 import numpy as np
 
-from calibration_stress import RESULTS, _indices, write_set
+from calibration_stress import RESULTS, _indices, stored_set, write_set
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.drift import fit_tilt
 from smarticle_mjx.calibrate.effects import EffectSet
@@ -54,10 +54,7 @@ def _slide_ratio(per_group: list[dict]) -> float | None:
 
 
 def measure(seed: int, index: int) -> dict:
-    stored = json.loads((RESULTS / "calibration_stress" / str(seed) / f"set_{index:04d}.json").read_text())
-    s = stored["set"]
-    if "plate_tilt" not in s["truth"]:
-        raise SystemExit(f"stress set {seed}/{index} hides no plate tilt")
+    s = stored_set(f"{seed}/{index}", hides="plate_tilt")["set"]
     tr = s["truth"]["plate_tilt"]
     true = math.hypot(tr["tilt_x_deg"], tr["tilt_y_deg"])
     t0 = time.perf_counter()
@@ -131,13 +128,8 @@ def main():
     a = ap.parse_args()
     specs = []
     for x in a.sets:
-        try:
-            seed, index = (int(v) for v in x.split("/"))
-        except ValueError:
-            ap.error(f"{x!r} is not seed/index (e.g. 2140/21)")
-        if not (RESULTS / "calibration_stress" / str(seed) / f"set_{index:04d}.json").exists():
-            ap.error(f"no stored stress set {seed}/{index} (run benchmarks/calibration_stress.py first)")
-        specs.append((seed, index))
+        s = stored_set(x, hides="plate_tilt")["set"]
+        specs.append((s["suite_seed"], s["index"]))
     if a.tilt_sets:
         specs += tilt_sets(_indices(a.tilt_sets))
     store = json.loads(OUT.read_text()) if OUT.exists() else {}
