@@ -26,7 +26,7 @@ import platform
 import tempfile
 import time
 
-from calibration_stress import RESULTS, draw_set, write_set
+from calibration_stress import RESULTS, draw_set, parse_set, write_set
 from smarticle_mjx import __version__
 from smarticle_mjx.calibrate import sim
 from smarticle_mjx.calibrate.data import load
@@ -78,14 +78,6 @@ def finish(rows: list[dict], old: str, new: str, out: pathlib.Path) -> int:
     print(f"all sets: {total_old:.1f} s {old}, {total_new:.1f} s {new} (x{total_new / total_old:.2f}); "
           f"results {'identical' if same_all else 'DIFFER'} -> {out}")
     return 0 if same_all else 1
-
-
-def parse_set(spec: str) -> tuple[int, int]:
-    try:
-        seed, index = spec.split("/")
-        return int(seed), int(index)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"a set is SEED/INDEX, e.g. 2141/4, not {spec!r}") from None
 
 
 def arguments(doc: str, out: pathlib.Path) -> argparse.Namespace:

@@ -448,13 +448,22 @@ def print_summary(rows: list[dict], summary: dict | None = None) -> None:
         print(table(rows))
 
 
+def parse_set(spec: str) -> tuple[int, int]:
+    """(seed, index) of a set named "SEED/INDEX"; argparse.ArgumentTypeError in one line otherwise."""
+    try:
+        seed, index = spec.split("/")
+        return int(seed), int(index)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a set is SEED/INDEX, e.g. 2141/4, not {spec!r}") from None
+
+
 def stored_set(spec: str, hides: str | None = None) -> dict:
     """The stored result of stress set ``spec`` ("seed/index", e.g. "2148/14") as run_set wrote it; exits with
     a one-line message where the spec is malformed, the set was not run, or it does not hide ``hides``."""
     try:
-        seed, index = (int(v) for v in spec.split("/"))
-    except ValueError:
-        raise SystemExit(f"{spec!r} is not seed/index (e.g. 2148/14)") from None
+        seed, index = parse_set(spec)
+    except argparse.ArgumentTypeError as e:
+        raise SystemExit(str(e)) from None
     path = RESULTS / "calibration_stress" / str(seed) / f"set_{index:04d}.json"
     if not path.exists():
         raise SystemExit(f"no stored stress set {seed}/{index} (run benchmarks/calibration_stress.py first)")

@@ -53,8 +53,8 @@ def _slide_ratio(per_group: list[dict]) -> float | None:
     return math.exp(float(np.mean(logs))) if logs else None
 
 
-def measure(seed: int, index: int) -> dict:
-    s = stored_set(f"{seed}/{index}", hides="plate_tilt")["set"]
+def measure(s: dict) -> dict:
+    """The readings of one stored set (its ``set`` entry, which hides a tilt)."""
     tr = s["truth"]["plate_tilt"]
     true = math.hypot(tr["tilt_x_deg"], tr["tilt_y_deg"])
     t0 = time.perf_counter()
@@ -62,7 +62,7 @@ def measure(seed: int, index: int) -> dict:
         write_set(s, tmp)
         trials = load(tmp, None, ())
     res = calibrate(trials).summary
-    row = {"set": f"{seed}/{index}", "hidden": s["hidden"], "amplitudes": s["amplitudes"],
+    row = {"set": key_of(s), "hidden": s["hidden"], "amplitudes": s["amplitudes"],
            "frame_rate_hz": s["frame_rate_hz"], "true_deg": true, "mu_generator": s["build"]["friction"]}
     fit = (res.get("drift") or {}).get("tilt_fit") or {}
     if fit.get("ok"):
@@ -91,15 +91,23 @@ def measure(seed: int, index: int) -> dict:
     return row
 
 
-def tilt_sets(seeds: list[int]) -> list[tuple[int, int]]:
-    """Stored one-robot sets of these seeds that hide a tilt."""
+def key_of(s: dict) -> str:
+    return f"{s['suite_seed']}/{s['index']}"
+
+
+def tilt_sets(seeds: list[int]) -> list[dict]:
+    """Stored one-robot sets of these seeds that hide a tilt (their ``set`` entries)."""
     out = []
     for seed in seeds:
         for f in sorted((RESULTS / "calibration_stress" / str(seed)).glob("set_*.json")):
             s = json.loads(f.read_text())["set"]
             if "plate_tilt" in s["hidden"] and s["robots"] == 1:
-                out.append((seed, s["index"]))
+                out.append(s)
     return out
+
+
+def _fmt(x: float | None) -> str:
+    return "–" if x is None else f"{x:.2f}"
 
 
 def table(rows: list[dict]) -> str:
@@ -110,10 +118,9 @@ def table(rows: list[dict]) -> str:
             m = r.get(which)
             if not m:
                 continue
-            fmt = (lambda x: "–" if x is None else f"{x:.2f}")
             lines.append(f"| {r['set']} | {' + '.join(r['hidden'])} | {', '.join(map(str, r['amplitudes']))}° | "
-                         f"{which} | {fmt(m['size_ratio'])} | {fmt(m['slide_ratio'])} | "
-                         f"{fmt(m['slide_corrected'])} | {fmt(m.get('law_corrected'))} |")
+                         f"{which} | {_fmt(m['size_ratio'])} | {_fmt(m['slide_ratio'])} | "
+                         f"{_fmt(m['slide_corrected'])} | {_fmt(m.get('law_corrected'))} |")
     within = {}
     for which, key in (("nominal", "size_ratio"), ("nominal", "slide_corrected"), ("nominal", "law_corrected")):
         xs = [r[which][key] for r in rows if r.get(which) and r[which].get(key)]
@@ -126,20 +133,17 @@ def main():
     ap.add_argument("sets", nargs="*", help="seed/index of stored stress sets")
     ap.add_argument("--tilt-sets", default=None, help="every stored one-robot tilt set of these seeds (2140-2148)")
     a = ap.parse_args()
-    specs = []
-    for x in a.sets:
-        s = stored_set(x, hides="plate_tilt")["set"]
-        specs.append((s["suite_seed"], s["index"]))
+    sets = [stored_set(x, hides="plate_tilt")["set"] for x in a.sets]
     if a.tilt_sets:
-        specs += tilt_sets(_indices(a.tilt_sets))
+        sets += tilt_sets(_indices(a.tilt_sets))
     store = json.loads(OUT.read_text()) if OUT.exists() else {}
-    for seed, index in specs:
-        key = f"{seed}/{index}"
+    for s in sets:
+        key = key_of(s)
         if key not in store:
-            store[key] = measure(seed, index)
+            store[key] = measure(s)
             OUT.write_text(json.dumps(store, indent=1))
             print(f"{key}: {json.dumps({k: store[key].get(k) for k in ('nominal', 'preset')})[:300]}", flush=True)
-    print(table([store[f"{s}/{i}"] for s, i in specs]))
+    print(table([store[key_of(s)] for s in sets]))
 
 
 if __name__ == "__main__":
