@@ -510,6 +510,12 @@ def main():
     ap.add_argument("--servo-without-arms", action="store_true",
                     help="try a servo lag or dead time on sets without arm tracks too, as before the arm-track rule "
                          "(for a counterfactual run, with --tag)")
+    ap.add_argument("--plate-both-sides", action="store_true",
+                    help="also start the anisotropic plate's fit from the grid's best point on the other side of "
+                         "ratio 1 (tried on stored sets, not the rule; for a counterfactual run, with --tag)")
+    ap.add_argument("--swapped-split", action="store_true",
+                    help="calibrate with the odd trials training and the even ones held out, the other way round "
+                         "(for a counterfactual run, with --tag)")
     ap.add_argument("--set", dest="set_", action="append", default=[], metavar="FIELD=VALUE",
                     help="change the library's model as smx calibrate --set does (for the set and its clean twin; "
                          "needs --tag, so that the results stay apart)")
@@ -536,11 +542,16 @@ def main():
         ap.error(str(e))
     if overrides and not args.tag:
         ap.error("--set needs --tag: results made with a changed model are kept apart")
-    if (args.no_plate_level_gate or args.servo_without_arms) and not args.tag:
+    if (args.no_plate_level_gate or args.servo_without_arms or args.plate_both_sides or args.swapped_split) \
+            and not args.tag:
         ap.error("a counterfactual rule needs --tag: its results are kept apart")
     from smarticle_mjx.calibrate import stages
     if args.servo_without_arms:
         stages.SERVO_WITHOUT_ARMS = True
+    if args.plate_both_sides:
+        stages.PLATE_BOTH_SIDES = True
+    if args.swapped_split:
+        stages.SPLIT_SWAPPED = True
     if args.no_plate_level_gate:
         stages.P_LEVEL = math.inf  # no p reaches it: plate_skip_reason never withholds the plate
     try:

@@ -17,12 +17,23 @@ scores are the whole calibration's.
     python benchmarks/plate_drift_gate.py --suite-seeds 2042,2043 --sets 0-59 --tag fresh
 
 Writes results/plate_drift_gate_<tag>.json and prints the table.
+
+``--side`` (December 2026, version 0.4.19) runs nothing: over the readings already stored
+(results/plate_drift_gate_*.json), does the drift's anisotropy K say which axis of an anisotropic plate is
+the slipperier one? A plate rougher along y (the library's ratio mu_y / mu_x above 1) stretches steps along x,
+K = eps e^{2i psi} with psi = 0: Re K > 0; rougher along x, psi = 90 deg: Re K < 0. For every stored plate
+hiding an anisotropic plate whose drift was read in two or more gaits (one reading a set), it counts the
+sets whose Re K has the truth's sign, and those whose axis arg(K) / 2 lies within 20 deg of x or y (chance:
+40 of 90 deg). Writes results/plate_drift_side.json.
+
+    python benchmarks/plate_drift_gate.py --side
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import pathlib
 import tempfile
 import time
@@ -80,13 +91,64 @@ def table(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
+# an axis within this of the plate's x or y counts as read (chance: 2 x 20 of 90 deg)
+AXIS_DEG = 20.0
+
+
+def side_rows(stored: list[dict]) -> list[dict]:
+    """One row per set (the first stored reading of it) that hides an anisotropic plate and whose drift was
+    read in two or more gaits: the true ratio (from the set's draw), K, whether Re K has the truth's sign and
+    whether arg(K) / 2 lies within ``AXIS_DEG`` of the plate's x or y axis."""
+    out, seen = [], set()
+    for r in stored:
+        key = (r["seed"], r["index"])
+        if "anisotropic_friction" not in r["hidden"] or key in seen or r["plate_models"]["groups"] < 2:
+            continue
+        seen.add(key)
+        true = draw_set(*key)["truth"]["anisotropic_friction"]["friction_y_ratio"]
+        k = complex(*r["plate_models"]["anisotropy"])
+        axis = math.degrees(math.atan2(k.imag, k.real)) / 2  # -90..90
+        off = min(abs(axis), 90.0 - abs(axis))
+        out.append({"seed": key[0], "index": key[1], "true_ratio": true, "K": [k.real, k.imag],
+                    "significant": r["significant"], "follows_the_robot": r["plate_models"]["follows_the_robot"],
+                    "sign_right": bool((k.real > 0) == (true > 1)), "axis_off_deg": off,
+                    "axis_read": bool(off <= AXIS_DEG)})
+    return out
+
+
+def side_main():
+    files = sorted(RESULTS.glob("plate_drift_gate_*.json"))
+    rows = side_rows([r for f in files for r in json.loads(f.read_text())["rows"]])
+    if not rows:
+        raise SystemExit("no stored drift reading of an anisotropic plate in two or more gaits")
+    summary = {}
+    for name, keep in (("all read in two or more gaits", lambda r: True),
+                       ("drift significant", lambda r: r["significant"]),
+                       ("drift follows the robot's step", lambda r: r["follows_the_robot"])):
+        rs = [r for r in rows if keep(r)]
+        summary[name] = {"sets": len(rs), "sign_right": sum(r["sign_right"] for r in rs),
+                         "axis_read": sum(r["axis_read"] for r in rs),
+                         "axis_read_by_chance": len(rs) * 2 * AXIS_DEG / 90.0}
+        print(f"{name}: {len(rs)} sets, Re K with the truth's sign in {summary[name]['sign_right']}, axis within "
+              f"{AXIS_DEG:g} deg of x or y in {summary[name]['axis_read']} (chance {summary[name]['axis_read_by_chance']:.1f})")
+    out = RESULTS / "plate_drift_side.json"
+    out.write_text(json.dumps({"from": [f.name for f in files], "summary": summary, "rows": rows}, indent=1))
+    print(f"wrote {out}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--suite-seeds", required=True, help="e.g. 2027-2031,2040")
+    ap.add_argument("--side", action="store_true", help="read the stored readings: does K tell the plate's "
+                    "slipperier axis? (runs nothing)")
+    ap.add_argument("--suite-seeds", help="e.g. 2027-2031,2040")
     ap.add_argument("--sets", default="0-29")
     ap.add_argument("--clean", action="store_true", help="also the clean sets")
-    ap.add_argument("--tag", required=True)
+    ap.add_argument("--tag")
     args = ap.parse_args()
+    if args.side:
+        return side_main()
+    if not args.suite_seeds or not args.tag:
+        ap.error("--suite-seeds and --tag are needed (or --side)")
     rows, t0 = [], time.perf_counter()
     for seed in _indices(args.suite_seeds):
         for i in _indices(args.sets):

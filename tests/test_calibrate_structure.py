@@ -586,6 +586,32 @@ def test_the_plate_hypothesis_starts_from_the_best_point_of_its_grid_over_mu_and
     assert eff == {"friction_y_ratio": 2.5}
 
 
+def test_the_counterfactual_plate_start_on_the_other_side_of_one(monkeypatch):
+    """calibrate.stages.plate_grid_starts: by the rule the anisotropic plate has one grid start, the grid's
+    best point; with ``PLATE_BOTH_SIDES`` (the stress suite's --plate-both-sides, a counterfactual tried on
+    stored sets) it also starts from the best point whose ratio lies on the other side of 1 (a plate rougher
+    along x instead of y), from the same grid runs, none more; here chi^2 is a bowl around ratio 2.5 at
+    mu 0.1, so the other side's best point is the ratio nearest it below 1 (0.63) at that mu. Arms on the
+    plate (a drag coefficient, no two sides) keep one start."""
+    from smarticle_mjx.calibrate import stages
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.stages import PLATE_GRID_MU, PLATE_GRID_RATIO, plate_grid_starts
+
+    t = _GridTrain("anisotropic_friction", "friction_y_ratio", 0.1, 2.5)
+    assert len(plate_grid_starts(t, {"plate_friction": 0.4, "servo_speed": 8.0}, BY_NAME["anisotropic_friction"])) == 1
+    monkeypatch.setattr(stages, "PLATE_BOTH_SIDES", True)
+    t = _GridTrain("anisotropic_friction", "friction_y_ratio", 0.1, 2.5)
+    starts = plate_grid_starts(t, {"plate_friction": 0.4, "servo_speed": 8.0}, BY_NAME["anisotropic_friction"])
+    assert len(t.fetched) == len(PLATE_GRID_MU) * len(PLATE_GRID_RATIO)
+    assert [eff for _, eff in starts] == [{"friction_y_ratio": 2.5}, {"friction_y_ratio": 0.63}]
+    assert [nom["plate_friction"] for nom, _ in starts] == [pytest.approx(0.1), pytest.approx(0.1)]
+    t = _GridTrain("anisotropic_friction", "friction_y_ratio", 0.2, 0.4)
+    starts = plate_grid_starts(t, {"plate_friction": 0.4, "servo_speed": 8.0}, BY_NAME["anisotropic_friction"])
+    assert [eff for _, eff in starts] == [{"friction_y_ratio": 0.4}, {"friction_y_ratio": 1.6}]
+    t = _GridTrain("arm_plate_contact", "arm_plate_mu", 0.4, 0.25)
+    assert len(plate_grid_starts(t, {"plate_friction": 0.4, "servo_speed": 8.0}, BY_NAME["arm_plate_contact"])) == 1
+
+
 def test_the_arm_plate_hypothesis_grid_raises_the_plate_mu_and_stays_where_the_fit_can_start():
     """Arms dragging on the plate are mimicked by a slipperier plate, so the arm-plate grid also raises the
     nominal fit's mu (a bowl at 4x it and arm-plate mu 0.5 is found); grid points are held within the
@@ -1370,3 +1396,32 @@ def test_an_effect_at_its_null_on_a_bound_gets_no_interval():
     assert not np.isfinite(fe.interval["dead_time_s"]).any()
     assert not is_present(e, {"dead_time_s": fe.interval["dead_time_s"]})
     assert at_library_bound(e, fe.values["servo_dead_time"]) == []
+
+
+def test_the_counterfactual_swapped_split_trains_on_the_odd_trials(monkeypatch):
+    """calibrate.stages.calibrate: by the rule the first, third, ... trials train and the others are held out;
+    with ``SPLIT_SWAPPED`` (the stress suite's --swapped-split, a reading of how much a calibration depends
+    on which half is held out) the odd trials train. The trials' order reaches the Problem built for each
+    half, recorded here before the calibration goes on (stopped there)."""
+    from smarticle_mjx.calibrate import stages
+
+    class Stop(Exception):
+        pass
+
+    made = []
+
+    def problem(trials):
+        made.append([tr.name for tr in trials])
+        if len(made) == 2:
+            raise Stop
+        return types.SimpleNamespace(trials=trials)
+
+    trials = [types.SimpleNamespace(name=f"t{i}") for i in range(4)]
+    monkeypatch.setattr(stages, "read_offsets", lambda trials: types.SimpleNamespace(present=False))
+    monkeypatch.setattr(stages, "Problem", problem)
+    for swapped, train in ((False, ["t0", "t2"]), (True, ["t1", "t3"])):
+        made.clear()
+        monkeypatch.setattr(stages, "SPLIT_SWAPPED", swapped)
+        with pytest.raises(Stop):
+            stages.calibrate(trials)
+        assert made[0] == train and sorted(made[0] + made[1]) == ["t0", "t1", "t2", "t3"]
