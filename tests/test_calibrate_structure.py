@@ -1425,3 +1425,32 @@ def test_the_counterfactual_swapped_split_trains_on_the_odd_trials(monkeypatch):
         with pytest.raises(Stop):
             stages.calibrate(trials)
         assert made[0] == train and sorted(made[0] + made[1]) == ["t0", "t1", "t2", "t3"]
+
+
+def test_the_split_reading_compares_the_sets_stored_both_ways_and_a_two_fold_gain(tmp_path):
+    """benchmarks/calibration_split.py on rows built here: a set is compared only where stored both ways;
+    the same effects added, right on each split, and a joint hypothesis's gain at the 20 % bar on each split
+    and on their mean (0.3 and 0.15 -> mean 0.225 passes; 0.3 and 0.05 -> 0.175 does not) are counted by
+    whether the set hides the effect."""
+    import calibration_split as C
+
+    def row(i, hidden, added, right, gains):
+        return {"set": {"index": i, "hidden": hidden, "outside": []}, "score": {"added": added, "right": right},
+                "hypotheses": [{"effect": e, "tried": True, "heldout_gain": g} for e, g in gains.items()]}
+
+    aniso = "anisotropic_friction"
+    rule = {0: row(0, [aniso], [aniso], True, {aniso: 0.3}), 1: row(1, [], [], True, {aniso: 0.3}),
+            2: row(2, [], [], True, {})}
+    swapped = {0: row(0, [aniso], [], False, {aniso: 0.15}), 1: row(1, [], [], True, {aniso: 0.05})}
+    for k, r in rule.items():
+        (tmp_path / "a").mkdir(exist_ok=True)
+        (tmp_path / "a" / f"set_{k:04d}.json").write_text(json.dumps(r))
+    assert C.stored(tmp_path / "a") == rule and C.stored(tmp_path / "none") == {}
+    lines = C.compare(rule, swapped)
+    assert [x["index"] for x in lines] == [0, 1]
+    s = C.summary(lines)
+    assert s["by_kind"]["library effects"] == {"sets": 1, "same_added": 0, "right_rule": 1, "right_swapped": 0,
+                                               "right_both": 0}
+    assert s["by_kind"]["clean"]["same_added"] == 1 and s["by_kind"]["clean"]["right_both"] == 1
+    assert s["gain_at_bar"][aniso]["hidden"] == {"tried": 1, "rule": 1, "swapped": 0, "mean": 1}
+    assert s["gain_at_bar"][aniso]["not hidden"] == {"tried": 1, "rule": 1, "swapped": 0, "mean": 0}
