@@ -490,6 +490,20 @@ def seed_indices(seeds: str, sets: str) -> list[tuple[int, int]]:
     return [(seed, i) for seed in _indices(seeds) for i in _indices(sets)]
 
 
+# the counterfactual rules a run can take instead of the calibration's (each kept apart with --tag):
+# (flag, what it does, how it sets calibrate.stages)
+COUNTERFACTUALS = (
+    ("--no-plate-level-gate", "try the anisotropic plate whatever the plate-frame drift shows (the rule before "
+     "the gate)", lambda st: setattr(st, "P_LEVEL", math.inf)),  # no p reaches it: the plate is never withheld
+    ("--servo-without-arms", "try a servo lag or dead time on sets without arm tracks too, as before the "
+     "arm-track rule", lambda st: setattr(st, "SERVO_WITHOUT_ARMS", True)),
+    ("--plate-both-sides", "also start the anisotropic plate's fit from the grid's best point on the other side "
+     "of ratio 1 (tried on stored sets, not the rule)", lambda st: setattr(st, "PLATE_BOTH_SIDES", True)),
+    ("--swapped-split", "calibrate with the odd trials training and the even ones held out, the other way round",
+     lambda st: setattr(st, "SPLIT_SWAPPED", True)),
+)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--suite-seed", type=int, default=REPORTED_SEED)
@@ -504,18 +518,8 @@ def main():
                     help="also fit this plate effect jointly with the nominal parameters (smx calibrate's option)")
     ap.add_argument("--tag", default="", help="keep this run's results apart (calibration_stress/<seed>-<tag>/): "
                                               "sets of a reported seed run again under later rules")
-    ap.add_argument("--no-plate-level-gate", action="store_true",
-                    help="try the anisotropic plate whatever the plate-frame drift shows (the rule before the gate; "
-                         "for a counterfactual run, with --tag)")
-    ap.add_argument("--servo-without-arms", action="store_true",
-                    help="try a servo lag or dead time on sets without arm tracks too, as before the arm-track rule "
-                         "(for a counterfactual run, with --tag)")
-    ap.add_argument("--plate-both-sides", action="store_true",
-                    help="also start the anisotropic plate's fit from the grid's best point on the other side of "
-                         "ratio 1 (tried on stored sets, not the rule; for a counterfactual run, with --tag)")
-    ap.add_argument("--swapped-split", action="store_true",
-                    help="calibrate with the odd trials training and the even ones held out, the other way round "
-                         "(for a counterfactual run, with --tag)")
+    for flag, text, _ in COUNTERFACTUALS:
+        ap.add_argument(flag, action="store_true", help=f"{text} (for a counterfactual run, with --tag)")
     ap.add_argument("--set", dest="set_", action="append", default=[], metavar="FIELD=VALUE",
                     help="change the library's model as smx calibrate --set does (for the set and its clean twin; "
                          "needs --tag, so that the results stay apart)")
@@ -542,18 +546,12 @@ def main():
         ap.error(str(e))
     if overrides and not args.tag:
         ap.error("--set needs --tag: results made with a changed model are kept apart")
-    if (args.no_plate_level_gate or args.servo_without_arms or args.plate_both_sides or args.swapped_split) \
-            and not args.tag:
+    chosen = [apply for flag, _, apply in COUNTERFACTUALS if getattr(args, flag[2:].replace("-", "_"))]
+    if chosen and not args.tag:
         ap.error("a counterfactual rule needs --tag: its results are kept apart")
     from smarticle_mjx.calibrate import stages
-    if args.servo_without_arms:
-        stages.SERVO_WITHOUT_ARMS = True
-    if args.plate_both_sides:
-        stages.PLATE_BOTH_SIDES = True
-    if args.swapped_split:
-        stages.SPLIT_SWAPPED = True
-    if args.no_plate_level_gate:
-        stages.P_LEVEL = math.inf  # no p reaches it: plate_skip_reason never withholds the plate
+    for apply in chosen:
+        apply(stages)
     try:
         plates = plate_hypotheses_with(args.plate_hypothesis)
     except ValueError as e:

@@ -1454,3 +1454,21 @@ def test_the_split_reading_compares_the_sets_stored_both_ways_and_a_two_fold_gai
     assert s["by_kind"]["clean"]["same_added"] == 1 and s["by_kind"]["clean"]["right_both"] == 1
     assert s["gain_at_bar"][aniso]["hidden"] == {"tried": 1, "rule": 1, "swapped": 0, "mean": 1}
     assert s["gain_at_bar"][aniso]["not hidden"] == {"tried": 1, "rule": 1, "swapped": 0, "mean": 0}
+
+
+def test_every_counterfactual_of_the_stress_suite_changes_a_rule_the_calibration_has():
+    """benchmarks/calibration_stress.py's counterfactual flags each set one of calibrate.stages' own switches
+    (a misspelt name would set a new attribute that no rule reads, and the run would be the rule's, unnoticed),
+    and each changes its value from the rule's."""
+    import types
+
+    import calibration_stress as S
+    from smarticle_mjx.calibrate import stages
+
+    assert len(S.COUNTERFACTUALS) == len({f for f, _, _ in S.COUNTERFACTUALS}) >= 4
+    for flag, _, apply in S.COUNTERFACTUALS:
+        st = types.SimpleNamespace()
+        apply(st)
+        ((name, value),) = vars(st).items()
+        assert hasattr(stages, name), flag
+        assert getattr(stages, name) != value, flag
