@@ -29,8 +29,8 @@ BAR = 0.2  # the held-out gain the calibration asks of a joint hypothesis (stage
 
 def stored(folder) -> dict:
     """index -> stored row of every set under ``folder`` (empty where there is none)."""
-    return {json.loads(p.read_text())["set"]["index"]: json.loads(p.read_text())
-            for p in sorted(folder.glob("set_*.json"))}
+    rows = [json.loads(p.read_text()) for p in sorted(folder.glob("set_*.json"))]
+    return {r["set"]["index"]: r for r in rows}
 
 
 def kind(s: dict) -> str:

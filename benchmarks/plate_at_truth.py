@@ -45,7 +45,7 @@ def _problems(trials, train_t, test_t) -> tuple[Problem, Problem]:
     return train, test
 
 
-def at_truth(spec: str, trials, true: float) -> dict:
+def at_truth(trials, true: float) -> dict:
     out = {}
     for name, (a, b) in {"even->odd": split(trials), "odd->even": split(trials)[::-1]}.items():
         train, test = _problems(trials, a, b)
@@ -63,7 +63,7 @@ def at_truth(spec: str, trials, true: float) -> dict:
     return out
 
 
-def free_from_truth(spec: str, trials, true: float) -> dict:
+def free_from_truth(trials, true: float) -> dict:
     train, test = _problems(trials, *split(trials))
     n0 = fit_nominal(train)
     nf = fit_nominal(train, effect=BY_NAME[PLATE], start=_flat(n0.values), effect_start={"friction_y_ratio": true})
@@ -90,9 +90,9 @@ def main():
             trials = load(tmp, None, ())
         head = {"set": spec, "true": true}
         if a.free:
-            row = {**head, **free_from_truth(spec, trials, true)}
+            row = {**head, **free_from_truth(trials, true)}
         else:
-            row = {**head, "hidden": s["hidden"], "amps": s["amplitudes"], **at_truth(spec, trials, true)}
+            row = {**head, "hidden": s["hidden"], "amps": s["amplitudes"], **at_truth(trials, true)}
         print(json.dumps({**row, "wall": time.time() - t0}), flush=True)
 
 

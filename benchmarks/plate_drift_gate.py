@@ -18,10 +18,10 @@ scores are the whole calibration's.
 
 Writes results/plate_drift_gate_<tag>.json and prints the table.
 
-``--side`` (December 2026, version 0.4.19) runs nothing: over the readings already stored
+``--side`` (December 2026, version 0.4.18) runs nothing: over the readings already stored
 (results/plate_drift_gate_*.json), does the drift's anisotropy K say which axis of an anisotropic plate is
 the slipperier one? A plate rougher along y (the library's ratio mu_y / mu_x above 1) stretches steps along x,
-K = eps e^{2i psi} with psi = 0: Re K > 0; rougher along x, psi = 90 deg: Re K < 0. For every stored plate
+K = eps e^{2i psi} with psi = 0: Re K > 0; rougher along x, psi = 90 deg: Re K < 0. For every stored set
 hiding an anisotropic plate whose drift was read in two or more gaits (one reading a set), it counts the
 sets whose Re K has the truth's sign, and those whose axis arg(K) / 2 lies within 20 deg of x or y (chance:
 40 of 90 deg). Writes results/plate_drift_side.json.
