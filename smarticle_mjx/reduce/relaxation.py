@@ -58,7 +58,7 @@ def _partners(touched: np.ndarray, pairs: np.ndarray, n: int) -> np.ndarray:
     return per_robot
 
 
-def _third_touch(touched: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+def third_touch(touched: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """[K, P]: a robot of pair p touched a robot outside the pair in period k."""
     per_robot = _partners(touched, pairs, int(pairs.max()) + 1)
     own = touched.astype(int)
@@ -139,7 +139,7 @@ def trial_episodes(poses, touched, start, left_plate=None, periods_run=None, bod
         for r, lp in enumerate(np.asarray(left_plate)):
             if lp > 0:
                 on[lp - 1:, r] = False
-    third = _third_touch(touched, pairs)
+    third = third_touch(touched, pairs)
     out = []
     start = np.asarray(start, float)
     for p, (i, j) in enumerate(pairs):
@@ -575,7 +575,7 @@ def phi_plateau(phi, window: int = PLATEAU_WINDOW, tol: float = PLATEAU_TOL,
     return Plateau(max(end, 0), True, float("nan"), last, end, window, tol)
 
 
-def _components(adj: np.ndarray, alive: np.ndarray) -> list[list[int]]:
+def touch_components(adj: np.ndarray, alive: np.ndarray) -> list[list[int]]:
     """Connected components (sorted member lists) of the graph ``adj`` [N, N] over robots ``alive``."""
     n = len(adj)
     seen = ~alive.copy()
@@ -595,7 +595,8 @@ def _components(adj: np.ndarray, alive: np.ndarray) -> list[list[int]]:
     return out
 
 
-def _trial(poses, touched, left_plate, periods_run):
+def trial_arrays(poses, touched, left_plate,
+                 periods_run) -> tuple[np.ndarray, np.ndarray, int, np.ndarray, np.ndarray]:
     """One trial's arrays checked: poses [K, N, 5], touched [K, P], the periods run, the pairs and
     on [K, N] (a robot on the plate and the trial still running in period k)."""
     poses = np.asarray(poses, float)
@@ -627,7 +628,7 @@ def crowd_trial(poses, touched, start, body_length: float, body_thickness: float
         graph from that period on.
       periods_run: periods simulated (default K); later periods hold no touches and no chains.
     """
-    poses, touched, run, pairs, on = _trial(poses, touched, left_plate, periods_run)
+    poses, touched, run, pairs, on = trial_arrays(poses, touched, left_plate, periods_run)
     k, n = poses.shape[:2]
     degree = np.full((k, n), -1, int)
     in_chain = np.zeros(k, int)
@@ -640,7 +641,7 @@ def crowd_trial(poses, touched, start, body_length: float, body_thickness: float
         adj |= adj.T
         degree[t] = np.where(on[t], adj.sum(1), -1)
         now = {}
-        for comp in _components(adj, on[t]):
+        for comp in touch_components(adj, on[t]):
             if len(comp) >= CHAIN_MIN:
                 edges = int(adj[np.ix_(comp, comp)].sum()) // 2
                 now[tuple(comp)] = edges >= len(comp)
@@ -797,11 +798,11 @@ def pair_runs(poses, touched, start, body_length: float, left_plate=None, period
 
     Args: as :func:`crowd_trial` (poses [K, N, 5] in m, touched [K, P], start [N, 5], left_plate [N]
     1-based first period off the plate, 0 never; periods_run the periods simulated)."""
-    poses, touched, run, pairs, on = _trial(poses, touched, left_plate, periods_run)
+    poses, touched, run, pairs, on = trial_arrays(poses, touched, left_plate, periods_run)
     k, n = poses.shape[:2]
     xy = np.concatenate([np.asarray(start, float)[None, :, :2], poses[..., :2]]) / body_length  # [K + 1, N, 2]
     live_on = np.concatenate([np.ones((1, n), bool), on])
-    third = _third_touch(touched, pairs)
+    third = third_touch(touched, pairs)
     out = []
     for p, (i, j) in enumerate(pairs):
         ok = touched[:, p] & ~third[:, p] & on[:, i] & on[:, j]
