@@ -18,6 +18,8 @@ import typer
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Batched simulation of smarticles and the gliders they form.")
 
+_READING_HELP = ("relaxation: the emergence reading to lead with, apart, touch, moved or pair (default: pair, "
+                 "a moving pair that is not a chain; docs/relax.md)")
 _MODEL_HELP = "model preset (smx models --list; default: the default preset, docs/model.md)"
 _DRAWS_HELP = ("pairs of robots drawn with the imperfections: lane i runs pair i mod K, so a result is one "
                "of the robots' population, not of one pair")
@@ -355,10 +357,12 @@ def report(
     glider_min_periods: Optional[int] = typer.Option(None, help="shortest bound run counted as a glider "
                                                      "(relaxation: default 100, the lab's criterion)"),
     apart: float = typer.Option(2.0, help="relaxation: closest a third robot may come to a glider (W)"),
+    reading: Optional[str] = typer.Option(None, help=_READING_HELP),
 ):
     """Every figure and the summary table of a store: report.md, report.json and PNGs in one folder."""
     from .report import headline, write_any
-    _echo(headline(write_any(stores, out, burn_in, glider_min_periods, apart)) + [f"wrote {out / 'report.md'}"])
+    _echo(headline(write_any(stores, out, burn_in, glider_min_periods, apart, reading))
+          + [f"wrote {out / 'report.md'}"])
 
 
 @_command("validate")
@@ -376,6 +380,7 @@ def validate(
     imperfections: str = typer.Option("none", help=_IMPERFECTIONS_HELP + "; stores go to DATA/MODEL+NAME"),
     set_: list[str] = typer.Option([], "--set", help=_SET_HELP + "; every study and lone robot; stores go to "
                                    "DATA/MODEL~FIELD=VALUE"),
+    reading: Optional[str] = typer.Option(None, help=_READING_HELP),
 ):
     """Measure the paper's claims from the studies in sweeps/ and write docs/validation.md."""
     from .validate import SWEEPS, parse_studies, run_validation
@@ -384,11 +389,13 @@ def validate(
     overrides = _sets(set_)
     # a bad value: one line before the progress bar starts (run_validation would refuse it too, inside the bar)
     presets.apply(presets.params(_model(model)), overrides)
+    from .reduce.emergence import parse_reading
+    reading = parse_reading(reading).value
     bar, progress = _progress(quiet)
     with bar:
         res = run_validation(data, out, sweeps or SWEEPS, model=_model(model), on_progress=progress,
                              single_periods=single_periods, studies=chosen, imperfections=imperfections,
-                             overrides=overrides)
+                             overrides=overrides, reading=reading)
     _echo([f"{r.verdict:>16}: {r.claim}" for r in res.rows]
           + [f"note: {n}" for n in res.extra.get("notes", [])] + [f"wrote {out}"])
 

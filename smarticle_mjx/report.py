@@ -322,14 +322,21 @@ def lab_relax_fraction() -> tuple[float, tuple[float, float]]:
     return LAB_RELAX["emerged"] / LAB_RELAX["trials"], (float(lo), float(hi))
 
 
-def relax_summary(data: RelaxRecord, min_periods: int = 100, apart_W: float = 2.0, crowd=None, analysis=None) -> dict:
-    """The relaxation study's numbers (``analysis``: reduce.relaxation.analyse's, computed when None) and
-    its crowd's (``crowd``: a ``CrowdSummary``, computed when None) beside the lab's, as the report's
-    JSON records them."""
-    from .reduce import relaxation as RX
+def relax_summary(data: RelaxRecord, min_periods: int = 100, apart_W: float = 2.0, crowd=None, analysis=None,
+                  reading=None, emergence=None) -> dict:
+    """The relaxation study's numbers (``analysis``: reduce.relaxation.analyse's, computed when None), its
+    crowd's (``crowd``: a ``CrowdSummary``, computed when None) and every emergence reading with the pairs'
+    touch runs (``emergence``: reduce.emergence.emergence's, computed when None; ``reading``: the one the
+    report prints, None: the primary one) beside the lab's, as the report's JSON records them."""
+    from .reduce import emergence as EM, relaxation as RX
     if analysis is None:
         analysis = RX.analyse(data, min_periods=min_periods, apart_W=apart_W)
+    if emergence is None:
+        emergence = EM.emergence(data, keep_periods=min(EM.KEEP_PERIODS, min_periods), periods=min_periods,
+                                 apart_W=apart_W)
     a = analysis.as_json()
+    a["reading"] = EM.parse_reading(reading).value
+    a["emergence"] = emergence.as_json()
     a["crowd"] = dataclasses.asdict(crowd if crowd is not None else RX.crowd(data)[0])
     fraction, interval = lab_relax_fraction()
     a["lab"] = {**LAB_RELAX, "fraction": fraction, "interval": interval}
@@ -361,10 +368,11 @@ def trial_figure(data: RelaxRecord, a, out: pathlib.Path) -> list[str]:
                                                    "relax_tracks", title=title)]
 
 
-def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 2.0) -> dict:
+def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 2.0, reading=None) -> dict:
     """Report of one relaxation store or several stages of one study:
     report.md, report.json, the tracks of one trial and the lifetime vs
-    contour-length figure."""
+    contour-length figure. ``reading``: the emergence reading the report leads with (reduce.emergence;
+    None: the primary one); the JSON keeps every reading and every pair's touch runs."""
     from .store import read_relax
     data = read_relax(paths)
     out = pathlib.Path(out_dir)
@@ -372,7 +380,7 @@ def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 
     from .reduce import relaxation as RX
     crowd, trials = RX.crowd(data)
     ra = RX.analyse(data, min_periods=min_periods, apart_W=apart_W)
-    a = relax_summary(data, min_periods, apart_W, crowd=crowd, analysis=ra)
+    a = relax_summary(data, min_periods, apart_W, crowd=crowd, analysis=ra, reading=reading)
     figs = trial_figure(data, ra, out)
     figs += [p.name for p in plots.lifetime_contour(ra.episodes, ra.fit, min_periods, out)]
     if trials:
@@ -396,10 +404,13 @@ def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 
 
 
 def write_any(stores, out_dir, burn_in: int | None = None, glider_min_periods: int | None = None,
-              apart_W: float = 2.0) -> dict:
+              apart_W: float = 2.0, reading: str | None = None) -> dict:
     """The report of one scan or sweep store, or of relaxation stores (one, or the stages of one study),
-    after checking the options. Raises ValueError or StoreError on bad input before writing anything."""
+    after checking the options. Raises ValueError or StoreError on bad input before writing anything.
+    ``reading``: a relaxation report's emergence reading (reduce.emergence; None: the primary one)."""
+    from .reduce.emergence import parse_reading
     from .store import Store
+    reading = parse_reading(reading).value
     kinds = {Store(s).kind for s in stores}
     out = pathlib.Path(out_dir)
     plots.check_out_dir(out)
@@ -408,7 +419,8 @@ def write_any(stores, out_dir, burn_in: int | None = None, glider_min_periods: i
     if not apart_W > 0:
         raise ValueError("--apart must be positive")
     if kinds == {"relax"}:
-        return write_relax_report(stores, out, min_periods=glider_min_periods or 100, apart_W=apart_W)
+        return write_relax_report(stores, out, min_periods=glider_min_periods or 100, apart_W=apart_W,
+                                  reading=reading)
     if len(stores) > 1:
         raise ValueError("several stores are read only as stages of one relaxation study; "
                          "report scan stores one at a time")
@@ -418,10 +430,14 @@ def write_any(stores, out_dir, burn_in: int | None = None, glider_min_periods: i
 def headline(rep: dict) -> list[str]:
     """A report's numbers in a few lines (what ``smx report`` prints)."""
     if rep.get("kind") == "relax":
-        lo, hi = rep["interval"]
-        return [f"{rep['emerged']}/{rep['valid']} trials formed a glider ({rep['fraction']:.2f}, 95% CI "
-                f"{lo:.2f}-{hi:.2f}; lab 77/151); distance {rep['distance']['mean']:.2f} W "
-                f"(n = {rep['distance']['n']}; lab 2.9 W)", *crowd_headline(rep.get("crowd"))]
+        r = rep["emergence"]["readings"][rep["reading"]]
+        lo, hi = r["interval"]
+        others = ", ".join(f"{k} {x['emerged']}/{x['trials']}" for k, x in rep["emergence"]["readings"].items()
+                           if k != rep["reading"])
+        return [f"reading {r['label']}: {r['emerged']}/{r['trials']} trials formed a glider ({r['fraction']:.2f}, "
+                f"95% CI {lo:.2f}-{hi:.2f}; lab 77/151); distance {r['distance']['mean']:.2f} W "
+                f"(n = {r['distance']['n']}; lab 2.9 W)", f"other readings (--reading): {others}",
+                *crowd_headline(rep.get("crowd"))]
     return [f"{s['run']}: P_b end {s['pb_end'][0]}, C1 basin {(s.get('C1') or {}).get('basin_fraction')}, "
             f"C2 basin {(s.get('C2') or {}).get('basin_fraction')}, gliders {s['gliders']}, "
             f"beta {(s.get('beta') or {}).get('value')}" for s in rep["runs"]]
@@ -461,17 +477,22 @@ def crowd_rows(c: dict | None, f) -> list[str]:
 def relax_markdown(rep: dict) -> str:
     s, lab = rep["settings"], rep["lab"]
     f = lambda x, nd=2: formatting.num(x, f".{nd}f")  # noqa: E731
-    d, gl, fit, ty = rep["distance"], rep["glider_lifetime"], rep["fit"], rep["typed"]
+    gl, fit, ty = rep["glider_lifetime"], rep["fit"], rep["typed"]
     rt = rep["relaxation_periods"]
+    readings = rep["emergence"]["readings"]
+    r = readings[rep["reading"]]
+    d = r["distance"]
     lines = [f"# Relaxation report: {', '.join(pathlib.Path(p).name for p in rep['stores'])}", "",
              f"{rep['trials']} trials of {s['n_robots']} robots ({rep['valid']} usable), {s['periods']} periods "
              f"at α_max = {s['amplitude_deg']:g}° ({s['gait']}, {s['chirality']}), model {presets.describe(rep['model'], rep.get('overrides'))}; "
-             f"{specs.relax_config_from_json(s).start_words()}; plate {s['plate_m']:g} m. A glider: a pair bound "
-             f"(touching every period) for ≥ {rep['min_periods']} consecutive periods while apart from the rest (no touch with a third "
-             f"robot, every third robot's centre ≥ {rep['apart_W']:g} W away, both on the plate).", "",
+             f"{specs.relax_config_from_json(s).start_words()}; plate {s['plate_m']:g} m. The glider rows read "
+             f"emergence as **{r['label']}** (docs/relax.md, \"The discovery read the paper's way\"; `--reading` "
+             "picks another); the lifetime, type and contour rows read bound-and-apart episodes (a pair touching every "
+             f"period, no touch with a third robot, every third robot's centre ≥ {rep['apart_W']:g} W away).", "",
              "| quantity | model | lab |", "|---|---|---|",
-             f"| trials forming a glider | {rep['emerged']}/{rep['valid']} = {f(rep['fraction'])} "
-             f"[{f(rep['interval'][0])}, {f(rep['interval'][1])}] | {lab['emerged']}/{lab['trials']} = "
+             f"| trials forming a glider, {r['label']} | {r['emerged']}/{r['trials']} = {f(r['fraction'])} "
+             f"[{f(r['interval'][0])}, {f(r['interval'][1])}], Fisher's p = {r['fisher_p']:.2g} | "
+             f"{lab['emerged']}/{lab['trials']} = "
              f"{f(lab['fraction'])} [{f(lab['interval'][0])}, {f(lab['interval'][1])}] |",
              f"| distance travelled by the glider (W) | {f(d['mean'])} ± {f(d['sem'])} (n = {d['n']}); "
              f"{step_note(rep['step_check']) if rep.get('step_check') else 'stages with different step checks (backends): step not checked'} | "
@@ -492,6 +513,12 @@ def relax_markdown(rep: dict) -> str:
              f"| robots that left the plate | {rep['left_plate']['robots']} in {rep['left_plate']['trials']} "
              "trials | – |",
              f"| trials stopped early (no contact for {s['quiet_periods']} periods) | {rep['stopped_early']} | – |",
+             "", "Emergence under every reading (the glider's distance: net, from period 30 on for (b)–(d)):", "",
+             "| reading | trials forming a glider | Fisher's p vs the lab | distance (W) | C1, C2 |", "|---|---|---|---|---|",
+             *[f"| {x['label']}{' (primary)' if k == rep['emergence']['primary'] else ''} | {x['emerged']}/{x['trials']} "
+               f"= {f(x['fraction'])} [{f(x['interval'][0])}, {f(x['interval'][1])}] | {x['fisher_p']:.2g} | "
+               f"{f(x['distance']['mean'])} ± {f(x['distance']['sem'])} (n = {x['distance']['n']}) | "
+               f"{x['kinds']['C1']}, {x['kinds']['C2']} |" for k, x in readings.items()],
              "", "Intervals: exact (Clopper–Pearson) 95 %; ± is the standard error of the mean."]
     if s["periods"] < rep["min_periods"]:
         lines.append(f"These trials ({s['periods']} periods) are shorter than the glider criterion "

@@ -66,6 +66,29 @@ class Reading(str, enum.Enum):
 PRIMARY = Reading.PAIR
 
 
+def parse_reading(text: str | None) -> Reading:
+    """A reading by name (None: the primary one); ValueError naming the readings there are."""
+    if text is None:
+        return PRIMARY
+    if isinstance(text, Reading):
+        return text
+    try:
+        return Reading(str(text).strip().lower())
+    except ValueError:
+        raise ValueError(f"unknown reading {text!r}: choose one of " + ", ".join(r.value for r in Reading)
+                         + f" (default {PRIMARY.value})") from None
+
+
+def reading_from_analysis(a) -> "EmergenceReading":
+    """Reading (a) as :func:`smarticle_mjx.reduce.relaxation.analyse` counted it (a ``RelaxAnalysis``)."""
+    gl = [r.glider for r in a.per_trial if r.glider is not None]
+    return EmergenceReading(Reading.APART, a.valid, a.emerged, a.fraction, tuple(a.interval),
+                            fisher_p(a.emerged, a.valid) if a.valid else float("nan"), a.distance,
+                            sum(1 for g in gl if g.distance_W >= MIN_NET_W),
+                            {C1: a.glider_kinds.c1, C2: a.glider_kinds.c2}, tuple(r.trial for r in a.per_trial
+                                                                             if r.glider is not None))
+
+
 @dataclasses.dataclass(frozen=True)
 class TouchRun:
     """One touch run of one pair (see the module's docstring).

@@ -61,10 +61,11 @@ def single_robots(params: SceneParams, amplitudes=SINGLE_AMPLITUDES, periods: in
 
 
 def evaluate(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None = None,
-             extra: dict | None = None) -> Validation:
+             extra: dict | None = None, reading=None) -> Validation:
     """Every claim's row from the stores there are (figures drawn into ``figures``); ``extra``: entries added
-    to the numbers behind the rows (notes, the robots' set)."""
-    ev, numbers, made = evidence.gather(stores, singles, figures, specs)
+    to the numbers behind the rows (notes, the robots' set); ``reading``: the relaxation's emergence reading
+    (reduce.emergence; None: the primary one)."""
+    ev, numbers, made = evidence.gather(stores, singles, figures, specs, reading)
     return Validation(tuple(c.row(ev.get(c.key), stores) for c in CLAIMS), {**numbers, **(extra or {})},
                       tuple(made))
 
@@ -106,15 +107,18 @@ def data_folder(data, model: str, imperfections: str = "none", overrides=()) -> 
 def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Path = SWEEPS,
                    model: str = presets.DEFAULT, on_progress=None, command: str | None = None,
                    single_periods: int = SINGLE_PERIODS, studies: list[str] | None = None,
-                   imperfections: str = "none", overrides=()) -> Validation:
+                   imperfections: str = "none", overrides=(), reading=None) -> Validation:
     """Run or reuse the studies (all, or those named in ``studies``) with model preset ``model`` in
     ``data/<model>/``, measure every claim from the complete stores there are, write the page.
 
     ``imperfections``: run every study with the robots' imperfections of that set (drawn from each
     study's seed; smarticle_mjx/imperfections.py), in ``data/<model>+<set>/``. ``overrides``: scene
     fields changed in every study and lone robot (``--set``; a step, say), in
-    ``data/<model>[+<set>]~<field>=<value>.../``."""
+    ``data/<model>[+<set>]~<field>=<value>.../``. ``reading``: the relaxation's emergence reading the
+    page judges (reduce.emergence: apart, touch, moved or pair; None: pair, the primary one)."""
     from .. import imperfections as imp
+    from ..reduce.emergence import parse_reading
+    reading = parse_reading(reading)
     overrides = presets.overrides(overrides)
     check_inputs(data, out_md, sweeps, single_periods, studies)
     ideal = imp.get(imperfections).ideal
@@ -136,9 +140,9 @@ def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Pat
     figures = out_md.parent / out_md.stem
     result = evaluate(stores, singles, figures, specs,
                       {"notes": notes, **({} if ideal else {"imperfections": {
-                          "set": imperfections, "lone_robots_per_amplitude": LONE_ROBOTS_DRAWN}})})
+                          "set": imperfections, "lone_robots_per_amplitude": LONE_ROBOTS_DRAWN}})}, reading)
     page.write_page(result, stores, out_md, figures,
                     command or page.relative_command(pathlib.Path(data).parent, out_md, model, imperfections=imperfections,
-                                                     overrides=overrides),
+                                                     overrides=overrides, reading=reading),
                     model, imperfections=imperfections, overrides=overrides)
     return result

@@ -428,51 +428,92 @@ def pb_dip(ev: BindingVsAmplitude) -> Outcome:
 # evidence: .inputs.Relaxation (reduce.relaxation.analyse of the pooled stages, its crowd, the stores'
 # settings, the lab's fraction and Fisher's exact test of the model's emergence against it)
 
+RULE_WORDS = {  # each reading's glider, as the page's notes state it (reduce.emergence)
+    "apart": "a pair bound every period for ≥ 100 consecutive periods, no touch with a third robot and every "
+             "third robot ≥ {apart_W:g} W away (reading (a), fixed November 2026)",
+    "touch": "a pair touching in every one of ≥ 100 consecutive periods, whatever third robots did (reading (b), "
+             "fixed 7 December 2026)",
+    "moved": "a pair touching in every one of ≥ 100 consecutive periods whose centre moved a net ≥ 0.5 W from "
+             "period 30 on (reading (c), fixed 7 December 2026)",
+    "pair": "a pair touching in every one of ≥ 100 consecutive periods whose centre moved a net ≥ 0.5 W from "
+            "period 30 on, neither robot touching a third robot in ≥ 80 % of those periods: a pair, not a chain "
+            "(reading (d), the primary one, fixed 7 December 2026)",
+}
+
+
+def _emergence_holds(r, alpha: float = ALPHA) -> bool | None:
+    """A reading's emergence verdict: Fisher's p >= alpha, once its interval is at most RELAX_MAX_WIDTH wide."""
+    measurable = r.trials and r.interval[1] - r.interval[0] <= RELAX_MAX_WIDTH
+    return bool(r.fisher_p >= alpha) if measurable else None
+
+
+def _distance_holds(d) -> bool | None:
+    return bool(abs(d.mean - LAB_DISTANCE_W) <= 2 * math.hypot(d.sem, LAB_DISTANCE_ERR)) if d.n >= 2 else None
+
+
 @claim("relax_emergence", "in about half of the relaxation trials a pair glides away together for ≥ 100 periods",
        "77 of 151 trials (Fig. 1)", "model and lab fractions do not differ (Fisher's exact test p ≥ 0.05); "
        "measurable once the model's 95 % interval is at most 0.3 wide", ("relax",), evidence="relax")
 def relax_emergence(ev: Relaxation) -> Outcome:
-    a, s = ev.analysis, ev.settings
-    k, n = a.emerged, a.valid
+    a, s, r = ev.analysis, ev.settings, ev.judged
     rt = a.relaxation_periods
-    measurable = n and a.interval[1] - a.interval[0] <= RELAX_MAX_WIDTH
-    return Outcome(bool(ev.p_fisher >= ALPHA) if measurable else None,
-                   f"{k}/{n} = {ci(a.fraction, *a.interval)} (lab {ci(ev.lab_fraction, *ev.lab_interval)}); "
-                   f"C1 {a.glider_kinds.c1}, C2 {a.glider_kinds.c2}",
-                   f"{n} trials ({ev.stages} stages) of {s.n_robots} robots × {s.periods} periods at "
-                   f"{s.amplitude_deg:g}°, {s.start_words()}. Glider: a pair bound every "
-                   f"period for ≥ 100 consecutive periods, no touch with a third robot and every third robot ≥ {a.apart_W:g} W "
-                   f"away. Relaxation (last period with a robot touching two others): median "
+    measured = (f"{r.emerged}/{r.trials} = {ci(r.fraction, *r.interval)} (lab {ci(ev.lab_fraction, *ev.lab_interval)}; "
+                f"Fisher's p = {r.fisher_p:.2g}); C1 {r.kinds['C1']}, C2 {r.kinds['C2']}")
+    beside = ""
+    if r.reading.value != "apart":
+        old = ev.rule_a
+        moved = _emergence_holds(old) != _emergence_holds(r)
+        beside = (f" Read by the bound-and-apart rule (a), the page's reading until December 2026: {old.emerged}/"
+                  f"{old.trials} = {ci(old.fraction, *old.interval)}, {VERDICTS[_emergence_holds(old)]}"
+                  f"{' (this reading moves the verdict)' if moved else ''}.")
+    if ev.emergence is not None:
+        beside += " All readings: " + "; ".join(f"({'abcd'[i]}) {x.emerged}/{x.trials}"
+                                                for i, x in enumerate(ev.emergence.readings)) + "."
+    return Outcome(_emergence_holds(r), measured,
+                   f"{r.trials} trials ({ev.stages} stages) of {s.n_robots} robots × {s.periods} periods at "
+                   f"{s.amplitude_deg:g}°, {s.start_words()}. Glider: "
+                   + RULE_WORDS[r.reading.value].format(apart_W=a.apart_W) + "." + beside +
+                   f" Relaxation (last period with a robot touching two others): median "
                    f"{f(rt.median, '.0f')} periods [IQR {f(rt.q25, '.0f')}–{f(rt.q75, '.0f')}] (paper: "
                    f"about 30); {a.stopped_early} trials stopped early, all robots apart and quiet for "
-                   f"{s.quiet_periods} periods." + crowd_note(ev.crowd)
-                   + (f" {a.trials - n} of {a.trials} trials were flagged by the engine (penetration or a "
-                      "non-finite state) and are left out." if a.trials > n else ""))
+                   f"{s.quiet_periods} periods." + crowd_note(ev.crowd, ev.chains)
+                   + (f" {a.trials - a.valid} of {a.trials} trials were flagged by the engine (penetration or a "
+                      "non-finite state) and are left out." if a.trials > a.valid else ""))
 
 
-def crowd_note(c: CrowdSummary | None) -> str:
-    """The crowd's measures (reduce.relaxation.CrowdSummary) in one sentence for a claim's notes."""
+def crowd_note(c: CrowdSummary | None, chains=None) -> str:
+    """The crowd's measures (reduce.relaxation.CrowdSummary, and reduce.chains.ChainLifetimes where counted) in
+    one sentence for a claim's notes."""
     if not c:
         return ""
     pl, cl = c.plateau, c.chain_lifetime
+    tracked = (f"; followed by overlap (a chain lives while most of its robots stay), {f(chains.overlap.mean, '.1f')} "
+               f"periods (median {f(chains.overlap.median, '.0f')}, {chains.overlap.n} chains)" if chains else "")
     return (f" Relaxation read off the area fraction's plateau (docs/relax.md): median {f(pl.median, '.0f')} "
             f"periods [IQR {f(pl.q25, '.0f')}–{f(pl.q75, '.0f')}], {pl.censored} trials without one "
-            f"(paper: about 30); chains of ≥ 3 robots live {f(cl.mean, '.1f')} periods on average with "
-            f"{f(c.neighbours_in_chain)} neighbours per robot (lab: 8–10 periods, about 4).")
+            f"(paper: about 30); chains of ≥ 3 robots with the same members live {f(cl.mean, '.1f')} periods on "
+            f"average{tracked}, with {f(c.neighbours_in_chain)} neighbours per robot (lab: 8–10 periods, about 4).")
 
 
 @claim("relax_distance", "the glider travels 2.9 ± 0.2 W on average", "2.9 ± 0.2 W (text)",
        "|model − 2.9| ≤ 2 √(SEM² + 0.2²)", ("relax",), evidence="relax")
 def relax_distance(ev: Relaxation) -> Outcome:
-    a = ev.analysis
-    d = a.distance
-    ok = abs(d.mean - LAB_DISTANCE_W) <= 2 * math.hypot(d.sem, LAB_DISTANCE_ERR)
-    return Outcome(bool(ok) if d.n >= 2 else None,
+    a, r = ev.analysis, ev.judged
+    d = r.distance
+    how = ("\\|end − start\\| of the pair centre over the glider's bound-and-apart run (the longest one of the "
+           "trial)" if r.reading.value == "apart" else
+           "\\|end − start\\| of the pair centre from period 30 (or the run's start, if later) to the end of the "
+           "trial's longest qualifying run")
+    beside = ""
+    if r.reading.value != "apart":
+        old = ev.rule_a.distance
+        beside = (f" By the bound-and-apart rule (a), the page's reading until December 2026: {f(old.mean)} ± "
+                  f"{f(old.sem)} W (n = {old.n}), {VERDICTS[_distance_holds(old)]}.")
+    return Outcome(_distance_holds(d),
                    f"{f(d.mean)} ± {f(d.sem)} W (n = {d.n} gliders; median {f(d.median)}); "
-                   f"lifetime {f(a.glider_lifetime.mean, '.0f')} periods, {a.glider_censored} still bound "
-                   "at the end",
-                   "Distance = \\|end − start\\| of the pair centre over the glider's bound-and-apart run (the "
-                   "longest one of the trial); the lab's ± read as a standard error.")
+                   f"{r.moved} of them ≥ 0.5 W",
+                   f"Glider: {RULE_WORDS[r.reading.value].format(apart_W=a.apart_W)}. Distance = {how}; the lab's ± "
+                   "read as a standard error." + beside)
 
 
 @claim("contour", "bound pairs' contour length grows linearly with their lifetime", "SI, contour length vs time",

@@ -116,18 +116,24 @@ def pb(runs: list[analysis.RunAnalysis]) -> BindingVsAmplitude:
                                               for a in runs], float), n, PbBands(*pooled), runs[0].periods, tuple(runs))
 
 
-def relax(paths: list, figures: pathlib.Path, made: list) -> tuple[Relaxation, dict]:
+def relax(paths: list, figures: pathlib.Path, made: list, reading=None) -> tuple[Relaxation, dict]:
     """The relaxation study over its complete stages, pooled: the claims' typed evidence, and the summary
     ``validation.json`` records (report.relax_summary with Fisher's exact p of its emergence against the
-    lab's); draws its two figures."""
+    lab's, every emergence reading and both chain readings); draws its two figures. ``reading``: the
+    emergence reading the claims judge (reduce.emergence; None: the primary one)."""
     from scipy.stats import fisher_exact
-    from ..reduce import relaxation as RX
+    from ..reduce import chains as CH, emergence as EM, relaxation as RX
     from ..report import LAB_RELAX, lab_relax_fraction, relax_summary, trial_figure
     from ..specs import relax_config_from_json
     from ..store import read_relax
     data = read_relax(paths)
     ra, crowd = RX.analyse(data), RX.crowd(data)[0]
-    a = relax_summary(data, crowd=crowd, analysis=ra)
+    reading = EM.parse_reading(reading)
+    em = EM.emergence(data)
+    a = relax_summary(data, crowd=crowd, analysis=ra, reading=reading, emergence=em)
+    a["emergence"] = em.as_json(with_runs=False)  # the page's numbers; a report of the stores keeps the runs
+    chains = CH.chain_lifetimes([(data.touched[t], data.left_plate[t], data.periods_run[t])
+                                 for t in np.flatnonzero(data.usable)])
     made += trial_figure(data, ra, figures)
     made += [p.name for p in plots.lifetime_contour(ra.episodes, ra.fit, ra.min_periods, figures)]
     k, n = ra.emerged, ra.valid
@@ -136,7 +142,7 @@ def relax(paths: list, figures: pathlib.Path, made: list) -> tuple[Relaxation, d
     a = {**a, "p_fisher": p_fisher}
     fraction, interval = lab_relax_fraction()
     return Relaxation(ra, crowd, relax_config_from_json(data.settings), fraction, interval, p_fisher,
-                      len(paths)), a
+                      len(paths), em, chains, reading), a
 
 
 class Context:
@@ -144,8 +150,9 @@ class Context:
     the study specs, the figures folder, the numbers written beside the page (``extra``), the figure
     files in page order (``made``) and each builder's result, computed once (:meth:`get`)."""
 
-    def __init__(self, stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None):
+    def __init__(self, stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None, reading=None):
         self.stores, self.singles, self.figures, self.specs = stores, singles, figures, specs or {}
+        self.reading = reading  # the relaxation's emergence reading (reduce.emergence; None: the primary one)
         self.extra: dict = {}
         self.made: list[str] = []
         self._done: dict = {}
@@ -301,7 +308,7 @@ def _amplitude(ctx: Context) -> BindingVsAmplitude:
 
 @builds("relax", ("relax",))
 def _relax(ctx: Context) -> Relaxation:
-    ev, a = relax(ctx.stores["relax"], ctx.figures, ctx.made)
+    ev, a = relax(ctx.stores["relax"], ctx.figures, ctx.made, ctx.reading)
     ctx.extra["relax"] = {k: v for k, v in a.items() if k not in ("episodes", "per_trial")}
     return ev
 
@@ -323,7 +330,7 @@ def _msd_figure(ctx: Context) -> None:
         ctx.draw(plots.msd_curves(curves, ctx.figures))
 
 
-def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None = None):
+def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None = None, reading=None):
     """Evidence for every claim from the stores there are; figures drawn into ``figures``.
 
     Each claim names the evidence it needs (``claims.Claim.evidence``, a builder of :data:`BUILDERS`);
@@ -334,13 +341,14 @@ def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | Non
         relaxation studies); a study not yet run is absent.
       singles: lone robots' tracks (:func:`smarticle_mjx.validate.single_robots`).
       specs: study name -> its spec (the started-bound studies' windows).
+      reading: the relaxation's emergence reading the claims judge (None: the primary one).
 
     Returns:
       (claim key -> its evidence, None where a study is missing; the numbers written beside the page;
       the figure files in page order).
     """
     figures.mkdir(parents=True, exist_ok=True)
-    ctx = Context(stores, singles, figures, specs)
+    ctx = Context(stores, singles, figures, specs, reading)
     ev = {c.key: ctx.get(c.evidence) for c in CLAIMS}
     _msd_figure(ctx)
     return ev, ctx.extra, ctx.made

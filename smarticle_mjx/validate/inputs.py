@@ -9,6 +9,8 @@ import dataclasses
 
 import numpy as np
 
+from ..reduce.chains import ChainLifetimes
+from ..reduce.emergence import PRIMARY, Emergence, EmergenceReading, Reading, reading_from_analysis
 from ..reduce.relaxation import CrowdSummary, RelaxAnalysis
 from ..reduce.transport import Exponent, LoneRobot
 from ..specs import RelaxConfig
@@ -188,3 +190,18 @@ class Relaxation:
     lab_interval: tuple[float, float]
     p_fisher: float
     stages: int
+    emergence: Emergence | None = None  # every reading (reduce.emergence); None: reading (a) alone
+    chains: ChainLifetimes | None = None  # chains by overlap and by exact member set (reduce.chains)
+    reading: Reading = PRIMARY  # the reading the emergence and distance claims judge
+
+    @property
+    def judged(self) -> EmergenceReading:
+        """The reading the claims judge (reading (a), from ``analysis``, where the others were not counted)."""
+        if self.emergence is None:
+            return reading_from_analysis(self.analysis)
+        return self.emergence.of(self.reading)
+
+    @property
+    def rule_a(self) -> EmergenceReading:
+        """Reading (a), the bound-and-apart rule the page judged by until December 2026."""
+        return reading_from_analysis(self.analysis)

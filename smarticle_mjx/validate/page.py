@@ -9,6 +9,7 @@ import json
 import os
 import pathlib
 
+from ..reduce.emergence import PRIMARY, parse_reading
 from ..report import describe_configs, json_default
 from ..store import Store
 from ..suite import STUDIES, SWEEPS
@@ -223,7 +224,7 @@ def robots_line(imperfections: str, paths=()) -> str:
 
 
 def relative_command(data: pathlib.Path, out_md: pathlib.Path, model: str, studies=None,
-                     imperfections: str = "none", overrides=()) -> str:
+                     imperfections: str = "none", overrides=(), reading=None) -> str:
     """The regenerate command, with paths relative to the repository when they
     lie inside it (``DIR`` / ``PAGE`` placeholders otherwise), never one
     machine's absolute path."""
@@ -235,4 +236,5 @@ def relative_command(data: pathlib.Path, out_md: pathlib.Path, model: str, studi
             return placeholder
     cmd = f"smx validate --data {rel(data, 'DIR')} --out {rel(out_md, 'PAGE')} --model {model}"
     cmd = cmd if imperfections == "none" else f"{cmd} --imperfections {imperfections}"
+    cmd = cmd if parse_reading(reading) is PRIMARY else f"{cmd} --reading {parse_reading(reading).value}"
     return cmd + "".join(f" --set {k}={v}" for k, v in overrides)
