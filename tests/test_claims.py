@@ -234,3 +234,32 @@ def test_every_claim_names_a_builder_that_reads_its_studies():
         b = evidence.BUILDERS.get(c.evidence)
         assert b is not None, f"{c.key}: no evidence builder {c.evidence!r}"
         assert set(b.studies) == set(c.studies), (c.key, b.studies, c.studies)
+
+
+def _emergence(pair_gliders, apart_gliders, n=100, distance=2.9):
+    """reduce.emergence.Emergence of n built trials: the first ``pair_gliders`` with a moving pair run of 150
+    periods, the first ``apart_gliders`` with a bound-and-apart glider of 0.5 W."""
+    from smarticle_mjx.reduce import emergence as EM
+    run = lambda t: EM.TouchRun(t, (0, 1), 10, 150, False, 0, 150, distance, distance, distance, -1.0, "C1")  # noqa: E731
+    runs = {t: (run(t),) if t < pair_gliders else () for t in range(n)}
+    apart = {t: (0.5, "C1") if t < apart_gliders else None for t in range(n)}
+    return EM.emergence_from_runs(runs, apart)
+
+
+def test_the_emergence_claims_judge_the_chosen_reading_and_show_the_old_rule_beside():
+    import dataclasses
+    from smarticle_mjx.reduce.emergence import Reading
+    ev = dataclasses.replace(relax_ev(7, 100, distances=(0.5,) * 7), emergence=_emergence(50, 7))
+    row = K.get("relax_emergence").row(ev)
+    assert row.verdict == "holds" and "50/100" in row.measured  # reading (d), the primary, by default
+    assert "(reading (d), the primary one" in row.note and "this reading moves the verdict" in row.note
+    assert "7/100" in row.note and "All readings: (a) 7/100; (b) 50/100; (c) 50/100; (d) 50/100" in row.note
+    assert verdict("relax_distance", ev) == "holds"  # 2.9 W from period 30 on
+    assert "does not hold" in K.get("relax_distance").row(ev).note  # (a)'s 0.5 W, shown beside
+    old = dataclasses.replace(ev, reading=Reading.APART)
+    assert verdict("relax_emergence", old) == "does not hold" and "moves the verdict" not in \
+        K.get("relax_emergence").row(old).note
+    assert verdict("relax_distance", old) == "does not hold"
+    # a reading under which the pairs did not move far enough: the distance claim fails on that reading
+    far = dataclasses.replace(ev, emergence=_emergence(50, 7, distance=0.6))
+    assert verdict("relax_distance", far) == "does not hold"

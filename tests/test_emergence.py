@@ -265,3 +265,13 @@ def test_a_first_period_drop_then_a_slow_tail_is_read_as_its_share_and_the_tail_
     phi = np.r_[0.60, 0.35 + 0.25 * 0.22 * np.exp(-(t - 1) / 10)]
     s = SP.phi_spreading(phi)
     assert s.fit.tau == pytest.approx(10, rel=1e-3) and s.first_period_share == pytest.approx(0.78, rel=1e-3)
+
+
+def test_a_bad_reading_is_one_line_and_exit_2_before_anything_runs(tmp_path):
+    from typer.testing import CliRunner
+    from smarticle_mjx.cli import app
+    r = CliRunner().invoke(app, ["validate", "--data", str(tmp_path / "d"), "--out", str(tmp_path / "p.md"),
+                                 "--reading", "glides", "--quiet"])
+    assert r.exit_code == 2 and r.output.startswith("error: unknown reading 'glides'") and r.output.count("\n") == 1
+    assert not (tmp_path / "d").exists() and not (tmp_path / "p.md").exists()
+    assert EM.parse_reading(None) is EM.PRIMARY is EM.Reading.PAIR and EM.parse_reading(" Apart") is EM.Reading.APART

@@ -232,6 +232,21 @@ def test_relax_cli_store_report_and_bad_input(tmp_path):
     # the crowd's measures: every usable trial measured, their rows beside the lab's, their figure
     assert j["crowd"]["trials"] == 2 and j["crowd"]["plateau"]["n"] == 2 and (rep / "crowd.png").exists()
     assert "chain lifetime" in (rep / "report.md").read_text() and "8–10 periods" in (rep / "report.md").read_text()
+    # the emergence reading it leads with is named (the primary by default), the others are printed, and every
+    # usable trial's touch runs are kept (each pair of 3 robots touching >= 2 periods in a row: keep_periods
+    # follows a --glider-min-periods below 10)
+    assert j["reading"] == "pair" and set(j["emergence"]["readings"]) == {"apart", "touch", "moved", "pair"}
+    assert [r["trial"] for r in j["emergence"]["runs"]] == [0, 1] and j["emergence"]["keep_periods"] == 2
+    assert "reading (d)" in r.output and "other readings (--reading): apart" in r.output
+    md = (rep / "report.md").read_text()
+    assert "| trials forming a glider, (d)" in md and md.count("(primary)") == 1
+    r = run.invoke(app, ["report", str(out), "--out", str(tmp_path / "rep_a"), "--reading", "apart",
+                         "--glider-min-periods", "2"])
+    assert r.exit_code == 0 and "reading (a) bound and apart" in r.output, r.output
+    assert json.loads((tmp_path / "rep_a" / "report.json").read_text())["reading"] == "apart"
+    r = run.invoke(app, ["report", str(out), "--out", str(tmp_path / "rep_x"), "--reading", "loose"])
+    assert r.exit_code == 2 and r.output.startswith("error: unknown reading 'loose'") and r.output.count("\n") == 1
+    assert not (tmp_path / "rep_x").exists()
     # the glider's distance is a transport number: its row says what is known of the store's step. The
     # default step passed the glider check (reduce.stepcheck); the 0.5 ms step of versions 0.3.x did not
     row = next(ln for ln in (rep / "report.md").read_text().splitlines() if ln.startswith("| distance travelled"))
