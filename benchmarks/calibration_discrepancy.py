@@ -32,14 +32,18 @@ import json
 import math
 import pathlib
 
-from smarticle_mjx.calibrate.effects import LIBRARY
+from smarticle_mjx.calibrate.discrepancy import (  # noqa: F401  (the estimate lives in the package)
+    EFFECTS, LEFT_OUT, MIN_CASES, SEEDS, cases, coverage, estimate)
+from smarticle_mjx.calibrate.discrepancy import load_rows as _load_rows
 
 ROOT = pathlib.Path(__file__).resolve().parent
 RESULTS = ROOT / "results"
-# every main-run stress-suite seed scored before the estimate was made again (November 2026, after
-# version 0.4.1); the first estimate (version 0.4.0) took 2026-2029, the seeds run before the term existed
-SEEDS = (2026, 2027, 2028, 2029, 2030, 2031, 2040, 2041, 2042, 2043, 2045, 2046, 2047, 2048, 2049, 2050, 2051,
-         2058, 2059)
+
+
+def load_rows(seeds=SEEDS) -> list[dict]:
+    """Every row of the seeds' stored summaries (results/calibration_stress_<seed>.json)."""
+    return _load_rows(RESULTS, seeds)
+
 # the table as first estimated from seeds 2026-2029 (version 0.4.0), kept to score the two on new seeds
 FIRST_TABLE = {
     "servo_response": {"servo_scale": 0.398}, "friction_scale": {"friction_scale": 0.398},
@@ -48,84 +52,6 @@ FIRST_TABLE = {
     "arm_plate_contact": {"arm_plate_mu": 0.398},
     "tracking_noise": {"noise_xy_mm": 0.0, "noise_theta_deg": 0.0},
 }
-MIN_CASES = 5
-LEFT_OUT = ("plate_tilt",)  # carries its own mismatch (calibrate/drift.py)
-# every effect of the library whose size the term covers, added or not on these seeds
-EFFECTS = {e.name: tuple(p.name for p in e.params) for e in LIBRARY if e.name not in LEFT_OUT}
-
-
-def cases(rows: list[dict]) -> dict:
-    """{(effect, param): [(ln(fitted/true), s_stat), ...]} over the rows' added effects that were hidden."""
-    out: dict = {}
-    for r in rows:
-        truth = r["set"]["truth"]
-        for e, vals in r["fitted"].items():
-            if e in LEFT_OUT or e not in truth:
-                continue
-            for k, v in vals.items():
-                t = truth[e].get(k)
-                # the statistical interval: rows stored since the term existed keep it apart from the
-                # reported one (which carries the term); before, the reported one was the statistical one
-                lo, hi = r.get("intervals_statistical", r["intervals"])[e][k]
-                if t is None or not v or v * t <= 0 or not (math.isfinite(lo) and math.isfinite(hi)):
-                    continue
-                out.setdefault((e, k), []).append((math.log(v / t), (hi - lo) / (2 * 1.96 * abs(v))))
-    return out
-
-
-def _mom(xs: list) -> float:
-    ms = sum(lr * lr for lr, _ in xs) / len(xs)
-    ss = sum(s * s for _, s in xs) / len(xs)
-    return math.sqrt(max(0.0, ms - ss))
-
-
-def estimate(rows: list[dict]) -> dict:
-    """The table: {effect: {param: {"log_sd": ..., "n": ..., "source": "own" | "pooled"}}}."""
-    got = cases(rows)
-    pooled = [x for xs in got.values() for x in xs]
-    table: dict = {}
-    for e, params in EFFECTS.items():
-        for k in params:
-            xs = got.get((e, k), [])
-            own = len(xs) >= MIN_CASES
-            table.setdefault(e, {})[k] = {"log_sd": _mom(xs if own else pooled), "n": len(xs) if own else len(pooled),
-                                          "cases_of_this_effect": len(xs), "source": "own" if own else "pooled",
-                                          "ln_ratio_mean": (sum(lr for lr, _ in xs) / len(xs)) if xs else None}
-    return table
-
-
-def load_rows(seeds=SEEDS) -> list[dict]:
-    """Every row of the seeds' stored summaries (results/calibration_stress_<seed>.json)."""
-    rows = []
-    for s in seeds:
-        rows += json.loads((RESULTS / f"calibration_stress_{s}.json").read_text())["rows"]
-    return rows
-
-
-def coverage(rows: list[dict], tables: dict) -> dict:
-    """Per effect of the term, over the rows' hidden and added cases: how many, and how many of them each
-    table's widened interval (the stored statistical interval widened by that table's spread) holds the
-    truth in every parameter. ``tables``: {name: {effect: {param: log_sd}}}."""
-    from smarticle_mjx.calibrate.discrepancy import widen
-    out: dict = {}
-    for r in rows:
-        truth = r["set"]["truth"]
-        stat = r.get("intervals_statistical", r["intervals"])
-        for e, vals in r["fitted"].items():
-            if e in LEFT_OUT or e not in truth or e not in EFFECTS:
-                continue
-            row = out.setdefault(e, {"cases": 0, **{name: 0 for name in tables}})
-            row["cases"] += 1
-            for name, table in tables.items():
-                held = True
-                for k, v in vals.items():
-                    if k in truth[e]:
-                        lo, hi = widen(v, tuple(stat[e][k]), table[e][k])
-                        held &= lo <= truth[e][k] <= hi
-                row[name] += held
-    return out
-
-
 def score(seeds: list[int]) -> dict:
     """The frozen table against the first one on seeds' stored rows (neither estimated from them)."""
     from smarticle_mjx.calibrate.discrepancy import MISMATCH_LOG_SD

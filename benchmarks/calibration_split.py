@@ -23,63 +23,10 @@ import argparse
 import json
 
 from calibration_stress import RESULTS
-
-BAR = 0.2  # the held-out gain the calibration asks of a joint hypothesis (stages.judged)
-
-
-def stored(folder) -> dict:
-    """index -> stored row of every set under ``folder`` (empty where there is none)."""
-    rows = [json.loads(p.read_text()) for p in sorted(folder.glob("set_*.json"))]
-    return {r["set"]["index"]: r for r in rows}
-
-
-def kind(s: dict) -> str:
-    if s["hidden"]:
-        return "library effects"
-    return "outside only" if s["outside"] else "clean"
-
-
-def tried(row: dict) -> dict:
-    """effect -> held-out gain of every joint hypothesis tried on a row's first pass."""
-    return {h["effect"]: h["heldout_gain"] for h in row.get("hypotheses") or []
-            if h.get("tried") and h.get("heldout_gain") is not None}
-
-
-def compare(rule: dict, swapped: dict) -> list[dict]:
-    """One line per set stored both ways: hidden, added and right on each split, and the joint hypotheses'
-    gains on each."""
-    out = []
-    for i in sorted(set(rule) & set(swapped)):
-        a, b = rule[i], swapped[i]
-        ga, gb = tried(a), tried(b)
-        out.append({"index": i, "hidden": a["set"]["hidden"], "outside": a["set"]["outside"],
-                    "kind": kind(a["set"]), "added_rule": a["score"]["added"], "added_swapped": b["score"]["added"],
-                    "same_added": a["score"]["added"] == b["score"]["added"],
-                    "right_rule": bool(a["score"]["right"]), "right_swapped": bool(b["score"]["right"]),
-                    "gains": {e: {"rule": ga[e], "swapped": gb[e], "mean": (ga[e] + gb[e]) / 2}
-                              for e in sorted(set(ga) & set(gb))}})
-    return out
-
-
-def summary(lines: list[dict]) -> dict:
-    by_kind = {}
-    for k in ("library effects", "clean", "outside only"):
-        ls = [x for x in lines if x["kind"] == k]
-        by_kind[k] = {"sets": len(ls), "same_added": sum(x["same_added"] for x in ls),
-                      "right_rule": sum(x["right_rule"] for x in ls),
-                      "right_swapped": sum(x["right_swapped"] for x in ls),
-                      "right_both": sum(x["right_rule"] and x["right_swapped"] for x in ls)}
-    hyp = {}
-    for x in lines:
-        for e, g in x["gains"].items():
-            h = hyp.setdefault(e, {"hidden": {"tried": 0, "rule": 0, "swapped": 0, "mean": 0},
-                                   "not hidden": {"tried": 0, "rule": 0, "swapped": 0, "mean": 0}})
-            c = h["hidden" if e in x["hidden"] else "not hidden"]
-            c["tried"] += 1
-            for w in ("rule", "swapped", "mean"):
-                c[w] += g[w] >= BAR
-    return {"by_kind": by_kind, "gain_at_bar": hyp, "bar": BAR}
-
+from smarticle_mjx.calibrate.stress import SPLIT_BAR as BAR  # noqa: F401  (the comparison lives in the package)
+from smarticle_mjx.calibrate.stress import set_kind as kind  # noqa: F401
+from smarticle_mjx.calibrate.stress import split_compare as compare, split_summary as summary, stored_rows as stored  # noqa: F401
+from smarticle_mjx.calibrate.stress import tried_gains as tried  # noqa: F401
 
 def tables(s: dict) -> str:
     out = ["| sets | compared | same effects added | right: rule's split | right: swapped | right: both |",

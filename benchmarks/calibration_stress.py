@@ -44,8 +44,6 @@ a set computed with another generator or scoring (their source hashes are stored
 from __future__ import annotations
 
 import argparse
-import hashlib
-import inspect
 import json
 import math
 import pathlib
@@ -54,163 +52,33 @@ import time
 
 import numpy as np
 
-from smarticle_mjx.calibrate import independent as IND
 from smarticle_mjx.calibrate.fit import PLATE_HYPOTHESES
 from smarticle_mjx.calibrate.stages import plate_hypotheses_with
+# the generator and its scoring live in the package (smarticle_mjx/calibrate/stress.py); re-exported here for the
+# scripts that read stored sets
+from smarticle_mjx.calibrate.stress import (  # noqa: F401
+    AMPLITUDES, CONDITIONS, FRAME_RATES, LIBRARY, OUTSIDE, SAME_LAW, SERVO, SPEED_TARGET_S, _effect, _size,
+    by_condition, by_effect, by_trials, choose_sets, condition, condition_table, confusion, coverage,
+    covered_statistical, draw_set, effect_table, parse_set, rate, recording, score, seed_indices, source_hash,
+    speed_table, summarise, trials_of, write_set)
+from smarticle_mjx.calibrate.stress import COUNTERFACTUALS  # noqa: F401
+from smarticle_mjx.calibrate.stress import indices as _indices  # noqa: F401
+from smarticle_mjx.calibrate.stress import pooled_rows as _pooled_rows
+
 
 ROOT = pathlib.Path(__file__).resolve().parent
 RESULTS = ROOT / "results"
 REPORTED_SEED = 2026  # the suite reported in docs/calibration.md; development used other seeds
-AMPLITUDES = (15, 25, 40, 60, 75, 90)
-FRAME_RATES = (30.0, 60.0, 90.0, 120.0)
-LIBRARY = ("servo_lag", "servo_dead_time", "plate_tilt", "phase_offset", "anisotropic_friction",
-           "arm_plate_contact", "tracking_noise")
-SERVO = ("servo_lag", "servo_dead_time")
-SAME_LAW = ("servo_dead_time", "plate_tilt", "phase_offset", "anisotropic_friction", "arm_plate_contact",
-            "tracking_noise")
-OUTSIDE = ("arm_bias", "heading_friction")
 
 
-def _effect(name: str, rng) -> tuple[dict, dict]:
-    """(generator keywords, the truth in the library's parameters; {} outside the library)."""
-    u = rng.uniform
-    sign = 1.0 if rng.uniform() < 0.5 else -1.0
-    if name == "servo_lag":
-        lag = u(0.015, 0.05)
-        return {"lag_s": lag}, {"extra_lag_s": lag}
-    if name == "servo_dead_time":
-        dead = u(0.015, 0.05)
-        return {"dead_s": dead}, {"dead_time_s": dead}
-    if name == "plate_tilt":
-        mag, az = u(0.5, 2.5), u(0.0, 2 * math.pi)
-        x, y = mag * math.cos(az), mag * math.sin(az)  # gravity pulls toward (x, y) (library's plate_tilt)
-        return {"tilt_deg": (-y, x)}, {"tilt_x_deg": x, "tilt_y_deg": y}
-    if name == "phase_offset":
-        off = sign * u(0.05, 0.2)
-        return {"phase_offset": off}, {"phase_offset": off}
-    if name == "anisotropic_friction":
-        r = math.exp(sign * u(math.log(1.5), math.log(2.5)))
-        return {"friction_y_ratio": r}, {"friction_y_ratio": r}
-    if name == "arm_plate_contact":
-        mu = u(0.1, 0.5)
-        return {"arm_plate_mu": mu}, {"arm_plate_mu": mu}
-    if name == "tracking_noise":
-        xy, th = u(0.2, 1.0), u(0.2, 1.0)
-        return {"noise_xy_mm": xy, "noise_theta_deg": th}, {"noise_xy_mm": xy, "noise_theta_deg": th}
-    if name == "arm_bias":
-        return {"arm2_bias_deg": sign * u(3.0, 8.0)}, {}
-    if name == "heading_friction":
-        return {"heading_friction": u(0.3, 0.6)}, {}
-    raise ValueError(name)
-
-
-def draw_set(suite_seed: int, index: int) -> dict:
-    """Everything about one set, drawn from (suite_seed, index) alone: JSON-ready."""
-    rng = np.random.default_rng([suite_seed, index])
-    build = IND.draw_build(rng)
-    hidden, outside = [], []
-    if index % 5 not in (0, 3):  # 2 sets in 5 are clean
-        n_lib = int(rng.choice([0, 1, 2], p=[0.15, 0.6, 0.25]))
-        pool = list(LIBRARY)
-        for _ in range(n_lib):
-            e = str(rng.choice(pool))
-            hidden.append(e)
-            pool = [p for p in pool if p != e and not (e in SERVO and p in SERVO)]
-        if n_lib == 0 or rng.uniform() < 0.2:
-            outside.append(str(rng.choice(OUTSIDE)))
-    gen, truth = {}, {}
-    for e in hidden + outside:
-        kw, t = _effect(e, rng)
-        gen.update(kw)
-        if t:
-            truth[e] = t
-    k = int(rng.integers(2, 5))
-    amps = sorted(int(a) for a in rng.choice(AMPLITUDES, size=k, replace=False))
-    robots = 2 if "phase_offset" in hidden or rng.uniform() < 0.15 else 1
-    arms = bool("arm_bias" in outside or rng.uniform() < 0.75)
-    return {"suite_seed": suite_seed, "index": index, "build": build.as_dict(), "hidden": hidden,
-            "outside": outside, "generator": gen, "truth": truth, "amplitudes": amps,
-            "chirality": "ccw" if rng.uniform() < 0.5 else "cw", "frame_rate_hz": float(rng.choice(FRAME_RATES)),
-            "arms_tracked": arms, "robots": robots, "trials_per_amplitude": 2, "periods": 5,
-            "data_seed": int(rng.integers(2 ** 31))}
-
-
-def choose_sets(seeds, kind, per_class: int, indices=range(60)) -> list[tuple[int, int, str]]:
-    """(seed, index, class) of the first ``per_class`` sets of each class ``kind(set)`` gives (None: not
-    chosen), in seed and index order: sets chosen by what they hide, before any is run."""
-    out, count = [], {}
-    for seed in seeds:
-        for index in indices:
-            k = kind(draw_set(seed, index))
-            if k and count.get(k, 0) < per_class:
-                count[k] = count.get(k, 0) + 1
-                out.append((seed, index, k))
-    return out
-
-
-def write_set(s: dict, out, effects: bool = True) -> None:
-    """The set's data (one CSV + sidecar per amplitude); ``effects`` False: its clean twin (same build,
-    starts, frame times and noise draws)."""
-    build = IND.Build(**s["build"])
-    gen = dict(s["generator"]) if effects else {}
-    noise = {k: gen.pop(k) for k in ("noise_xy_mm", "noise_theta_deg") if k in gen}
-    for j, a in enumerate(s["amplitudes"]):
-        IND.write_case(out, robots=s["robots"], amplitude_deg=float(a), trials=s["trials_per_amplitude"],
-                       periods=s["periods"], seed=s["data_seed"] + j, frame_rate=s["frame_rate_hz"],
-                       name=f"a{a}", arms_tracked=s["arms_tracked"], chirality=s["chirality"], build=build,
-                       **noise, **gen)
-
-
-def _size(name: str, fitted: dict, truth: dict) -> float:
-    if name == "plate_tilt":
-        return math.hypot(fitted["tilt_x_deg"], fitted["tilt_y_deg"]) / math.hypot(truth["tilt_x_deg"],
-                                                                                     truth["tilt_y_deg"])
-    ratios = [fitted[k] / truth[k] for k in truth]
-    return max(ratios, key=lambda r: abs(math.log(abs(r))) if r else math.inf)
-
-
-def score(s: dict, res: dict, twin_err: float | None) -> dict:
-    """The frozen scoring of one set from its calibration summary (docstring above)."""
-    added = [a["effect"] for a in res["added"]]
-    hidden = s["hidden"]
-    if len(hidden) == 1:
-        right = added[:1] == hidden
-    elif len(hidden) == 2:
-        right = set(hidden) <= set(added)
-    else:
-        right = not added
-    found = {a["effect"]: a for a in res["added"]}
-    effects = []
-    for e in hidden:
-        if e not in SAME_LAW:
-            continue
-        row = {"effect": e, "added": e in found, "size_ratio": None, "within_1_5": False, "covered": False}
-        if e in found:
-            r = _size(e, found[e]["values"], s["truth"][e])
-            row["size_ratio"] = r
-            row["within_1_5"] = bool(1 / 1.5 <= r <= 1.5)
-            row["covered"] = all(found[e]["interval"][k][0] <= v <= found[e]["interval"][k][1]
-                                 for k, v in s["truth"][e].items())
-        effects.append(row)
-    err = res["after"]["err_heldout"]
-    return {"right": bool(right), "added": added, "verdict": res["verdict"], "same_law": effects,
-            "outside_reported": (bool(not added and "unexplained" in res["verdict"]) if s["outside"] and not hidden
-                                 else None),
-            "heldout_after": err, "heldout_twin": twin_err,
-            "heldout_vs_twin": (err / twin_err if twin_err else None) if hidden else None}
+def pooled_rows(seeds: str, results=None) -> list[dict]:
+    """Every stored row of the seeds named, from results/ unless ``results`` names another folder."""
+    return _pooled_rows(seeds, RESULTS if results is None else results)
 
 
 def _plain(x):
     """numpy scalars as JSON numbers and booleans."""
     return x.item() if isinstance(x, np.generic) else float(x)
-
-
-def source_hash() -> str:
-    """What the stored results depend on besides the calibration: the generator and this file's draw and
-    score."""
-    parts = [pathlib.Path(IND.__file__).read_text()] + [inspect.getsource(f) for f in (_effect, draw_set, write_set,
-                                                                                       _size, score)]
-    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:16]
 
 
 def run_set(s: dict, plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES, overrides: tuple = ()) -> dict:
@@ -246,215 +114,11 @@ def run_set(s: dict, plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES, overr
             **({"overrides": dict(overrides)} if overrides else {})}
 
 
-def _rate(xs) -> dict:
-    xs = [bool(x) for x in xs]
-    return {"rate": (sum(xs) / len(xs)) if xs else None, "n": len(xs)}
-
-
-def _covered_statistical(row: dict, effect: str) -> bool:
-    """Whether the statistical interval alone (before the model-mismatch term, calibrate/discrepancy.py)
-    holds the truth in every parameter; rows of runs before the term have none."""
-    iv = row["intervals_statistical"][effect]
-    return all(iv[k][0] <= v <= iv[k][1] for k, v in row["set"]["truth"][effect].items())
-
-
-def summarise(rows: list[dict]) -> dict:
-    lib = [r for r in rows if r["set"]["hidden"]]
-    clean = [r for r in rows if not r["set"]["hidden"] and not r["set"]["outside"]]
-    outside = [r for r in rows if r["set"]["outside"] and not r["set"]["hidden"]]
-    same = [e for r in lib for e in r["score"]["same_law"]]
-    twin = [r["score"]["heldout_vs_twin"] for r in lib if r["score"]["heldout_vs_twin"] is not None]
-    return {"sets": len(rows), "right_with_effects": _rate(r["score"]["right"] for r in lib),
-            "nothing_added_clean": _rate(r["score"]["right"] for r in clean),
-            "outside_reported_unexplained": _rate(r["score"]["outside_reported"] for r in outside),
-            "size_within_1_5": _rate(e["within_1_5"] for e in same),
-            "size_within_1_5_of_added": _rate(e["within_1_5"] for e in same if e["added"]),
-            "covered": _rate(e["covered"] for e in same),
-            "covered_of_added": _rate(e["covered"] for e in same if e["added"]),
-            "covered_statistical_of_added": _rate(_covered_statistical(r, e["effect"]) for r in lib
-                                                  for e in r["score"]["same_law"]
-                                                  if e["added"] and "intervals_statistical" in r),
-            "heldout_within_1_5_of_twin": _rate(x <= 1.5 for x in twin),
-            "wall_s_median": float(np.median([r["wall_s"] for r in rows])) if rows else None,
-            "wall_s_by_trials": {str(k): v for k, v in by_trials(rows).items()},
-            "by_condition": by_condition(rows),
-            "targets": {"right_with_effects": 0.9, "nothing_added_clean": 0.95, "size_within_1_5": 0.8,
-                        "covered": 0.8, "heldout_within_1_5_of_twin": 1.0}}
-
-
-# Conditions under which the calibration is known to miss an effect, each documented on earlier seeds
-# (docs/calibration.md, "Where the misses are"): read off the draw alone, in this order, the first that
-# applies. A split for the report, beside the frozen targets; no rule of the calibration reads it (written
-# before seed 2066 ran).
-CONDITIONS = (
-    "servo timing, body only",  # a lag or dead time where no arm is tracked: not tried (the arm-track rule)
-    "lag behind a stepped reference",  # the arm runs at its speed limit; its delay moves by a few ms
-    "tilt beside tracking noise",  # the noise takes the plate-frame drift's chi2 down 100-400x
-    "beside an outside effect",  # an arm misread or a heading-dependent grip beside a library effect
-    "anisotropic plate",  # a plate slipperier along one axis, seen at two or three headings per gait
-    "none of these",
-)
-
-
-def condition(s: dict) -> str | None:
-    """The first of ``CONDITIONS`` that a set with hidden library effects meets, from its draw alone;
-    None for a clean set or one that hides only an outside effect."""
-    hidden = set(s["hidden"])
-    if not hidden:
-        return None
-    met = (bool(hidden & set(SERVO)) and not s["arms_tracked"],
-           "servo_lag" in hidden and s["build"]["servo_slew"] is None,
-           {"plate_tilt", "tracking_noise"} <= hidden,
-           bool(s["outside"]),
-           "anisotropic_friction" in hidden,
-           True)
-    return CONDITIONS[met.index(True)]
-
-
-def by_condition(rows: list[dict]) -> dict:
-    """Per condition (``CONDITIONS``, in order): sets, right, held-out within 1.5x of the twin."""
-    out = {}
-    for name in CONDITIONS:
-        rs = [r for r in rows if condition(r["set"]) == name]
-        twin = [r["score"]["heldout_vs_twin"] for r in rs if r["score"]["heldout_vs_twin"] is not None]
-        out[name] = {"sets": len(rs), "right": sum(bool(r["score"]["right"]) for r in rs),
-                     "heldout_within_1_5_of_twin": sum(x <= 1.5 for x in twin), "with_twin": len(twin)}
-    return out
-
-
-def condition_table(rows: list[dict]) -> str:
-    lines = ["| condition (first that applies) | sets with effects | right | held-out within 1.5x of twin |",
-             "|---|---|---|---|"]
-    for name, c in by_condition(rows).items():
-        lines.append(f"| {name} | {c['sets']} | {c['right']} | {c['heldout_within_1_5_of_twin']} of {c['with_twin']} |")
-    return "\n".join(lines)
-
-
-def recording(s: dict, effect: str) -> str:
-    """How a set records what an effect shows in: a servo timing needs the arms and depends on the servo's
-    reference ("arms, slewed reference", "arms, stepped reference", "body only"); every other effect, ""."""
-    if effect not in SERVO:
-        return ""
-    if not s["arms_tracked"]:
-        return "body only"
-    return "arms, " + ("stepped" if s["build"]["servo_slew"] is None else "slewed") + " reference"
-
-
-def by_effect(rows: list[dict]) -> dict:
-    """Per hidden library effect and recording (``recording``): sets hiding it, sets where it was added
-    (first or not), and of those added, for a same-law effect, sizes within 1.5x and intervals that hold the
-    truth (None for an effect whose law is not the library's)."""
-    out: dict = {}
-    for r in rows:
-        added = r["score"]["added"]
-        law = {e["effect"]: e for e in r["score"]["same_law"]}
-        for e in r["set"]["hidden"]:
-            key = (e, recording(r["set"], e))
-            t = out.setdefault(key, {"hidden": 0, "added": 0, "within_1_5": 0 if e in SAME_LAW else None,
-                                     "covered": 0 if e in SAME_LAW else None})
-            t["hidden"] += 1
-            if e in added:
-                t["added"] += 1
-                if e in SAME_LAW:
-                    t["within_1_5"] += bool(law[e]["within_1_5"])
-                    t["covered"] += bool(law[e]["covered"])
-    return dict(sorted(out.items()))
-
-
-def effect_table(rows: list[dict]) -> str:
-    lines = ["| hidden effect | recorded | sets | added | of added: size within 1.5x | of added: interval covers |",
-             "|---|---|---|---|---|---|"]
-    for (e, rec), t in by_effect(rows).items():
-        law = ("not scored: not the library's law", "not scored") if t["within_1_5"] is None else (t["within_1_5"], t["covered"])
-        lines.append(f"| {e} | {rec or '-'} | {t['hidden']} | {t['added']} | {law[0]} | {law[1]} |")
-    return "\n".join(lines)
-
-
-def pooled_rows(seeds: str, results=None) -> list[dict]:
-    """Every stored row of the whole seeds named (e.g. "2049-2051,2058"), read from their summaries
-    (results/calibration_stress_<seed>.json, as the runs wrote them); FileNotFoundError in one line for a
-    seed never summarised."""
-    results = RESULTS if results is None else results
-    rows = []
-    for seed in _indices(seeds):
-        path = results / f"calibration_stress_{seed}.json"
-        if not path.exists():
-            raise FileNotFoundError(f"no stored summary for suite seed {seed} ({path.name})")
-        rows += json.loads(path.read_text())["rows"]
-    return rows
-
-
-def confusion(rows: list[dict]) -> str:
-    """Hidden (first library effect, or clean / outside) x first structural effect added."""
-    names = sorted({(r["score"]["added"] or ["(none)"])[0] for r in rows} | {"(none)"})
-    table: dict = {}
-    for r in rows:
-        h = r["set"]["hidden"]
-        key = " + ".join(h) if h else ("outside: " + r["set"]["outside"][0] if r["set"]["outside"] else "clean")
-        first = (r["score"]["added"] or ["(none)"])[0]
-        table.setdefault(key, {}).setdefault(first, 0)
-        table[key][first] += 1
-    lines = ["| hidden | sets | " + " | ".join(names) + " |", "|---|---|" + "---|" * len(names)]
-    for key in sorted(table):
-        row = table[key]
-        lines.append(f"| {key} | {sum(row.values())} | " + " | ".join(str(row.get(n, 0)) for n in names) + " |")
-    return "\n".join(lines)
-
-
-def coverage(rows: list[dict]) -> str:
-    """Per same-law effect: how often added, within 1.5x, covered."""
-    by: dict = {}
-    for r in rows:
-        for e in r["score"]["same_law"]:
-            by.setdefault(e["effect"], []).append(e)
-    lines = ["| effect (same law) | hidden | added | size within 1.5x | interval covers | size ratios |",
-             "|---|---|---|---|---|---|"]
-    for name, es in sorted(by.items()):
-        ratios = ", ".join(f"{e['size_ratio']:.2f}" for e in es if e["size_ratio"] is not None) or "-"
-        lines.append(f"| {name} | {len(es)} | {sum(e['added'] for e in es)} | {sum(e['within_1_5'] for e in es)} | "
-                     f"{sum(e['covered'] for e in es)} | {ratios} |")
-    return "\n".join(lines)
-
-
-SPEED_TARGET_S = 300.0  # an 8-trial set calibrated within 5 minutes on 2 cores (issue #44)
-
-
-def trials_of(s: dict) -> int:
-    return len(s["amplitudes"]) * s["trials_per_amplitude"]
-
-
-def by_trials(rows: list[dict]) -> dict:
-    """Per count of trials in a set: sets, median and slowest wall time of the calibration (the clean twin's
-    not counted), and how many ran within ``SPEED_TARGET_S``."""
-    out = {}
-    for k in sorted({trials_of(r["set"]) for r in rows}):
-        w = [r["wall_s"] for r in rows if trials_of(r["set"]) == k]
-        out[k] = {"sets": len(w), "median_s": float(np.median(w)), "slowest_s": float(max(w)),
-                  "within_5_min": sum(x <= SPEED_TARGET_S for x in w)}
-    return out
-
-
-def speed_table(rows: list[dict]) -> str:
-    lines = ["| trials in the set | sets | median | slowest | within 5 minutes |", "|---|---|---|---|---|"]
-    for k, v in by_trials(rows).items():
-        lines.append(f"| {k} | {v['sets']} | {v['median_s']:.0f} s | {v['slowest_s']:.0f} s | {v['within_5_min']} |")
-    return "\n".join(lines)
-
-
 def print_summary(rows: list[dict], summary: dict | None = None) -> None:
     """The summary (``summarise``, unless given) and every table, as a run and ``--summary --pool`` print them."""
     print(json.dumps(summarise(rows) if summary is None else summary, indent=1))
     for table in (confusion, coverage, condition_table, effect_table, speed_table):
         print(table(rows))
-
-
-def parse_set(spec: str) -> tuple[int, int]:
-    """(seed, index) of a set named "SEED/INDEX"; argparse.ArgumentTypeError in one line otherwise."""
-    try:
-        seed, index = spec.split("/")
-        return int(seed), int(index)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"a set is SEED/INDEX, e.g. 2141/4, not {spec!r}") from None
 
 
 def stored_set(spec: str, hides: str | None = None) -> dict:
@@ -471,37 +135,6 @@ def stored_set(spec: str, hides: str | None = None) -> dict:
     if hides is not None and hides not in row["set"]["truth"]:
         raise SystemExit(f"stress set {seed}/{index} hides no {hides}")
     return row
-
-
-def _indices(spec: str) -> list[int]:
-    """The integers a spec such as "0-29" or "2049-2051,2058" names; ValueError in one line otherwise."""
-    out = []
-    for part in spec.split(","):
-        a, _, b = part.partition("-")
-        try:
-            out += list(range(int(a), int(b or a) + 1))
-        except ValueError:
-            raise ValueError(f"not a list of numbers and ranges: {spec!r} (e.g. 0-29 or 2049-2051,2058)") from None
-    return out
-
-
-def seed_indices(seeds: str, sets: str) -> list[tuple[int, int]]:
-    """(suite seed, index) of every set the two specs name (e.g. "2061-2065", "0-29"), seed by seed."""
-    return [(seed, i) for seed in _indices(seeds) for i in _indices(sets)]
-
-
-# the counterfactual rules a run can take instead of the calibration's (each kept apart with --tag):
-# (flag, what it does, how it sets calibrate.stages)
-COUNTERFACTUALS = (
-    ("--no-plate-level-gate", "try the anisotropic plate whatever the plate-frame drift shows (the rule before "
-     "the gate)", lambda st: setattr(st, "P_LEVEL", math.inf)),  # no p reaches it: the plate is never withheld
-    ("--servo-without-arms", "try a servo lag or dead time on sets without arm tracks too, as before the "
-     "arm-track rule", lambda st: setattr(st, "SERVO_WITHOUT_ARMS", True)),
-    ("--plate-both-sides", "also start the anisotropic plate's fit from the grid's best point on the other side "
-     "of ratio 1 (tried on stored sets, not the rule)", lambda st: setattr(st, "PLATE_BOTH_SIDES", True)),
-    ("--swapped-split", "calibrate with the odd trials training and the even ones held out, the other way round",
-     lambda st: setattr(st, "SPLIT_SWAPPED", True)),
-)
 
 
 def main():

@@ -36,70 +36,13 @@ import time
 
 import numpy as np
 
-from calibration_stress import RESULTS, SERVO, _effect, _indices, draw_set, write_set
-from smarticle_mjx.calibrate import independent as IND
+from calibration_stress import RESULTS, SERVO, _indices, draw_set
 from smarticle_mjx.calibrate.observables import crossings
-from smarticle_mjx.calibrate.data import load
-from smarticle_mjx.calibrate.residuals import features, masked, residual_blocks
+from smarticle_mjx.calibrate.stress import (  # noqa: F401  (the measure lives in the package)
+    DEFAULT_NOISE, NOISE_KEYS, VISIBLE)
+from smarticle_mjx.calibrate.stress import visibility as measure
 
 OUT = RESULTS / "calibration_visibility.json"
-NOISE_KEYS = ("noise_xy_mm", "noise_theta_deg")
-DEFAULT_NOISE = (0.02, 0.02)  # write_case's tracking noise when no tracking_noise effect is hidden (mm, deg)
-VISIBLE = 0.2  # the calibration's held-out gain rule (calibrate/fit.py MIN_HELDOUT_GAIN)
-
-
-def _write_noise_free(s: dict, out, drop: set[str]) -> None:
-    """The set's generator tracks with no tracking noise and without the hidden effects in ``drop``."""
-    build = IND.Build(**s["build"])
-    gen = {k: v for k, v in s["generator"].items() if k not in NOISE_KEYS}
-    for e in drop:  # the generator keywords the suite draws for that effect (any draw names the same ones)
-        for k in _effect(e, np.random.default_rng(0))[0]:
-            gen.pop(k, None)
-    for j, a in enumerate(s["amplitudes"]):
-        IND.write_case(out, robots=s["robots"], amplitude_deg=float(a), trials=s["trials_per_amplitude"],
-                       periods=s["periods"], seed=s["data_seed"] + j, frame_rate=s["frame_rate_hz"],
-                       name=f"a{a}", arms_tracked=s["arms_tracked"], chirality=s["chirality"], build=build,
-                       noise_xy_mm=0.0, noise_theta_deg=0.0, noise_arm_deg=0.0, **gen)
-
-
-def _error(meas, model, noise) -> float:
-    """The calibration's held-out error of the measured trials against generator tracks (held-out half)."""
-    v = []
-    for tr, mt in list(zip(meas, model))[1::2]:
-        track = np.concatenate([mt.pose, mt.arms if mt.arms is not None else np.full(mt.pose.shape[:2] + (2,),
-                                                                                      np.nan)], -1)
-        pose, arms = masked(track, tr)
-        f_meas = features(tr.t, tr.pose, tr.arms, tr.periods)
-        f_mod = features(tr.t, pose, arms, tr.periods)
-        v += [b for b in residual_blocks(f_meas, f_mod, noise).values()]
-    v = np.concatenate(v) if v else np.zeros(0)
-    return float(np.mean(v ** 2)) if len(v) else 0.0
-
-
-def _noise(s: dict, without_noise: bool) -> tuple[float, float]:
-    g = s["generator"]
-    if without_noise or "noise_xy_mm" not in g:
-        return DEFAULT_NOISE
-    return g["noise_xy_mm"], g["noise_theta_deg"]
-
-
-def measure(s: dict) -> dict:
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = pathlib.Path(tmp)
-        write_set(s, tmp / "data")
-        meas = load(tmp / "data")
-        _write_noise_free(s, tmp / "full", set())
-        full = load(tmp / "full")
-        err_full = _error(meas, full, _noise(s, False))
-        out = {}
-        for e in s["hidden"]:
-            d = tmp / f"without_{e}"
-            _write_noise_free(s, d, {e})
-            err_wo = _error(meas, load(d), _noise(s, e == "tracking_noise"))
-            out[e] = {"error_without": err_wo, "signal": err_wo - err_full}
-    return {"err_full": err_full, "effects": out}
-
-
 def _servo_law(s: dict) -> str:
     b = s["build"]
     return "step" if b["servo_slew"] is None else ("slew_ff" if b["servo_ff"] else "slew")

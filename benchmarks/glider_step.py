@@ -28,13 +28,13 @@ import time
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent
-from smarticle_mjx.bench import gliding, pair_starts
+from smarticle_mjx.bench import STEP_CHECK_SEED, gliding, pair_starts
 from smarticle_mjx import presets
 from smarticle_mjx.reduce.gliders import glider_transport, steady_gliders
 
 TRACKS = ROOT / "results" / "fidelity_tracks"
 STEPS = (2.5e-4, 5e-4)  # the default before version 0.3.0, and since
-POOL, SEED, PERIODS = 128, 1, 100  # the fidelity confirmation's starts
+POOL, SEED, PERIODS = 128, STEP_CHECK_SEED, 100  # the fidelity confirmation's starts
 BURN_IN = 10
 
 

@@ -28,67 +28,14 @@ from __future__ import annotations
 import json
 import pathlib
 
-from glider_step import SEED
-from smarticle_mjx import imperfections as imp
-from smarticle_mjx import presets, scene
+from smarticle_mjx.bench import builds_preset, collect_step_checks  # noqa: F401
 from smarticle_mjx.reduce import stepcheck
-from step_mechanism import variant_params
 
 ROOT = pathlib.Path(__file__).resolve().parent / "results"
 
 
-def builds_preset(model: str, imperfections: str, row: dict) -> bool:
-    """Does a benchmark row's scene equal the preset's at the row's step and numerics? Rows that change only
-    the numerics (``stepcheck.KEYED_NUMERICS``) do; a row that changes a robot field enters only where that
-    field builds the scene the preset builds anyway (the gear teeth's time constant at the 2 dt the step
-    gives them), with the check's drawn robots."""
-    changes = row["changes"]
-    numerics = {k: v for k, v in changes.items() if k != "robot"}
-    if set(numerics) - set(stepcheck.KEYED_NUMERICS):
-        return False
-    if not changes.get("robot"):
-        return True
-    robots = imp.draw(imperfections, 2, SEED) if imperfections != "none" else None
-    poses = [(0.0, 0.0, 0.0, 1.0, 1.0), (0.2, 0.0, 0.5, 1.0, 1.0)]
-    xml = [scene.build_mjcf(p if robots is None else robots.scene(p), poses)
-           for p in (variant_params(row["dt_s"], numerics, model), variant_params(row["dt_s"], changes, model))]
-    return xml[0] == xml[1]
-
-
-def collect() -> list[stepcheck.StepCheck]:
-    out = {}
-    g = json.loads((ROOT / "glider_step.json").read_text())
-    base = presets.params(g["model"])
-    ref_name = next(k for k in g["runs"] if "reference" in k)
-    for name, row in g["runs"].items():
-        if name == ref_name:
-            continue
-        dt = float(name.split()[0]) * 1e-3
-        e = stepcheck.entry(g["model"], "none", dt, base.integrator, g["reference_dt_s"], "glider_step.json", row,
-                            g["runs"][ref_name])
-        out[stepcheck.key_of(e)] = e
-    for source in ("step_mechanism.json", "step_mechanism_lab_runs30_stops-0.5ms_against-default.json",
-                   "step_mechanism_lab_runs30_rerun.json",
-                   "step_mechanism_substeps.json", "step_mechanism_substeps_discrete.json",
-                   "step_mechanism_discrete_against-default.json"):
-        if not (ROOT / source).exists():
-            continue
-        m = json.loads((ROOT / source).read_text())
-        ref_name = m.get("reference") or next(k for k in m["runs"] if "reference" in k)
-        for name, row in m["runs"].items():
-            if name == ref_name or not builds_preset(m["model"], m.get("imperfections", "none"), row):
-                continue
-            ch = row["changes"]
-            label = stepcheck.numerics(ch.get("integrator", base.integrator), ch.get("contact_substeps", 1),
-                                       ch.get("substep_gate", base.substep_gate))
-            e = stepcheck.entry(m["model"], m.get("imperfections", "none"), row["dt_s"], label,
-                                m["runs"][ref_name]["dt_s"], source, row, m["runs"][ref_name])
-            out.setdefault(stepcheck.key_of(e), e)  # glider_step's measurement of the same key comes first
-    return list(out.values())
-
-
 def main():
-    checks = collect()
+    checks = collect_step_checks(ROOT)
     stepcheck.TABLE.write_text(json.dumps({"criteria": {"beta_max": stepcheck.BETA_MAX,
                                                         "speed_max": stepcheck.SPEED_MAX},
                                            "checks": [{"key": stepcheck.key_of(c), **c.as_dict()} for c in checks]},

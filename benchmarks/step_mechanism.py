@@ -41,7 +41,7 @@ import numpy as np
 
 from glider_step import BURN_IN, PERIODS, POOL, SEED, paired_rows, quantities, quantities_runs30
 from smarticle_mjx import presets
-from smarticle_mjx.bench import gliding, pair_starts, save_json
+from smarticle_mjx.bench import gliding, pair_starts, save_json, variant_params
 
 ROOT = pathlib.Path(__file__).resolve().parent
 RUNS = ROOT / "results" / "step_mechanism_runs"
@@ -164,17 +164,6 @@ for _family in FAMILIES.values():
     VARIANTS.update(_family)
 for _dt, _changes in VARIANTS.values():  # every variant names its sub-stepping: a preset's own never leaks in
     _changes.setdefault("contact_substeps", 1)
-
-
-def variant_params(dt: float, changes: dict, model: str = "lab-lag"):
-    """The scene a variant runs: ``model``'s preset at step ``dt`` with ``changes`` (scene fields, and under
-    "robot" robot fields: a robot parameter that is numerics in disguise, the gear stops' 2 dt)."""
-    changes = dict(changes)
-    robot_changes = changes.pop("robot", {})
-    params = dataclasses.replace(presets.params(model), timestep=dt, **changes)
-    if robot_changes:
-        params = dataclasses.replace(params, robot=dataclasses.replace(params.robot, **robot_changes))
-    return params
 
 
 def run(name: str, poses: np.ndarray, imperfections: str | None = None, replica: int | None = None) -> pathlib.Path:

@@ -26,14 +26,9 @@ import tempfile
 from calibration_stress import RESULTS, draw_set, seed_indices, write_set
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.drift import P_DRIFT, drift_test
+from smarticle_mjx.calibrate.stress import NOISE_KEYS, without_noise  # noqa: F401
 
-NOISE = ("noise_xy_mm", "noise_theta_deg")
-
-
-def without_noise(s: dict) -> dict:
-    """The set with its tracking noise left out (everything else as drawn)."""
-    gen = {k: v for k, v in s["generator"].items() if k not in NOISE}
-    return {**s, "generator": gen}
+NOISE = NOISE_KEYS
 
 
 def read(s: dict) -> dict:

@@ -17,7 +17,7 @@ from . import configs as C
 from .engine import Lanes, Scene, make_backend, steps_per_period
 from .engine.batch import RetireRule, run_lanes
 from .gait import GaitSpec
-from .reduce import binding, gliders, transport
+from .reduce import binding, gliders, stepcheck, transport
 
 # Candidate numerics of the time-step study (docs/timestep.md): name -> SceneParams changes.
 NUMERICS_REFERENCE = "ref"
@@ -204,3 +204,78 @@ def pb(params, amplitude: float, n: int, periods: int, seed: int, robots=None) -
     p = binding.binding_probability(touched, np.ones(n, bool))
     return {"n": n, "periods": periods, "end": dataclasses.astuple(p.end), "throughout": dataclasses.astuple(p.throughout),
             "wall_s": wall}
+
+
+# ------------------------------------------------------------------ time-step checks
+# (run by benchmarks/step_mechanism.py and benchmarks/step_checks.py; here so that a test checks the package's
+# table against its sources without importing a benchmark)
+
+STEP_CHECK_SEED = 1  # the glider-step check's starts and drawn robots (benchmarks/glider_step.py SEED)
+
+
+def variant_params(dt: float, changes: dict, model: str = "lab-lag"):
+    """The scene a variant runs: ``model``'s preset at step ``dt`` with ``changes`` (scene fields, and under
+    "robot" robot fields: a robot parameter that is numerics in disguise, the gear stops' 2 dt)."""
+    from . import presets
+    changes = dict(changes)
+    robot_changes = changes.pop("robot", {})
+    params = dataclasses.replace(presets.params(model), timestep=dt, **changes)
+    if robot_changes:
+        params = dataclasses.replace(params, robot=dataclasses.replace(params.robot, **robot_changes))
+    return params
+
+
+def builds_preset(model: str, imperfections: str, row: dict, seed: int = STEP_CHECK_SEED) -> bool:
+    """Does a benchmark row's scene equal the preset's at the row's step and numerics? Rows that change only
+    the numerics (``stepcheck.KEYED_NUMERICS``) do; a row that changes a robot field enters only where that
+    field builds the scene the preset builds anyway (the gear teeth's time constant at the 2 dt the step
+    gives them), with the check's drawn robots (``seed``: the glider-step check's starts and robots)."""
+    from . import imperfections as imp, scene
+    changes = row["changes"]
+    numerics = {k: v for k, v in changes.items() if k != "robot"}
+    if set(numerics) - set(stepcheck.KEYED_NUMERICS):
+        return False
+    if not changes.get("robot"):
+        return True
+    robots = imp.draw(imperfections, 2, seed) if imperfections != "none" else None
+    poses = [(0.0, 0.0, 0.0, 1.0, 1.0), (0.2, 0.0, 0.5, 1.0, 1.0)]
+    xml = [scene.build_mjcf(p if robots is None else robots.scene(p), poses)
+           for p in (variant_params(row["dt_s"], numerics, model), variant_params(row["dt_s"], changes, model))]
+    return xml[0] == xml[1]
+
+
+def collect_step_checks(results) -> list:
+    """The glider-quantity checks of time steps that benchmarks/step_checks.py writes into the package's
+    table (reduce/step_checks.json), read from the benchmark results in folder ``results`` (its docstring
+    names the sources and what enters)."""
+    from . import presets
+    ROOT = pathlib.Path(results)
+    out = {}
+    g = json.loads((ROOT / "glider_step.json").read_text())
+    base = presets.params(g["model"])
+    ref_name = next(k for k in g["runs"] if "reference" in k)
+    for name, row in g["runs"].items():
+        if name == ref_name:
+            continue
+        dt = float(name.split()[0]) * 1e-3
+        e = stepcheck.entry(g["model"], "none", dt, base.integrator, g["reference_dt_s"], "glider_step.json", row,
+                            g["runs"][ref_name])
+        out[stepcheck.key_of(e)] = e
+    for source in ("step_mechanism.json", "step_mechanism_lab_runs30_stops-0.5ms_against-default.json",
+                   "step_mechanism_lab_runs30_rerun.json",
+                   "step_mechanism_substeps.json", "step_mechanism_substeps_discrete.json",
+                   "step_mechanism_discrete_against-default.json"):
+        if not (ROOT / source).exists():
+            continue
+        m = json.loads((ROOT / source).read_text())
+        ref_name = m.get("reference") or next(k for k in m["runs"] if "reference" in k)
+        for name, row in m["runs"].items():
+            if name == ref_name or not builds_preset(m["model"], m.get("imperfections", "none"), row):
+                continue
+            ch = row["changes"]
+            label = stepcheck.numerics(ch.get("integrator", base.integrator), ch.get("contact_substeps", 1),
+                                       ch.get("substep_gate", base.substep_gate))
+            e = stepcheck.entry(m["model"], m.get("imperfections", "none"), row["dt_s"], label,
+                                m["runs"][ref_name]["dt_s"], source, row, m["runs"][ref_name])
+            out.setdefault(stepcheck.key_of(e), e)  # glider_step's measurement of the same key comes first
+    return list(out.values())

@@ -4,7 +4,6 @@ stress-suite results it was made from."""
 
 import math
 import pathlib
-import sys
 
 import numpy as np
 import pytest
@@ -13,8 +12,7 @@ from smarticle_mjx.calibrate import discrepancy as D
 from smarticle_mjx.calibrate.effects import BY_NAME
 from smarticle_mjx.calibrate.stages import added_entry
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
-import calibration_discrepancy as CD  # noqa: E402
+RESULTS = pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "results"  # the stored stress-suite rows
 
 
 def test_without_a_term_the_interval_is_the_statistical_one():
@@ -55,11 +53,11 @@ def test_the_method_of_moments_recovers_a_known_mismatch_on_built_cases():
     rng = np.random.default_rng(3)
     s = rng.uniform(0.02, 0.15, 4000)
     lr = rng.normal(0.0, 0.3, 4000) + rng.normal(0.0, s)
-    got = CD.estimate(_rows(lr, s))["servo_dead_time"]["dead_time_s"]
+    got = D.estimate(_rows(lr, s))["servo_dead_time"]["dead_time_s"]
     assert got["source"] == "own" and got["n"] == 4000
     assert got["log_sd"] == pytest.approx(0.3, abs=0.015)
     # a systematic offset counts as mismatch: the mean square, not the variance
-    off = CD.estimate(_rows(lr + 0.3, s))["servo_dead_time"]["dead_time_s"]["log_sd"]
+    off = D.estimate(_rows(lr + 0.3, s))["servo_dead_time"]["dead_time_s"]["log_sd"]
     assert off == pytest.approx(math.hypot(0.3, 0.3), abs=0.02)
 
 
@@ -69,7 +67,7 @@ def test_the_widened_interval_covers_95_percent_where_the_statistical_one_does_n
     rng = np.random.default_rng(4)
     s = rng.uniform(0.02, 0.15, 4000)
     lr = rng.normal(0.0, 0.3, 4000) + rng.normal(0.0, s)
-    sd = CD.estimate(_rows(lr, s))["servo_dead_time"]["dead_time_s"]["log_sd"]
+    sd = D.estimate(_rows(lr, s))["servo_dead_time"]["dead_time_s"]["log_sd"]
     true, v = 0.03, 0.03 * np.exp(lr)
     stat = [(x * math.exp(-1.96 * si), x * math.exp(1.96 * si)) for x, si in zip(v, s)]
     cov_stat = np.mean([lo <= true <= hi for lo, hi in stat])
@@ -81,14 +79,14 @@ def test_the_widened_interval_covers_95_percent_where_the_statistical_one_does_n
 def test_a_family_with_few_cases_takes_the_pooled_estimate():
     rows = _rows([0.5, -0.5, 0.5], [0.01] * 3, effect="arm_plate_contact", param="arm_plate_mu", true=0.3)
     rows += _rows([0.1] * 10, [0.01] * 10)
-    t = CD.estimate(rows)
+    t = D.estimate(rows)
     assert t["arm_plate_contact"]["arm_plate_mu"]["source"] == "pooled"
     assert t["arm_plate_contact"]["arm_plate_mu"]["n"] == 13
     assert t["servo_dead_time"]["dead_time_s"]["source"] == "own"
 
 
 def test_the_frozen_table_is_the_estimate_from_the_stored_stress_suite_results():
-    table = CD.estimate(CD.load_rows())
+    table = D.estimate(D.load_rows(RESULTS))
     assert set(table) == set(D.MISMATCH_LOG_SD)
     for e, params in table.items():
         assert set(params) == set(D.MISMATCH_LOG_SD[e]) == {p.name for p in BY_NAME[e].params}
@@ -153,6 +151,6 @@ def test_coverage_reads_each_table_on_the_stored_statistical_intervals():
            "fitted": {"tracking_noise": {"noise_theta_deg": v}},
            "intervals": {"tracking_noise": {"noise_theta_deg": [0.5, 2.0]}},  # reported: wide, not read
            "intervals_statistical": {"tracking_noise": {"noise_theta_deg": [v * 0.98, v * 1.02]}}}
-    got = CD.coverage([row], {"none": {"tracking_noise": {"noise_theta_deg": 0.0}},
+    got = D.coverage([row], {"none": {"tracking_noise": {"noise_theta_deg": 0.0}},
                               "some": {"tracking_noise": {"noise_theta_deg": 0.041}}})
     assert got == {"tracking_noise": {"cases": 1, "none": 0, "some": 1}}

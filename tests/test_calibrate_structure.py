@@ -17,7 +17,7 @@ from smarticle_mjx.calibrate.fit import nominal_findings
 from smarticle_mjx.calibrate.nominal import NOMINAL, fit_nominal
 from smarticle_mjx.calibrate.observables import DELAY_MIN_MS, DelayTest, delay_test, observables
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
+BENCHMARKS = pathlib.Path(__file__).resolve().parents[1] / "benchmarks"  # scripts run as a user runs them, never imported
 
 
 def _rows(amps, delays_ms, se=0.1):
@@ -144,7 +144,7 @@ def test_a_prior_pulls_the_fit_to_the_inverse_variance_mean_and_a_far_fit_is_a_f
 
 
 def test_the_stress_generator_draws_each_set_from_its_seed_and_keeps_two_in_five_clean():
-    import calibration_stress as S
+    from smarticle_mjx.calibrate import stress as S
     a, b = S.draw_set(7, 4), S.draw_set(7, 4)
     assert a == b and a != S.draw_set(8, 4)
     sets = [S.draw_set(11, i) for i in range(50)]
@@ -210,7 +210,7 @@ def test_the_stress_scoring_on_built_summaries():
     size within 1.5x and an interval that holds the truth; a missed effect fails both; a tilt's size is
     its vector's length; an outside effect is reported when nothing is added and the verdict says
     unexplained; the held-out error is compared with the clean twin's."""
-    import calibration_stress as S
+    from smarticle_mjx.calibrate import stress as S
 
     def res(added, verdict="explained", err=2.0):
         return {"added": [{"effect": e, "values": v, "interval": i} for e, v, i in added], "verdict": verdict,
@@ -535,19 +535,19 @@ def _vis_set(hidden, gen, amps=(15,)):
 
 
 def test_an_effects_visibility_is_what_leaving_it_out_costs_the_generator_itself():
-    """benchmarks/calibration_visibility.py: the generator's own noise-free tracks fit its noisy data within
+    """calibrate.stress.visibility (run by benchmarks/calibration_visibility.py): the generator's own noise-free tracks fit its noisy data within
     measurement error (about 1), and leaving out a dead time raises that error by its signal, which grows
     with the dead time (at 15 deg a 40 ms dead time shifts the arm by about a quarter of its swing time);
     dropping an effect the set does not hide costs nothing."""
-    import calibration_visibility as V
-    small = V.measure(_vis_set(["servo_dead_time"], {"dead_s": 0.01}))
-    large = V.measure(_vis_set(["servo_dead_time"], {"dead_s": 0.04}))
+    from smarticle_mjx.calibrate.stress import visibility
+    small = visibility(_vis_set(["servo_dead_time"], {"dead_s": 0.01}))
+    large = visibility(_vis_set(["servo_dead_time"], {"dead_s": 0.04}))
     for m in (small, large):
         assert m["err_full"] < 2.0
     s_small, s_large = small["effects"]["servo_dead_time"]["signal"], large["effects"]["servo_dead_time"]["signal"]
     assert s_large > 10.0 and s_large > 4 * s_small > 0
     # a tilt that the set does not hide: removing it removes nothing
-    none = V.measure(_vis_set(["plate_tilt"], {"dead_s": 0.04}))
+    none = visibility(_vis_set(["plate_tilt"], {"dead_s": 0.04}))
     assert none["effects"]["plate_tilt"]["signal"] == pytest.approx(0.0, abs=1e-9)
 
 
@@ -643,7 +643,7 @@ def test_an_anisotropic_plate_under_a_robot_that_slides_unlike_the_model_is_name
     where the anisotropy changes nothing. Fitted jointly from the grid's start it is named, its interval
     holds the truth, and the held-out error falls to the clean twin's level (5.7), also against a null
     given the same start."""
-    from calibration_stress import draw_set, write_set
+    from smarticle_mjx.calibrate.stress import draw_set, write_set
     from smarticle_mjx.calibrate.stages import calibrate
     s = draw_set(2030, 22)
     write_set(s, tmp_path)
@@ -768,7 +768,7 @@ def test_arms_dragging_on_the_plate_are_named_with_the_nominal_fit_when_asked(tm
     them gains nothing (held-out 68 against the clean twin's 4.5). Fitted jointly from a grid that also
     raises the plate's mu, the drag is named first and the held-out error falls to within about twice the
     clean twin's, against a null given the same start."""
-    from calibration_stress import draw_set, write_set
+    from smarticle_mjx.calibrate.stress import draw_set, write_set
     from smarticle_mjx.calibrate.stages import calibrate
     s = draw_set(2031, 12)
     write_set(s, tmp_path)
@@ -1172,7 +1172,7 @@ def test_no_anisotropic_plate_is_fitted_to_a_clean_set_whose_drift_shows_a_level
     gate the anisotropic plate, fitted jointly with the nominal parameters, gained 38 % held out and was
     named (ratio 0.73), taking up how the library's robot slides unlike this one. Its plate-frame drift is
     at p 0.75: the plate is not tried, the report says why, and nothing is added."""
-    from calibration_stress import draw_set, write_set
+    from smarticle_mjx.calibrate.stress import draw_set, write_set
     from smarticle_mjx.calibrate import report
     from smarticle_mjx.calibrate.stages import calibrate
     s = draw_set(2058, 13)
@@ -1194,9 +1194,8 @@ def test_the_stress_suite_refuses_a_model_change_without_a_tag_or_with_a_bad_fie
     """A stress run with a changed model (--set) is kept apart from the suite's own results: without --tag,
     or with a field the model does not have, it stops in one line before anything is written."""
     import subprocess
-    import calibration_stress as S
-    script = pathlib.Path(S.__file__)
-    folder = S.RESULTS / "calibration_stress"
+    script = BENCHMARKS / "calibration_stress.py"
+    folder = BENCHMARKS / "results" / "calibration_stress"
     before = sorted(p.name for p in folder.iterdir())
     for args, msg in ((["--set", "integrator=discrete"], "--set needs --tag"),
                       (["--set", "integratr=discrete", "--tag", "x"], "unknown scene field 'integratr'")):
@@ -1208,12 +1207,11 @@ def test_the_stress_suite_refuses_a_model_change_without_a_tag_or_with_a_bad_fie
 
 
 def test_the_tilt_noise_reading_leaves_out_the_tracking_noise_and_nothing_else():
-    import calibration_stress as S
-    import tilt_noise as T
+    from smarticle_mjx.calibrate import stress as S
     s = next(S.draw_set(2047, i) for i in range(60) if "tracking_noise" in S.draw_set(2047, i)["hidden"])
-    w = T.without_noise(s)
-    assert not set(T.NOISE) & set(w["generator"])
-    assert {k: v for k, v in s["generator"].items() if k not in T.NOISE} == w["generator"]
+    w = S.without_noise(s)
+    assert not set(S.NOISE_KEYS) & set(w["generator"])
+    assert {k: v for k, v in s["generator"].items() if k not in S.NOISE_KEYS} == w["generator"]
     assert {k: v for k, v in s.items() if k != "generator"} == {k: v for k, v in w.items() if k != "generator"}
 
 
@@ -1241,7 +1239,7 @@ def test_the_stress_split_by_condition_takes_the_first_condition_a_draw_meets():
     lag behind a stepped reference next (a dead time behind one is not); a tilt beside tracking noise
     before an outside effect; an anisotropic plate only where nothing earlier applies; clean sets and
     outside-only sets have no condition; by_condition counts right and held-out per condition."""
-    import calibration_stress as S
+    from smarticle_mjx.calibrate import stress as S
     base = {"hidden": [], "outside": [], "arms_tracked": True, "build": {"servo_slew": 8.0}}
 
     def c(**kw):
@@ -1272,7 +1270,7 @@ def test_the_stress_split_by_effect_counts_what_was_added_and_scores_only_the_li
     the servo's reference, or body only), every other effect is not; an effect counts as added wherever it
     was added, first or not; size and coverage count over added same-law effects only, and a lag (not the
     library's law) has none. Pooling reads whole seeds' stored summaries and names a missing seed."""
-    import calibration_stress as S
+    from smarticle_mjx.calibrate import stress as S
 
     def row(hidden, added, same_law=(), arms=True, slew=8.0):
         return {"set": {"hidden": hidden, "arms_tracked": arms, "build": {"servo_slew": slew}},
@@ -1304,7 +1302,7 @@ def test_the_stress_speed_table_counts_sets_by_their_trials_against_five_minutes
     """The speed split (a report): sets grouped by their trial count (amplitudes x trials per amplitude),
     each group's median and slowest calibration wall time, and how many ran within 300 s (300 s itself
     is within)."""
-    import calibration_stress as S
+    from smarticle_mjx.calibrate import stress as S
 
     def row(amps, per, wall):
         return {"set": {"amplitudes": amps, "trials_per_amplitude": per}, "wall_s": wall}
@@ -1320,8 +1318,7 @@ def test_the_stress_speed_table_counts_sets_by_their_trials_against_five_minutes
 
 def test_the_stress_pool_reads_stored_results_only_and_refuses_in_one_line():
     import subprocess
-    import calibration_stress as S
-    script = pathlib.Path(S.__file__)
+    script = BENCHMARKS / "calibration_stress.py"
     for args, msg in ((["--pool", "2073"], "--pool needs --summary"),
                       (["--summary", "--pool", "987654"], "no stored summary for suite seed 987654"),
                       (["--summary", "--pool", "2049-x"], "not a list of numbers and ranges: '2049-x'"),
@@ -1428,11 +1425,11 @@ def test_the_counterfactual_swapped_split_trains_on_the_odd_trials(monkeypatch):
 
 
 def test_the_split_reading_compares_the_sets_stored_both_ways_and_a_two_fold_gain(tmp_path):
-    """benchmarks/calibration_split.py on rows built here: a set is compared only where stored both ways;
+    """calibrate.stress.split_compare (run by benchmarks/calibration_split.py) on rows built here: a set is compared only where stored both ways;
     the same effects added, right on each split, and a joint hypothesis's gain at the 20 % bar on each split
     and on their mean (0.3 and 0.15 -> mean 0.225 passes; 0.3 and 0.05 -> 0.175 does not) are counted by
     whether the set hides the effect."""
-    import calibration_split as C
+    from smarticle_mjx.calibrate import stress as S
 
     def row(i, hidden, added, right, gains):
         return {"set": {"index": i, "hidden": hidden, "outside": []}, "score": {"added": added, "right": right},
@@ -1445,10 +1442,10 @@ def test_the_split_reading_compares_the_sets_stored_both_ways_and_a_two_fold_gai
     for k, r in rule.items():
         (tmp_path / "a").mkdir(exist_ok=True)
         (tmp_path / "a" / f"set_{k:04d}.json").write_text(json.dumps(r))
-    assert C.stored(tmp_path / "a") == rule and C.stored(tmp_path / "none") == {}
-    lines = C.compare(rule, swapped)
+    assert S.stored_rows(tmp_path / "a") == rule and S.stored_rows(tmp_path / "none") == {}
+    lines = S.split_compare(rule, swapped)
     assert [x["index"] for x in lines] == [0, 1]
-    s = C.summary(lines)
+    s = S.split_summary(lines)
     assert s["by_kind"]["library effects"] == {"sets": 1, "same_added": 0, "right_rule": 1, "right_swapped": 0,
                                                "right_both": 0}
     assert s["by_kind"]["clean"]["same_added"] == 1 and s["by_kind"]["clean"]["right_both"] == 1
@@ -1462,7 +1459,7 @@ def test_every_counterfactual_of_the_stress_suite_changes_a_rule_the_calibration
     and each changes its value from the rule's."""
     import types
 
-    import calibration_stress as S
+    from smarticle_mjx.calibrate import stress as S
     from smarticle_mjx.calibrate import stages
 
     assert len(S.COUNTERFACTUALS) == len({f for f, _, _ in S.COUNTERFACTUALS}) >= 4

@@ -136,3 +136,38 @@ def test_the_reducers_return_typed_results_not_dicts():
                 found.add(f"{m.name}.{name}")
     assert found <= DICT_REDUCERS_PENDING, f"new dict-returning reducers: {sorted(found - DICT_REDUCERS_PENDING)}"
     assert found == DICT_REDUCERS_PENDING, f"typed since, leave the pending list: {sorted(DICT_REDUCERS_PENDING - found)}"
+
+
+def _benchmark_imports(test_file: pathlib.Path, names: set[str]) -> list[str]:
+    """What a test file imports of the benchmark scripts ``names``, and any change it makes to sys.path."""
+    tree = ast.parse(test_file.read_text())
+    bad = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            bad += [a.name for a in node.names if a.name.split(".")[0] in names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] in names:
+            bad.append(node.module)
+        elif isinstance(node, ast.Attribute) and node.attr in ("insert", "append") and \
+                isinstance(node.value, ast.Attribute) and node.value.attr == "path" and \
+                isinstance(node.value.value, ast.Name) and node.value.value.id == "sys":
+            bad.append("sys.path")
+    return bad
+
+
+def test_no_test_imports_a_benchmark_script():
+    """Tests check the package; a benchmark's logic that a test needs lives in the package (the stress
+    suite's generator and scoring in calibrate.stress, the mismatch table's estimate in calibrate.discrepancy,
+    the step checks' collection in bench). A test may run a script as a user does, never import it."""
+    root = pathlib.Path(__file__).resolve().parents[1]
+    names = {p.stem for p in (root / "benchmarks").glob("*.py")}
+    assert "calibration_stress" in names
+    bad = {p.name: b for p in sorted((root / "tests").glob("*.py")) if (b := _benchmark_imports(p, names))}
+    assert not bad, bad
+
+
+def test_the_benchmark_import_check_sees_one(tmp_path):
+    t = tmp_path / "test_x.py"
+    t.write_text("import sys\nsys.path.insert(0, 'benchmarks')\ndef f():\n    import calibration_stress as S\n"
+                 "    from glider_step import SEED\n")
+    assert sorted(_benchmark_imports(t, {"calibration_stress", "glider_step"})) == ["calibration_stress",
+                                                                                    "glider_step", "sys.path"]

@@ -5,9 +5,10 @@ import json
 import pathlib
 import sys
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
+from smarticle_mjx import bench
+from smarticle_mjx.reduce import stepcheck
 
-from smarticle_mjx.reduce import stepcheck  # noqa: E402
+RESULTS = pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "results"
 
 
 def test_a_row_enters_the_table_only_where_its_scene_is_the_presets_at_its_step():
@@ -15,13 +16,12 @@ def test_a_row_enters_the_table_only_where_its_scene_is_the_presets_at_its_step(
     integrates (2 dt), so a row that names teeth of 0.5 ms at 0.25 ms builds the preset's own scene and
     enters; the same teeth at 0.0625 ms are another robot (the preset builds 0.125 ms teeth there) and do
     not, nor does a changed mass; a change of numerics alone always enters."""
-    import step_checks as SC
     teeth = {"integrator": "implicitfast", "contact_substeps": 1, "robot": {"backlash_stop_timeconst": 5e-4}}
-    assert SC.builds_preset("lab-lag", "lab", {"dt_s": 2.5e-4, "changes": teeth})
-    assert not SC.builds_preset("lab-lag", "lab", {"dt_s": 6.25e-5, "changes": teeth})
-    assert not SC.builds_preset("lab-lag", "lab", {"dt_s": 2.5e-4, "changes": {"robot": {"mass": 0.03}}})
-    assert SC.builds_preset("lab-lag", "none", {"dt_s": 5e-4, "changes": {"integrator": "RK4"}})
-    assert not SC.builds_preset("lab-lag", "none", {"dt_s": 5e-4, "changes": {"contact_timeconst": 0.002}})
+    assert bench.builds_preset("lab-lag", "lab", {"dt_s": 2.5e-4, "changes": teeth})
+    assert not bench.builds_preset("lab-lag", "lab", {"dt_s": 6.25e-5, "changes": teeth})
+    assert not bench.builds_preset("lab-lag", "lab", {"dt_s": 2.5e-4, "changes": {"robot": {"mass": 0.03}}})
+    assert bench.builds_preset("lab-lag", "none", {"dt_s": 5e-4, "changes": {"integrator": "RK4"}})
+    assert not bench.builds_preset("lab-lag", "none", {"dt_s": 5e-4, "changes": {"contact_timeconst": 0.002}})
 
 
 def test_the_packages_table_is_what_its_sources_give():
@@ -29,9 +29,8 @@ def test_the_packages_table_is_what_its_sources_give():
     key by key and number by number (a source rerun without the table rewritten, or the reverse, fails
     here). The `lab` robots at the default step take the measurement made on today's robots (after
     version 0.4.1's start delays), not the one made on the robots before them."""
-    import step_checks as SC
     table = {e["key"]: e for e in json.loads(stepcheck.TABLE.read_text())["checks"]}
-    collected = {stepcheck.key_of(c): json.loads(json.dumps(c.as_dict())) for c in SC.collect()}
+    collected = {stepcheck.key_of(c): json.loads(json.dumps(c.as_dict())) for c in bench.collect_step_checks(RESULTS)}
     assert set(table) == set(collected)
     for key, e in table.items():
         assert {k: v for k, v in e.items() if k != "key"} == collected[key], key
