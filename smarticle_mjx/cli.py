@@ -351,7 +351,8 @@ def pb(
 @_command("report")
 def report(
     stores: list[pathlib.Path] = typer.Argument(..., help="a scan or sweep store (.h5); or relaxation stores "
-                                                "(smx relax), several if they are stages of one study"),
+                                                "(smx relax), several if they are stages of one study; or a "
+                                                "calibration report's folder (smx calibrate)"),
     out: pathlib.Path = typer.Option(pathlib.Path("report"), help="output folder"),
     burn_in: Optional[int] = typer.Option(None, help="periods before steady state (default min(30, K/3))"),
     glider_min_periods: Optional[int] = typer.Option(None, help="shortest bound run counted as a glider "
@@ -359,7 +360,12 @@ def report(
     apart: float = typer.Option(2.0, help="relaxation: closest a third robot may come to a glider (W)"),
     reading: Optional[str] = typer.Option(None, help=_READING_HELP),
 ):
-    """Every figure and the summary table of a store: report.md, report.json and PNGs in one folder."""
+    """Every figure and the summary table of a store: report.md, report.json and PNGs in one folder. Given a
+    calibration report's folder (smx calibrate), formats its report.md again from its report.json."""
+    from .calibrate import report as calibration_report
+    if len(stores) == 1 and calibration_report.is_report(stores[0]):
+        _echo([f"wrote {calibration_report.rewrite(stores[0], out)}"])
+        return
     from .report import headline, write_any
     _echo(headline(write_any(stores, out, burn_in, glider_min_periods, apart, reading))
           + [f"wrote {out / 'report.md'}"])

@@ -173,6 +173,21 @@ def test_smx_synth_and_calibrate_write_the_report_and_refuse_to_clobber(tmp_path
     (lo, hi), (slo, shi) = a["interval"]["servo_scale"], a["interval_statistical"]["servo_scale"]
     assert lo < slo <= shi < hi and a["mismatch_log_sd"]["servo_scale"] > 0
     assert "| statistical 95 % |" in (out / "report.md").read_text()
+    # the report names its layout and the package that wrote it; smx report formats it again from the JSON
+    # alone (the same page), and a report of another schema is refused in one line, nothing written
+    from smarticle_mjx import __version__
+    assert rep["schema"] == 1 and rep["package"] == f"smarticle-mjx {__version__}"
+    again = tmp_path / "again"
+    r = run.invoke(app, ["report", str(out), "--out", str(again)])
+    assert r.exit_code == 0, r.output
+    assert (again / "report.md").read_text() == (out / "report.md").read_text()
+    assert all((again / f).exists() for f in rep["figures"])
+    old = dict(rep)
+    del old["schema"], old["package"]
+    (out / "report.json").write_text(json.dumps(old))
+    r = run.invoke(app, ["report", str(out), "--out", str(tmp_path / "never")])
+    assert r.exit_code == 2 and r.output.count("\n") == 1 and "schema none" in r.output, r.output
+    assert "this version reads schema 1" in r.output and not (tmp_path / "never").exists()
     for f in rep["figures"]:
         assert (out / f).stat().st_size > 1000
     before = (out / "report.md").read_text()

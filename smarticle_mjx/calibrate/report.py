@@ -1,9 +1,15 @@
-"""The calibration report: DIR/report.md, report.json and figures."""
+"""The calibration report: DIR/report.md, report.json and figures.
+
+report.json carries its layout's ``schema`` (``SCHEMA``) and the package that wrote it; :func:`read` reads a
+report of this schema and refuses any other in one line, and :func:`rewrite` formats a stored report again
+(``smx report DIR``) without calibrating again.
+"""
 
 from __future__ import annotations
 
 import json
 import pathlib
+import shutil
 
 import numpy as np
 
@@ -88,11 +94,15 @@ def check_output(out, overwrite: bool = False) -> None:
         raise ValueError(f"output directory {out.parent} does not exist")
 
 
+SCHEMA = 1  # report.json's layout (since December 2026); reports written before it carry none
+
+
 def write(cal, trials: list[Trial], out_dir) -> dict:
     """Write the report of a ``stages.calibrate`` result (a ``Calibration``); returns the JSON written."""
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    result = dict(cal.summary)
+    from .. import __version__
+    result = {"schema": SCHEMA, "package": f"smarticle-mjx {__version__}", **cal.summary}
     held = [t for t in trials if t.name in set(result["trials"]["heldout"])]
     final: EffectSet = cal.effects
     nominal = cal.nominal
@@ -112,6 +122,55 @@ def write(cal, trials: list[Trial], out_dir) -> dict:
     (out / "report.json").write_text(json.dumps(result, indent=1, default=json_default))
     (out / "report.md").write_text(markdown(result))
     return result
+
+
+def is_report(path) -> bool:
+    """Whether ``path`` is a calibration report's folder (it holds a report.json written by :func:`write`:
+    one with a ``verdict`` and ``added``, of any schema)."""
+    f = pathlib.Path(path) / "report.json"
+    if not f.is_file():
+        return False
+    try:
+        r = json.loads(f.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(r, dict) and "verdict" in r and "added" in r
+
+
+def read(path) -> dict:
+    """A calibration report's JSON (``path``: its folder or its report.json); ValueError in one line for a file
+    that is not one, or one of another schema."""
+    p = pathlib.Path(path)
+    f = p / "report.json" if p.is_dir() else p
+    try:
+        r = json.loads(f.read_text())
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{f} is not a readable calibration report ({e.__class__.__name__})") from None
+    if not isinstance(r, dict) or "verdict" not in r:
+        raise ValueError(f"{f} is not a calibration report (no verdict)")
+    got = r.get("schema")
+    if got != SCHEMA:
+        made = r.get("package", "a version before report schemas")
+        raise ValueError(f"{f} has calibration report schema {got if got is not None else 'none'} (written by {made}); "
+                         f"this version reads schema {SCHEMA}: calibrate the data again")
+    return r
+
+
+def rewrite(path, out_dir) -> pathlib.Path:
+    """report.md formatted again from a stored report (:func:`read`), with its figures, into ``out_dir``
+    (which may be the report's own folder); nothing is calibrated or simulated."""
+    src = pathlib.Path(path)
+    src = src.parent if src.name == "report.json" else src
+    r = read(src)
+    out = pathlib.Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for name in r.get("figures", []):
+        if (src / name).exists() and (out / name).resolve() != (src / name).resolve():
+            shutil.copyfile(src / name, out / name)
+    if out.resolve() != src.resolve():
+        (out / "report.json").write_text((src / "report.json").read_text())
+    (out / "report.md").write_text(markdown(r))
+    return out / "report.md"
 
 
 # what decides a servo lag or dead time where the delay test does not
