@@ -61,7 +61,7 @@ from smarticle_mjx.calibrate.stress import (  # noqa: F401
     by_condition, by_effect, by_trials, choose_sets, condition, condition_table, confusion, coverage,
     covered_statistical, draw_set, effect_table, parse_set, rate, recording, score, seed_indices, source_hash,
     speed_table, summarise, trials_of, write_set)
-from smarticle_mjx.calibrate.stress import COUNTERFACTUALS  # noqa: F401
+from smarticle_mjx.calibrate.stress import COUNTERFACTUALS, apply_counterfactual
 from smarticle_mjx.calibrate.stress import indices as _indices  # noqa: F401
 from smarticle_mjx.calibrate.stress import pooled_rows as _pooled_rows
 
@@ -151,7 +151,7 @@ def main():
                     help="also fit this plate effect jointly with the nominal parameters (smx calibrate's option)")
     ap.add_argument("--tag", default="", help="keep this run's results apart (calibration_stress/<seed>-<tag>/): "
                                               "sets of a reported seed run again under later rules")
-    for flag, text, _ in COUNTERFACTUALS:
+    for flag, text, *_ in COUNTERFACTUALS:
         ap.add_argument(flag, action="store_true", help=f"{text} (for a counterfactual run, with --tag)")
     ap.add_argument("--set", dest="set_", action="append", default=[], metavar="FIELD=VALUE",
                     help="change the library's model as smx calibrate --set does (for the set and its clean twin; "
@@ -179,12 +179,11 @@ def main():
         ap.error(str(e))
     if overrides and not args.tag:
         ap.error("--set needs --tag: results made with a changed model are kept apart")
-    chosen = [apply for flag, _, apply in COUNTERFACTUALS if getattr(args, flag[2:].replace("-", "_"))]
+    chosen = [switch for flag, _, *switch in COUNTERFACTUALS if getattr(args, flag[2:].replace("-", "_"))]
     if chosen and not args.tag:
         ap.error("a counterfactual rule needs --tag: its results are kept apart")
-    from smarticle_mjx.calibrate import stages
-    for apply in chosen:
-        apply(stages)
+    for switch in chosen:
+        apply_counterfactual(*switch)
     try:
         plates = plate_hypotheses_with(args.plate_hypothesis)
     except ValueError as e:

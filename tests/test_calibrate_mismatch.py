@@ -289,7 +289,7 @@ def test_a_phase_offset_between_two_independent_robots_is_named(tmp_path):
 
 def test_an_effect_fitted_onto_its_null_bound_is_not_present():
     from smarticle_mjx.calibrate.effects import BY_NAME
-    from smarticle_mjx.calibrate.fit import is_present
+    from smarticle_mjx.calibrate.policy import is_present
     lag = BY_NAME["servo_lag"]
     assert not is_present(lag, {"extra_lag_s": (float("nan"), float("nan"))})   # on the bound: no interval
     assert not is_present(lag, {"extra_lag_s": (0.0, 0.01)})                    # includes 0: absent

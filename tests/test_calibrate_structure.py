@@ -272,8 +272,8 @@ def test_a_servos_timing_is_no_hypothesis_without_arm_tracks_and_none_where_the_
     assert servo_skip_reason(body_only, none_found) == NO_ARMS
     assert servo_skip_reason(tracked, undecided) is None
     assert "no constant excess" in servo_skip_reason(tracked, none_found)
-    from smarticle_mjx.calibrate import stages
-    monkeypatch.setattr(stages, "SERVO_WITHOUT_ARMS", True)
+    from smarticle_mjx.calibrate import policy
+    monkeypatch.setattr(policy, "SERVO_WITHOUT_ARMS", True)
     assert servo_skip_reason(body_only, undecided) is None
     assert servo_skip_reason(tracked, undecided) is None
     assert "no constant excess" in servo_skip_reason(tracked, none_found)
@@ -1337,7 +1337,7 @@ def test_an_effect_that_ends_on_the_librarys_bound_away_from_its_null_gets_a_one
     ratio with 1 % noise-free scatter per sample, so the inward end is known in closed form, and two servo
     parameters the data pin at their presets."""
     from smarticle_mjx.calibrate.effects import BY_NAME
-    from smarticle_mjx.calibrate.fit import is_present
+    from smarticle_mjx.calibrate.policy import is_present
     from smarticle_mjx.calibrate.stages import at_library_bound
     from smarticle_mjx.presets import params as preset_params
     ref = preset_params("lab-lag")
@@ -1375,7 +1375,7 @@ def test_an_effect_at_its_null_on_a_bound_gets_no_interval():
     bound: there the effect is absent, and no one-sided interval is made for it (it would say "at least
     nothing"). Built: a residual that only a negative dead time would lower."""
     from smarticle_mjx.calibrate.effects import BY_NAME
-    from smarticle_mjx.calibrate.fit import is_present
+    from smarticle_mjx.calibrate.policy import is_present
     from smarticle_mjx.calibrate.stages import at_library_bound
     from smarticle_mjx.presets import params as preset_params
     ref = preset_params("lab-lag")
@@ -1454,18 +1454,24 @@ def test_the_split_reading_compares_the_sets_stored_both_ways_and_a_two_fold_gai
 
 
 def test_every_counterfactual_of_the_stress_suite_changes_a_rule_the_calibration_has():
-    """benchmarks/calibration_stress.py's counterfactual flags each set one of calibrate.stages' own switches
-    (a misspelt name would set a new attribute that no rule reads, and the run would be the rule's, unnoticed),
-    and each changes its value from the rule's."""
-    import types
+    """benchmarks/calibration_stress.py's counterfactual flags each set one of calibrate.policy's or
+    calibrate.stages' own switches (a misspelt name would set a new attribute that no rule reads, and the run
+    would be the rule's, unnoticed), and each changes its value from the rule's; a switch set through
+    apply_counterfactual is the one the rule reads."""
+    import importlib
 
+    from smarticle_mjx.calibrate import policy
     from smarticle_mjx.calibrate import stress as S
-    from smarticle_mjx.calibrate import stages
 
-    assert len(S.COUNTERFACTUALS) == len({f for f, _, _ in S.COUNTERFACTUALS}) >= 4
-    for flag, _, apply in S.COUNTERFACTUALS:
-        st = types.SimpleNamespace()
-        apply(st)
-        ((name, value),) = vars(st).items()
-        assert hasattr(stages, name), flag
-        assert getattr(stages, name) != value, flag
+    assert len(S.COUNTERFACTUALS) == len({c[0] for c in S.COUNTERFACTUALS}) >= 4
+    for flag, _, module, name, value in S.COUNTERFACTUALS:
+        mod = importlib.import_module(f"smarticle_mjx.calibrate.{module}")
+        assert hasattr(mod, name), flag
+        assert getattr(mod, name) != value, flag
+    before = policy.P_LEVEL
+    try:
+        S.apply_counterfactual("policy", "P_LEVEL", float("inf"))
+        assert policy.plate_skip_reason({"dof": 4, "p": 0.99}) is None  # the gate reads the switch
+    finally:
+        policy.P_LEVEL = before
+    assert policy.plate_skip_reason({"dof": 4, "p": 0.99}) is not None

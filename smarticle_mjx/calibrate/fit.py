@@ -45,18 +45,11 @@ from .effects import BY_NAME, Effect, EffectSet, unit_to_value, value_to_unit
 from .nominal import apply as apply_nominal
 from .residuals import Features, features, masked, residual_blocks
 from .observables import observables
+from .policy import SERVO_HYPOTHESES, UNEXPLAINED  # noqa: F401  (SERVO_HYPOTHESES: re-exported)
 from .sim import pmap, simulate_trials
 
-MIN_HELDOUT_GAIN = 0.2
-# a tilt fitted to a significant plate-frame drift (drift.P_DRIFT) is kept if its 95 % region excludes
-# a level plate (|tilt|^2 / var > chi2(2 dof) at 0.95) and it removes at least half the drift's chi^2
-TILT_Z2 = 5.99
-UNEXPLAINED = 4.0
-MAX_EFFECTS = 2
 FIT_CANDIDATES = 2
-MIN_SHARE = 0.25  # fit a candidate only if its grid gain is >= this share of the leader's
 NOMINAL_EFFECTS = ("servo_response", "friction_scale")
-SERVO_HYPOTHESES = ("servo_lag", "servo_dead_time")  # fitted jointly with the nominal servo
 SERVO_NOMINAL = ("servo_speed", "servo_kp", "servo_torque", "servo_armature")  # restarted at the preset for them
 # fitted jointly with the nominal parameters too: the nominal fit takes the plate's mu where the measured robot
 # slides unlike the model's (an independent robot's clean twin: mu 0.09 for a true 0.33), and only there does
@@ -341,14 +334,6 @@ def signatures(train: Problem, base: dict, candidates: list[Effect], points: int
                      "explained": max(0.0, explained), "signature_norm": float(np.linalg.norm(J))})
     rows.sort(key=lambda r: -r["grid_gain"])
     return rows
-
-
-def is_present(effect: Effect, interval: dict) -> bool:
-    """An effect is present when some parameter has a finite 95 % interval (a
-    parameter on a bound has none) that excludes the value at which the
-    effect is absent."""
-    return any(np.isfinite(interval[p.name]).all() and not interval[p.name][0] <= p.null <= interval[p.name][1]
-               for p in effect.params)
 
 
 def conventions(problem: Problem) -> dict:

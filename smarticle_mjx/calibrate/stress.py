@@ -420,17 +420,23 @@ def pooled_rows(seeds: str, results) -> list[dict]:
 
 
 # the counterfactual rules a run can take instead of the calibration's (each kept apart with --tag):
-# (flag, what it does, how it sets calibrate.stages)
+# (flag, what it does, the calibrate module holding the switch, the switch, the value it takes)
 COUNTERFACTUALS = (
     ("--no-plate-level-gate", "try the anisotropic plate whatever the plate-frame drift shows (the rule before "
-     "the gate)", lambda st: setattr(st, "P_LEVEL", math.inf)),  # no p reaches it: the plate is never withheld
+     "the gate)", "policy", "P_LEVEL", math.inf),  # no p reaches it: the plate is never withheld
     ("--servo-without-arms", "try a servo lag or dead time on sets without arm tracks too, as before the "
-     "arm-track rule", lambda st: setattr(st, "SERVO_WITHOUT_ARMS", True)),
+     "arm-track rule", "policy", "SERVO_WITHOUT_ARMS", True),
     ("--plate-both-sides", "also start the anisotropic plate's fit from the grid's best point on the other side "
-     "of ratio 1 (tried on stored sets, not the rule)", lambda st: setattr(st, "PLATE_BOTH_SIDES", True)),
+     "of ratio 1 (tried on stored sets, not the rule)", "stages", "PLATE_BOTH_SIDES", True),
     ("--swapped-split", "calibrate with the odd trials training and the even ones held out, the other way round",
-     lambda st: setattr(st, "SPLIT_SWAPPED", True)),
+     "stages", "SPLIT_SWAPPED", True),
 )
+
+
+def apply_counterfactual(module: str, name: str, value) -> None:
+    """Set one of :data:`COUNTERFACTUALS`' switches for the rest of this process."""
+    import importlib
+    setattr(importlib.import_module(f"smarticle_mjx.calibrate.{module}"), name, value)
 
 
 # ------------------------------------------------------------------ readings of the suite
