@@ -70,13 +70,19 @@ class StoreError(Exception):
 
 
 PACKAGE = f"smarticle-mjx {__version__}"  # a store's ``package`` attribute: which release made it
+# A store's ``physics`` attribute: the version of what a study's stored numbers are for an unchanged
+# configuration (scene building, engine, gait, starts, drawn robots, early exit). Raised only by a release
+# that changes some stored number of some study whose configuration, model and seed stay the same; a release
+# that changes reducers, reports, calibration or the CLI keeps it, so a study's stores are reused across it
+# (studies.stale_reason). Stores written before it existed carry none and are reused only by their own release.
+PHYSICS_VERSION = 1  # since December 2026 (package 0.4.18: the physics of every release since 0.4.1)
 
 
 def versions() -> dict:
     import jax
     import mujoco
 
-    return {"package": PACKAGE, "mujoco": mujoco.__version__, "jax": jax.__version__,
+    return {"package": PACKAGE, "physics": PHYSICS_VERSION, "mujoco": mujoco.__version__, "jax": jax.__version__,
             "h5py": h5py.__version__, "numpy": np.__version__}
 
 
@@ -348,6 +354,22 @@ class Writer:
 # configuration keys that say how a store was computed, not what it holds: a
 # scan started on one executor may be resumed on another
 EXECUTOR_KEYS = ("executor",)
+
+
+def same_physics(attrs) -> bool:
+    """Whether a store or journal (its root attributes, or its journal's meta) holds what this release would
+    store for its configuration: the same ``physics`` version; where none is recorded (written before the
+    attribute existed), the same release."""
+    if "physics" in attrs:
+        return int(attrs["physics"]) == PHYSICS_VERSION
+    return attrs.get("package") == PACKAGE
+
+
+def made_by(attrs) -> str:
+    """Which release and physics version made a store (for a one-line reason)."""
+    phys = attrs.get("physics")
+    return f"{attrs.get('package')}" + (f" (physics {phys}, this release's is {PHYSICS_VERSION})" if phys is not None
+                                        else f" (no physics version recorded; this release is {PACKAGE})")
 
 
 def data_keys(config: dict) -> dict:

@@ -10,7 +10,9 @@ Three kinds of study (specs in :mod:`smarticle_mjx.specs`, read from study files
 * a **relaxation** study (``configs = "relax"``): trials in stages -> :class:`RelaxStudy`.
 
 The ``ensure_*`` functions return the complete store(s) of a study: reused when made with the same
-configuration, model preset and package version, resumed when interrupted, else run. A store or journal
+configuration (backend and seed included), model preset and physics version (``store.PHYSICS_VERSION``: a
+release that changes no stored number keeps it, so stores survive it; a store that records none, by the same
+package version), resumed when interrupted, else run. A store or journal
 made otherwise is moved aside (``<stem>.replaced-<created>...``), never deleted, and the study rerun.
 Every stage of a staged study is a store of its own, so a killed run resumes where it stopped and a
 partial run leaves complete, valid stores.
@@ -31,7 +33,7 @@ from .scan import run_scan
 from .scene import params_json, predated_fields
 from .specs import BoundStudy, RelaxConfig, RelaxStudy, ScanConfig, config_from_json, with_overrides
 from .scene import SceneParams
-from .store import PACKAGE, Store, data_keys, journal_path
+from .store import Store, data_keys, journal_path, made_by, same_physics
 
 def _stamp(text) -> str:
     return "".join(c for c in str(text) if c.isdigit())[:14] or "unknown"
@@ -74,15 +76,15 @@ def _recorded(cfg: ScanConfig | RelaxConfig) -> tuple[SceneParams, dict]:
 
 def stale_reason(cfg: ScanConfig | RelaxConfig, path: pathlib.Path) -> str | None:
     """Why the complete store at ``path`` cannot stand for study ``cfg`` (a scan or a relaxation stage:
-    another model, package version or configuration), or None if it can. One rule for every kind: what
+    another model, physics version or configuration), or None if it can. One rule for every kind: what
     the study would write now against what the store holds, keys added since filled in."""
     params, want = _recorded(cfg)
     st = Store(path)
     have = _normalised(st.config, want, params, _kind(cfg))
     if have["model"] != cfg.model:
         return f"made by model {have['model']}"
-    if st.attrs.get("package") != PACKAGE:
-        return f"made by {st.attrs.get('package')}"
+    if not same_physics(st.attrs):
+        return f"made by {made_by(st.attrs)}"
     if have != want:
         return "made from a different study file"
     return None
@@ -99,13 +101,13 @@ def _move_aside(path: pathlib.Path, what: pathlib.Path, why: str, created, notes
 
 def _check_journal(cfg: ScanConfig | RelaxConfig, path: pathlib.Path, notes: list | None) -> None:
     """Move aside the journal of an interrupted run of study ``cfg`` at ``path`` that another configuration
-    or package version made (the staleness rule of :func:`stale_reason`), so that the study starts anew."""
+    or physics version made (the staleness rule of :func:`stale_reason`), so that the study starts anew."""
     journal = journal_path(path)
     if not journal.exists():
         return
     meta = json.loads((journal / "meta.json").read_text()) if (journal / "meta.json").exists() else {}
     params, want = _recorded(cfg)
-    if meta.get("package") != PACKAGE or _normalised(meta.get("config", {}), want, params, _kind(cfg)) != want:
+    if not same_physics(meta) or _normalised(meta.get("config", {}), want, params, _kind(cfg)) != want:
         _move_aside(path, journal, "an interrupted run of another configuration or version", meta.get("created"),
                     notes)
         return
@@ -138,21 +140,21 @@ def _adopt(journal: pathlib.Path, want: dict, params: SceneParams, kind: str, no
 
 def adopt_journal(cfg: ScanConfig | RelaxConfig, path: pathlib.Path, notes: list | None = None) -> None:
     """Before ``--resume``: a journal of study ``cfg`` at ``path`` that the staleness rule calls current
-    (same package version, configuration equal once keys added since are filled in) is made resumable
+    (same physics version, configuration equal once keys added since are filled in) is made resumable
     (:func:`_adopt`); any other journal is left for the writer to refuse in one line."""
     journal = journal_path(path)
     if not (journal / "meta.json").exists():
         return
     meta = json.loads((journal / "meta.json").read_text())
     params, want = _recorded(cfg)
-    if meta.get("package") == PACKAGE:
+    if same_physics(meta):
         _adopt(journal, want, params, _kind(cfg), notes)
 
 
 def ensure_scan(cfg: ScanConfig, path: pathlib.Path, on_progress: Callable[[dict], None] | None = None,
                 notes: list | None = None, run: bool = True) -> pathlib.Path | None:
     """The complete store of scan ``cfg`` at ``path``: reused if it was made
-    with the same configuration, model preset and package version; resumed
+    with the same configuration, model preset and physics version; resumed
     if interrupted; else run (or, with ``run=False``, None). A store (or
     journal) made otherwise is moved aside, never deleted, and the scan is
     rerun."""
@@ -244,7 +246,7 @@ def ensure_relax(rs: RelaxStudy, stem: str, data: pathlib.Path, model: str, on_p
     """Run (or reuse, or resume) the stages of a relaxation study in order,
     ``<stem>_sNN.h5``; with ``run=False`` stop at the first stage without a
     current complete store. A stage made by another configuration, model or
-    package version is moved aside (never deleted) and rerun."""
+    physics version is moved aside (never deleted) and rerun."""
     from .relax import run_relax
     paths = []
     for stage in range(rs.stages):

@@ -84,26 +84,41 @@ def test_validate_writes_a_row_per_claim_and_reuses_stores(tmp_path):
     assert {k: v for k, v in after.items() if "polar" not in k} == {k: v for k, v in before.items() if "polar" not in k}
 
 
-def test_a_store_of_another_package_version_is_rerun_and_kept(tmp_path, monkeypatch):
-    from smarticle_mjx import studies
+def test_a_store_survives_a_release_of_the_same_physics_and_is_rerun_and_kept_otherwise(tmp_path, monkeypatch):
+    """Store reuse is keyed on what changes the stores: a release that keeps the physics version reuses the
+    store as it is; another physics version reruns the study and keeps the old store aside; a store that
+    records no physics version (written before it existed) is reused only by its own release."""
+    import h5py
+    from smarticle_mjx import store as S
     sweeps, data, out = _sweeps(tmp_path), tmp_path / "data", tmp_path / "v.md"
-    r = CliRunner().invoke(app, ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps),
-                                 "--single-periods", "3", "--quiet", "--studies", "polar"])
+    args = ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps), "--single-periods", "3",
+            "--quiet", "--studies", "polar"]
+    r = CliRunner().invoke(app, args)
     assert r.exit_code == 0, r.output
     # only the chosen study ran; the others are reported as not run yet
     assert [p.name for p in (data / DEFAULT).glob("*.h5")] == ["validation_polar.h5"]
     rows = json.loads((tmp_path / "v" / "validation.json").read_text())["rows"]
     assert sum("not run yet" in row["measured"] for row in rows) == 11
+    path = data / DEFAULT / "validation_polar.h5"
+    assert Store(path).attrs["physics"] == S.PHYSICS_VERSION
     old = _hashes(data / DEFAULT)["validation_polar.h5"]
-    monkeypatch.setattr(studies, "PACKAGE", "smarticle-mjx 99.0")
-    monkeypatch.setattr("smarticle_mjx.store.versions", lambda: {"package": "smarticle-mjx 99.0"})
-    r = CliRunner().invoke(app, ["validate", "--data", str(data), "--out", str(out), "--sweeps", str(sweeps),
-                                 "--single-periods", "3", "--quiet", "--studies", "polar"])
+    monkeypatch.setattr(S, "PACKAGE", "smarticle-mjx 99.0")  # a later release, same physics: reused as it is
+    r = CliRunner().invoke(app, args)
+    assert r.exit_code == 0 and "made by" not in r.output, r.output
+    assert _hashes(data / DEFAULT) == {"validation_polar.h5": old}
+    monkeypatch.setattr(S, "PHYSICS_VERSION", S.PHYSICS_VERSION + 1)  # a release that changes stored numbers
+    r = CliRunner().invoke(app, args)
     assert r.exit_code == 0, r.output
-    assert "made by smarticle-mjx" in r.output
+    assert "made by smarticle-mjx" in r.output and f"physics {S.PHYSICS_VERSION - 1}" in r.output
     h = _hashes(data / DEFAULT)
     assert len(h) == 2 and old in h.values() and h["validation_polar.h5"] != old
-    assert Store(data / DEFAULT / "validation_polar.h5").attrs["package"] == "smarticle-mjx 99.0"
+    assert Store(path).attrs["package"] == "smarticle-mjx 99.0" and Store(path).attrs["physics"] == S.PHYSICS_VERSION
+    with h5py.File(path, "a") as f:  # as a store written before the attribute existed, by an earlier release
+        del f.attrs["physics"]
+        f.attrs["package"] = "smarticle-mjx 0.4.17"
+    r = CliRunner().invoke(app, args)
+    assert r.exit_code == 0 and "no physics version recorded" in r.output, r.output
+    assert len(_hashes(data / DEFAULT)) == 3
 
 
 def test_validate_rejects_an_unknown_study_in_one_line(tmp_path):
