@@ -4,7 +4,7 @@ the stored hypotheses, values, intervals and scores bit for bit (timings and the
 Each set is drawn and written again from its seed and index (calibrate.stress), calibrated as the stress suite
 calibrates it (calibration_stress.run_set, with its clean twin) and compared key by key with its stored row
 (results/calibration_stress/<seed>/set_<index>.json) after a JSON round trip, so floats compare exactly as
-stored. Prints one line per set and writes results/calibration_identity.json; exit 1 if any set differs.
+stored (a NaN equals a NaN: a test that did not apply stores NaN). Prints one line per set and writes results/calibration_identity.json; exit 1 if any set differs.
 
     python benchmarks/calibration_identity.py --sets 2148/23,2148/29,2149/27
 """
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 
@@ -35,7 +36,8 @@ def compare(stored: dict, again: dict) -> list[str]:
             return out
         if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
             return [d for i, (x, y) in enumerate(zip(a, b)) for d in walk(x, y, f"{path}[{i}]")]
-        return [] if a == b else [path]
+        same = a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+        return [] if same else [path]
     return walk(stored, json.loads(json.dumps(again)), "")
 
 
@@ -56,7 +58,7 @@ def main(argv=None) -> int:
     for seed, index in specs:
         stored = json.loads((RESULTS / "calibration_stress" / str(seed) / f"set_{index:04d}.json").read_text())
         s = draw_set(seed, index)
-        if s != stored["set"]:
+        if json.loads(json.dumps(s)) != stored["set"]:
             rows.append({"set": f"{seed}/{index}", "identical": False, "differ": ["set (the draw)"]})
             print(f"{seed}/{index}: the draw differs from the stored set", flush=True)
             continue
