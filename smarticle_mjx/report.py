@@ -368,6 +368,19 @@ def trial_figure(data: RelaxRecord, a, out: pathlib.Path) -> list[str]:
                                                    "relax_tracks", title=title)]
 
 
+def crowd_times(data: RelaxRecord, trials) -> dict:
+    """Chains followed by overlap beside the exact rule (reduce.chains) and the crowd's fitted spreading time
+    constants (reduce.spreading) of the usable trials (``trials``: their reduce.relaxation.CrowdTrial), as a
+    report's JSON records them."""
+    from .reduce import chains as CH, spreading as SP
+    usable = np.flatnonzero(data.usable)
+    lt = CH.chain_lifetimes([(data.touched[t], data.left_plate[t], data.periods_run[t]) for t in usable])
+    sp = SP.spreading_times([SP.phi_spreading(c.phi) for c in trials],
+                            [SP.fit_decay(SP.contacts_per_period(data.touched[t], data.periods_run[t]), t0=1)
+                             for t in usable])
+    return {"chains": dataclasses.asdict(lt), "spreading": dataclasses.asdict(sp)}
+
+
 def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 2.0, reading=None) -> dict:
     """Report of one relaxation store or several stages of one study:
     report.md, report.json, the tracks of one trial and the lifetime vs
@@ -381,6 +394,7 @@ def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 
     crowd, trials = RX.crowd(data)
     ra = RX.analyse(data, min_periods=min_periods, apart_W=apart_W)
     a = relax_summary(data, min_periods, apart_W, crowd=crowd, analysis=ra, reading=reading)
+    a.update(crowd_times(data, trials))
     figs = trial_figure(data, ra, out)
     figs += [p.name for p in plots.lifetime_contour(ra.episodes, ra.fit, min_periods, out)]
     if trials:
@@ -474,6 +488,23 @@ def crowd_rows(c: dict | None, f) -> list[str]:
     ]
 
 
+def time_rows(chains: dict | None, sp: dict | None, f) -> list[str]:
+    """The rows of chains followed by overlap and of the crowd's spreading time constants (crowd_times)."""
+    rows = []
+    if chains:
+        o = chains["overlap"]
+        rows.append(f"| chain lifetime, followed by overlap (a chain lives while most of its robots stay) | mean "
+                    f"{f(o['mean'], 1)}, median {f(o['median'], 0)} [IQR {f(o['q25'], 0)}–{f(o['q75'], 0)}] periods "
+                    f"over {o['n']} chains, {o['censored']} still holding at the end | 8–10 periods (APS 2023, G18.2) |")
+    if sp:
+        t, c, sh = sp["phi_tau"], sp["contacts_tau"], sp["first_period_share"]
+        rows.append(f"| spreading time constant τ of φ from period 1 on (median over trials; 3τ: 95 % done) | "
+                    f"{f(t['median'], 1)} periods (3τ {f(3 * t['median'], 0) if t['n'] else '–'}; {sp['phi_at_bound']} "
+                    f"trials unresolved); period 1 takes {f(sh['median'])} of φ's drop; contacts' τ {f(c['median'], 1)} "
+                    "| about 30 periods to steady state |")
+    return rows
+
+
 def relax_markdown(rep: dict) -> str:
     s, lab = rep["settings"], rep["lab"]
     f = lambda x, nd=2: formatting.num(x, f".{nd}f")  # noqa: E731
@@ -510,6 +541,7 @@ def relax_markdown(rep: dict) -> str:
              f"[IQR {f(rt['q25'], 0)}–{f(rt['q75'], 0)}]; {rt['crowded_at_end']} trials still crowded at the end | "
              "about 30 periods |",
              *crowd_rows(rep.get("crowd"), f),
+             *time_rows(rep.get("chains"), rep.get("spreading"), f),
              f"| robots that left the plate | {rep['left_plate']['robots']} in {rep['left_plate']['trials']} "
              "trials | – |",
              f"| trials stopped early (no contact for {s['quiet_periods']} periods) | {rep['stopped_early']} | – |",

@@ -240,6 +240,9 @@ def test_relax_cli_store_report_and_bad_input(tmp_path):
     assert "reading (d)" in r.output and "other readings (--reading): apart" in r.output
     md = (rep / "report.md").read_text()
     assert "| trials forming a glider, (d)" in md and md.count("(primary)") == 1
+    # chains followed by overlap beside the exact rule, and the crowd's fitted spreading time constants
+    assert j["chains"]["overlap"]["n"] >= 0 and set(j["spreading"]) >= {"phi_tau", "contacts_tau", "first_period_share"}
+    assert "followed by overlap" in md and "spreading time constant τ" in md
     r = run.invoke(app, ["report", str(out), "--out", str(tmp_path / "rep_a"), "--reading", "apart",
                          "--glider-min-periods", "2"])
     assert r.exit_code == 0 and "reading (a) bound and apart" in r.output, r.output

@@ -476,23 +476,28 @@ def relax_emergence(ev: Relaxation) -> Outcome:
                    f" Relaxation (last period with a robot touching two others): median "
                    f"{f(rt.median, '.0f')} periods [IQR {f(rt.q25, '.0f')}–{f(rt.q75, '.0f')}] (paper: "
                    f"about 30); {a.stopped_early} trials stopped early, all robots apart and quiet for "
-                   f"{s.quiet_periods} periods." + crowd_note(ev.crowd, ev.chains)
+                   f"{s.quiet_periods} periods." + crowd_note(ev.crowd, ev.chains, ev.spreading)
                    + (f" {a.trials - a.valid} of {a.trials} trials were flagged by the engine (penetration or a "
                       "non-finite state) and are left out." if a.trials > a.valid else ""))
 
 
-def crowd_note(c: CrowdSummary | None, chains=None) -> str:
-    """The crowd's measures (reduce.relaxation.CrowdSummary, and reduce.chains.ChainLifetimes where counted) in
-    one sentence for a claim's notes."""
+def crowd_note(c: CrowdSummary | None, chains=None, spreading=None) -> str:
+    """The crowd's measures (reduce.relaxation.CrowdSummary, and reduce.chains.ChainLifetimes and
+    reduce.spreading.SpreadingTimes where counted) in one sentence for a claim's notes."""
     if not c:
         return ""
+    tau = (f" φ's fitted time constant from period 1 on: median {f(spreading.phi_tau.median, '.1f')} periods (3τ "
+           f"{f(3 * spreading.phi_tau.median, '.0f')}; {spreading.phi_at_bound} trials unresolved), the first "
+           f"period taking {f(spreading.first_period_share.median)} of the drop; the contacts' "
+           f"{f(spreading.contacts_tau.median, '.1f')} periods." if spreading else "")
     pl, cl = c.plateau, c.chain_lifetime
     tracked = (f"; followed by overlap (a chain lives while most of its robots stay), {f(chains.overlap.mean, '.1f')} "
                f"periods (median {f(chains.overlap.median, '.0f')}, {chains.overlap.n} chains)" if chains else "")
     return (f" Relaxation read off the area fraction's plateau (docs/relax.md): median {f(pl.median, '.0f')} "
             f"periods [IQR {f(pl.q25, '.0f')}–{f(pl.q75, '.0f')}], {pl.censored} trials without one "
             f"(paper: about 30); chains of ≥ 3 robots with the same members live {f(cl.mean, '.1f')} periods on "
-            f"average{tracked}, with {f(c.neighbours_in_chain)} neighbours per robot (lab: 8–10 periods, about 4).")
+            f"average{tracked}, with {f(c.neighbours_in_chain)} neighbours per robot (lab: 8–10 periods, about 4)."
+            + tau)
 
 
 @claim("relax_distance", "the glider travels 2.9 ± 0.2 W on average", "2.9 ± 0.2 W (text)",

@@ -122,18 +122,21 @@ def relax(paths: list, figures: pathlib.Path, made: list, reading=None) -> tuple
     lab's, every emergence reading and both chain readings); draws its two figures. ``reading``: the
     emergence reading the claims judge (reduce.emergence; None: the primary one)."""
     from scipy.stats import fisher_exact
-    from ..reduce import chains as CH, emergence as EM, relaxation as RX
+    from ..reduce import chains as CH, emergence as EM, relaxation as RX, spreading as SP
     from ..report import LAB_RELAX, lab_relax_fraction, relax_summary, trial_figure
     from ..specs import relax_config_from_json
     from ..store import read_relax
     data = read_relax(paths)
-    ra, crowd = RX.analyse(data), RX.crowd(data)[0]
+    ra, (crowd, crowd_trials) = RX.analyse(data), RX.crowd(data)
+    usable = np.flatnonzero(data.usable)
+    spreading = SP.spreading_times([SP.phi_spreading(c.phi) for c in crowd_trials],
+                                   [SP.fit_decay(SP.contacts_per_period(data.touched[t], data.periods_run[t]), t0=1)
+                                    for t in usable])
     reading = EM.parse_reading(reading)
     em = EM.emergence(data)
     a = relax_summary(data, crowd=crowd, analysis=ra, reading=reading, emergence=em)
     a["emergence"] = em.as_json(with_runs=False)  # the page's numbers; a report of the stores keeps the runs
-    chains = CH.chain_lifetimes([(data.touched[t], data.left_plate[t], data.periods_run[t])
-                                 for t in np.flatnonzero(data.usable)])
+    chains = CH.chain_lifetimes([(data.touched[t], data.left_plate[t], data.periods_run[t]) for t in usable])
     made += trial_figure(data, ra, figures)
     made += [p.name for p in plots.lifetime_contour(ra.episodes, ra.fit, ra.min_periods, figures)]
     k, n = ra.emerged, ra.valid
@@ -142,7 +145,7 @@ def relax(paths: list, figures: pathlib.Path, made: list, reading=None) -> tuple
     a = {**a, "p_fisher": p_fisher}
     fraction, interval = lab_relax_fraction()
     return Relaxation(ra, crowd, relax_config_from_json(data.settings), fraction, interval, p_fisher,
-                      len(paths), em, chains, reading), a
+                      len(paths), em, chains, reading, spreading), a
 
 
 class Context:

@@ -12,6 +12,7 @@ import numpy as np
 from ..reduce.chains import ChainLifetimes
 from ..reduce.emergence import PRIMARY, Emergence, EmergenceReading, Reading, reading_from_analysis
 from ..reduce.relaxation import CrowdSummary, RelaxAnalysis
+from ..reduce.spreading import SpreadingTimes
 from ..reduce.transport import Exponent, LoneRobot
 from ..specs import RelaxConfig
 
@@ -193,6 +194,7 @@ class Relaxation:
     emergence: Emergence | None = None  # every reading (reduce.emergence); None: reading (a) alone
     chains: ChainLifetimes | None = None  # chains by overlap and by exact member set (reduce.chains)
     reading: Reading = PRIMARY  # the reading the emergence and distance claims judge
+    spreading: SpreadingTimes | None = None  # the crowd's fitted time constants (reduce.spreading)
 
     @property
     def judged(self) -> EmergenceReading:
