@@ -1,34 +1,7 @@
 """A stress suite for ``smx calibrate`` that the calibration code did not write: data sets drawn at random
-from the independent simulator (smarticle_mjx/calibrate/independent.py, which imports nothing from the
-library), each calibrated as a user would, and scored by rules fixed here before any calibration rule was
-tuned against them.
-
-Each set (one index of a suite seed) draws:
-  * the robot's build (independent.draw_build): box sizes, masses, hinge inset, the servo's law (a slewed
-    reference, a slewed reference with velocity feed-forward, or a stepped reference whose speed the
-    motor's back-EMF limits), its gains, torque and gearbox inertia, contact softness, the plate's true mu;
-  * 2-4 amplitudes from 15-90 deg (period 1.6 s x amplitude / 90 deg), 2 trials x 5 periods each, one
-    chirality, a frame rate of 30, 60, 90 or 120 Hz, arms tracked in 3 of 4 sets;
-  * what is hidden: 2 sets in 5 are clean; the others carry 1 (60 %) or 2 (25 %) effects of the library
-    at random sizes, or none of it (15 %) but one outside it; an outside effect also joins 1 in 5 of the
-    sets with library effects. In the library: a servo lag (15-50 ms), a dead time (15-50 ms), a plate
-    tilt (0.5-2.5 deg, any azimuth), a phase offset between two robots (0.05-0.2 period, either sign),
-    anisotropic plate friction (mu_y / mu_x 1.5-2.5 or its inverse), arms resting on the plate
-    (mu 0.1-0.5), tracking noise (0.2-1 mm and 0.2-1 deg). Outside it: one arm misread by a constant
-    (3-8 deg, arms then tracked) or a plate whose mu under a robot depends on its heading,
-    mu (1 + e cos 2h), e 0.3-0.6. At most one servo effect per set.
-
-Scoring ("right": the first structural effect added is the hidden one; with two hidden, both added;
-with none hidden, nothing added; "same-law": the generator's effect follows the library's law, which
-holds for all but the servo lag, whose generator lags its own reference):
-  * size within 1.5x: the fitted size (a vector's length for the tilt) over the true one in [1/1.5, 1.5];
-  * covered: the 95 % interval holds the truth in every parameter;
-  * both counted over every hidden same-law effect, as failed where the effect was not added (the rate
-    among added effects is given beside);
-  * held-out error after calibration over the clean twin's (the same set, seed and noise without its
-    hidden effects, calibrated with the nominal stage alone) <= 1.5;
-  * outside effects: "reported as unexplained" = nothing structural added for them and a verdict that
-    names an unexplained residual.
+from the independent simulator, each calibrated as a user would, and scored by rules fixed before any
+calibration rule was tuned against them. What a set draws and how it is scored: the docstring of
+smarticle_mjx/calibrate/stress.py, where the generator and the scoring live.
 
 Resumable set by set: each set's result is one JSON file under results/calibration_stress/<suite seed>/;
 a set computed with another generator or scoring (their source hashes are stored) is run again.

@@ -9,24 +9,9 @@ import pytest
 
 from smarticle_mjx.reduce import relaxation as RX
 
+from crowdbuild import parked as _still, touch as _touch
+
 W, D = 0.05, 0.022
-
-
-def _touch(n, k, edges_by_period):
-    """[k, P] touched from {(first, end) periods: [(i, j), ...]}."""
-    pairs = [tuple(p) for p in RX.pairs_of(n)]
-    t = np.zeros((k, len(pairs)), bool)
-    for periods, edges in edges_by_period.items():
-        for i, j in edges:
-            t[periods[0]:periods[1], pairs.index((min(i, j), max(i, j)))] = True
-    return t
-
-
-def _still(xy, k):
-    """Poses [k, N, 5] of robots parked at ``xy`` [N, 2] (m), and the start [N, 5]."""
-    start = np.zeros((len(xy), 5))
-    start[:, :2] = xy
-    return np.repeat(start[None], k, 0), start
 
 
 # ------------------------------------------------------------------ area fraction
