@@ -478,12 +478,13 @@ def test_the_noise_test_finds_tracking_noise_in_another_simulators_tracks(tmp_pa
                  noise_xy_mm=xy, noise_theta_deg=th)
     nt = noise_test(load(tmp_path))
     if want is None:
-        assert nt["trials"] == [] and not nt["present"] and "does not apply" in nt["reason"]
+        assert nt.trials == () and not nt.present and "does not apply" in nt.reason
         return
-    assert (nt["xy"]["present"], nt["theta"]["present"]) == want and nt["present"] == any(want)
+    assert (nt.xy.present, nt.theta.present) == want and nt.present == any(want)
     for key, truth, found in (("xy", xy, want[0]), ("theta", th, want[1])):
+        lv = getattr(nt, key)
         if found:
-            assert abs(nt[key]["level"] / truth - 1) < 0.2 and nt[key]["lo"] <= nt[key]["level"] <= nt[key]["hi"]
+            assert abs(lv.level / truth - 1) < 0.2 and lv.lo <= lv.level <= lv.hi
 
 
 def test_measured_noise_is_added_before_any_fit_and_held(tmp_path):
@@ -497,7 +498,7 @@ def test_measured_noise_is_added_before_any_fit_and_held(tmp_path):
     trials = load(tmp_path)
     train, test, model = Problem(trials[:1]), Problem(trials[1:]), Model()
     nt = noise_stage(trials, train, test, LIBRARY, model, lambda m: None)
-    assert nt["applies"] and nt["present"]
+    assert nt.applies and nt.reading.present
     assert [e.name for e in model.chosen] == ["tracking_noise"] and "tracking_noise" in model.fixed
     assert train.noise == test.noise == (model.fixed["tracking_noise"]["noise_xy_mm"],
                                          model.fixed["tracking_noise"]["noise_theta_deg"])
@@ -506,7 +507,7 @@ def test_measured_noise_is_added_before_any_fit_and_held(tmp_path):
     feats = train.meas
     assert EffectSet().noise() == (0.0, 0.0) and feats
     none = noise_stage(trials, Problem(trials[:1]), Problem(trials[1:]), (), Model(), lambda m: None)
-    assert none == {"applies": False, "reason": "tracking_noise is not in the library"}
+    assert none.as_dict() == {"applies": False, "reason": "tracking_noise is not in the library"}
 
 
 def test_jerky_motion_is_not_read_as_tracking_noise():

@@ -171,3 +171,27 @@ def test_the_benchmark_import_check_sees_one(tmp_path):
                  "    from glider_step import SEED\n")
     assert sorted(_benchmark_imports(t, {"calibration_stress", "glider_step"})) == ["calibration_stress",
                                                                                     "glider_step", "sys.path"]
+
+
+def _dict_stages(source: str) -> list[str]:
+    """Stage functions (``*_stage``, ``calibrate``) of a module's source that do not annotate a return, or
+    annotate a dict or a list of dicts."""
+    bad = []
+    for node in ast.parse(source).body:
+        if isinstance(node, ast.FunctionDef) and (node.name.endswith("_stage") or node.name == "calibrate"):
+            ret = ast.unparse(node.returns) if node.returns is not None else ""
+            if not ret or ret.startswith(("dict", "list[dict")) or ret == "list":
+                bad.append(f"{node.name} -> {ret or '?'}")
+    return bad
+
+
+def test_the_calibration_stages_return_typed_results():
+    """Each stage of the calibration loop (calibrate/stages.py) returns a dataclass (or a tuple of them),
+    never a dict: what a stage found is read by name, and the report's JSON is made from it in one place."""
+    root = pathlib.Path(__file__).resolve().parents[1]
+    src = (root / "smarticle_mjx" / "calibrate" / "stages.py").read_text()
+    assert "def calibrate(" in src and "def rounds_stage(" in src
+    assert not _dict_stages(src), _dict_stages(src)
+    assert _dict_stages("def noise_stage(x) -> dict:\n    pass\ndef tilt_stage(x) -> list[dict]:\n    pass\n"
+                        "def calibrate(x):\n    pass\ndef helper(x) -> dict:\n    pass\n") == [
+        "noise_stage -> dict", "tilt_stage -> list[dict]", "calibrate -> ?"]

@@ -25,6 +25,7 @@ robot's track with four consecutive finite frames, the robust scale, the interva
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -103,7 +104,41 @@ def _pooled(runs: list[np.ndarray]) -> np.ndarray:
     return np.concatenate(runs) if runs else np.zeros(0)
 
 
-def noise_test(trials, seed: int = 0) -> dict:
+@dataclasses.dataclass(frozen=True)
+class NoiseLevel:
+    """One coordinate's tracking noise: its robust level (mm or deg), the 95 % bootstrap interval over
+    trials, the lag-1 correlation of its third differences, and whether it is present."""
+
+    level: float
+    lo: float
+    hi: float
+    rho1: float
+    present: bool
+
+
+@dataclasses.dataclass(frozen=True)
+class NoiseReading:
+    """What :func:`noise_test` read: ``present`` when either coordinate's noise is; the frames and trials it
+    read (trials whose gait period spans ``MIN_FRAMES_PER_PERIOD`` frames), the thresholds, and ``reason``
+    where no trial could be read."""
+
+    present: bool
+    frames: int
+    threshold: dict
+    trials: tuple[str, ...]
+    xy: NoiseLevel
+    theta: NoiseLevel
+    reason: str | None = None
+
+    def as_dict(self) -> dict:
+        d = {"present": self.present, "frames": self.frames, "threshold": dict(self.threshold),
+             "trials": list(self.trials)}
+        if self.reason is not None:
+            d["reason"] = self.reason
+        return {**d, "xy": dataclasses.asdict(self.xy), "theta": dataclasses.asdict(self.theta)}
+
+
+def noise_test(trials, seed: int = 0) -> NoiseReading:
     """The tracking noise of ``trials`` (``calibrate.data.Trial``): per coordinate the robust level, its 95 %
     bootstrap interval over trials, and whether it is present (the interval's lower end above
     ``NOISE_PRESENT``). ``present`` is True when either coordinate's is."""
@@ -111,15 +146,15 @@ def noise_test(trials, seed: int = 0) -> dict:
     runs = [trial_runs(t) for t in used]
     per = [{k: _pooled(r[k]) for k in ("xy", "theta")} for r in runs]
     rng = np.random.default_rng(seed)
-    out = {"present": False, "frames": int(sum(len(p["theta"]) for p in per)), "threshold": dict(NOISE_PRESENT),
-           "trials": [t.name for t in used]}
+    frames = int(sum(len(p["theta"]) for p in per))
+    names = tuple(t.name for t in used)
     if not per:
-        out["reason"] = (f"no trial's gait period spans {MIN_FRAMES_PER_PERIOD} frames: the motion is not smooth "
-                         "between frames, and the test does not apply")
-        for key in ("xy", "theta"):
-            out[key] = {"level": float("nan"), "lo": float("nan"), "hi": float("nan"), "rho1": float("nan"),
-                        "present": False}
-        return out
+        nan = float("nan")
+        none = NoiseLevel(nan, nan, nan, nan, False)
+        return NoiseReading(False, frames, dict(NOISE_PRESENT), names, none, none,
+                            f"no trial's gait period spans {MIN_FRAMES_PER_PERIOD} frames: the motion is not smooth "
+                            "between frames, and the test does not apply")
+    levels = {}
     for key in ("xy", "theta"):
         level = robust_sigma(np.concatenate([p[key] for p in per]))
         if len(per) > 1:
@@ -130,15 +165,14 @@ def noise_test(trials, seed: int = 0) -> dict:
             lo = hi = level
         rho = lag1_correlation([d for r in runs for d in r[key]])
         present = bool(np.isfinite(lo) and lo > NOISE_PRESENT[key] and rho <= WHITE_RHO)
-        out[key] = {"level": level, "lo": lo, "hi": hi, "rho1": rho, "present": present}
-        out["present"] |= present
-    return out
+        levels[key] = NoiseLevel(level, lo, hi, rho, present)
+    return NoiseReading(levels["xy"].present or levels["theta"].present, frames, dict(NOISE_PRESENT), names,
+                        levels["xy"], levels["theta"])
 
 
-def effect_values(test: dict) -> tuple[dict, dict]:
+def effect_values(test: NoiseReading) -> tuple[dict, dict]:
     """``tracking_noise``'s values and 95 % intervals from a test that found it: each coordinate at its
     measured level (a coordinate below its threshold at its level too: the effect sets both)."""
-    values = {"noise_xy_mm": test["xy"]["level"], "noise_theta_deg": test["theta"]["level"]}
-    interval = {"noise_xy_mm": [test["xy"]["lo"], test["xy"]["hi"]],
-                "noise_theta_deg": [test["theta"]["lo"], test["theta"]["hi"]]}
+    values = {"noise_xy_mm": test.xy.level, "noise_theta_deg": test.theta.level}
+    interval = {"noise_xy_mm": [test.xy.lo, test.xy.hi], "noise_theta_deg": [test.theta.lo, test.theta.hi]}
     return values, interval

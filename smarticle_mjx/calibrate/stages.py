@@ -21,7 +21,7 @@ from .data import Trial, priors
 from .discrepancy import carry, log_sd
 from .armoffset import ArmOffsetReading, read_offsets, without_offsets
 from .drift import MIN_SPREAD_DEG, drift_test, fit_tilt
-from .noise import effect_values as noise_values, noise_test
+from .noise import NoiseReading, effect_values as noise_values, noise_test
 from .effects import BY_NAME, LIBRARY, Effect, EffectSet, on_bound_away_from_null, value_to_unit
 from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, NOMINAL_EFFECTS, NOMINAL_NFEV, PLATE_HYPOTHESES,
                   SERVO_HYPOTHESES, SERVO_NOMINAL, Fit, Problem, conventions, fit_effects, nominal_findings,
@@ -48,8 +48,21 @@ def scores(train: Problem, test: Problem, fe, names=()) -> tuple[dict, EffectSet
     return nom, eff, float(v @ v) + train.prior_chi2(nom), float(np.mean(test.vector_with(nom, eff) ** 2))
 
 
-def errors(train: Problem, test: Problem, eff: EffectSet) -> dict:
-    return {"err_train": train.error(eff), "err_heldout": test.error(eff), "where_heldout": where_residual(test, eff)}
+@dataclasses.dataclass(frozen=True)
+class Errors:
+    """A model's errors (the mean squared normalised residual: about 1 within measurement error) on the
+    training and the held-out trials, and the held-out error per kind of feature."""
+
+    err_train: float
+    err_heldout: float
+    where_heldout: dict[str, float]
+
+    def as_dict(self) -> dict:
+        return {"err_train": self.err_train, "err_heldout": self.err_heldout, "where_heldout": self.where_heldout}
+
+
+def errors(train: Problem, test: Problem, eff: EffectSet) -> Errors:
+    return Errors(train.error(eff), test.error(eff), where_residual(test, eff))
 
 
 @dataclasses.dataclass
@@ -70,7 +83,7 @@ class Model:
 class NominalStage:
     fit: object  # nominal.NominalFit (with an accepted hypothesis's nominal values), or None
     start: dict  # the nominal values fitted alone
-    errors: dict  # with the nominal values alone
+    errors: Errors  # with the nominal values alone
     hypotheses: list
     delay: DelayTest  # the measured arm delay against the preset model's, by amplitude
     rise: DelayTest | None = None  # the arm rise's excess over the preset model's, split the same way
@@ -692,34 +705,81 @@ def tilt_stage(trials: list[Trial], train: Problem, model: Model, say, drift: di
     return TiltStage(drift, tilt, 3)
 
 
-def noise_stage(trials: list[Trial], train: Problem, test: Problem, library, model: Model, say) -> dict:
+@dataclasses.dataclass(frozen=True)
+class NoiseStage:
+    """The tracking-noise stage: whether it applies (``tracking_noise`` is in the library and the test read some
+    trial), the test's reading (None where the effect is not in the library) and why it does not apply."""
+
+    applies: bool
+    reading: NoiseReading | None
+    reason: str | None = None
+
+    def as_dict(self) -> dict:
+        if self.reading is None:
+            return {"applies": self.applies, "reason": self.reason}
+        return {**self.reading.as_dict(), "applies": self.applies}
+
+
+def noise_stage(trials: list[Trial], train: Problem, test: Problem, library, model: Model, say) -> NoiseStage:
     """Tracking noise, measured without the model (third differences of the tracks, calibrate.noise) before
     any fit: where present, added at the measured level and held there, and every model's frame increments
     are compared with the data's with it (the nominal fit's included). ``applies``: the test read some
     trial (a gait period of enough frames) and ``tracking_noise`` is in the library."""
     if "tracking_noise" not in {e.name for e in library}:
-        return {"applies": False, "reason": "tracking_noise is not in the library"}
+        return NoiseStage(False, None, "tracking_noise is not in the library")
     nt = noise_test(trials)
-    nt["applies"] = bool(nt["trials"])
-    if not nt["applies"]:
-        say(f"tracking noise: {nt['reason']}")
-        return nt
-    say(f"tracking noise (third differences, {len(nt['trials'])} trials): "
-        f"{nt['xy']['level']:.3f} [{nt['xy']['lo']:.3f}, {nt['xy']['hi']:.3f}] mm, "
-        f"{nt['theta']['level']:.3f} [{nt['theta']['lo']:.3f}, {nt['theta']['hi']:.3f}] deg: "
-        + ("present" if nt["present"] else "above a good tracker's resolution but not white (the robot's motion)"
-           if any(nt[k]["lo"] > nt["threshold"][k] for k in ("xy", "theta")) else "within a good tracker's resolution"))
-    if nt["present"]:
+    stage = NoiseStage(bool(nt.trials), nt)
+    if not stage.applies:
+        say(f"tracking noise: {nt.reason}")
+        return stage
+    say(f"tracking noise (third differences, {len(nt.trials)} trials): "
+        f"{nt.xy.level:.3f} [{nt.xy.lo:.3f}, {nt.xy.hi:.3f}] mm, "
+        f"{nt.theta.level:.3f} [{nt.theta.lo:.3f}, {nt.theta.hi:.3f}] deg: "
+        + ("present" if nt.present else "above a good tracker's resolution but not white (the robot's motion)"
+           if any(getattr(nt, k).lo > nt.threshold[k] for k in ("xy", "theta")) else "within a good tracker's resolution"))
+    if nt.present:
         values, interval = noise_values(nt)
         model.add(BY_NAME["tracking_noise"], values, interval)
         model.base = {**model.base, "tracking_noise": values}
         model.fixed["tracking_noise"] = values
         train.noise = test.noise = (values["noise_xy_mm"], values["noise_theta_deg"])
         say("added tracking_noise (third differences of the tracks)")
-    return nt
+    return stage
 
 
-def rounds_stage(train: Problem, test: Problem, library, model: Model, current: dict, say) -> list[dict]:
+@dataclasses.dataclass(frozen=True)
+class Tried:
+    """One candidate effect fitted in a round (with the effects already chosen) and judged (``policy.judge``)."""
+
+    effect: str
+    values: dict
+    interval: dict
+    err_train: float
+    err_heldout: float
+    heldout_gain: float
+    bic_gain: float
+    params: int
+    present: bool
+    accepted: bool
+
+    def as_dict(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+
+@dataclasses.dataclass(frozen=True)
+class Round:
+    """One round: the remaining effects ranked by their signatures (``fit.signatures`` rows), the candidates
+    fitted, and the one added (None: none was accepted, the rounds end)."""
+
+    ranking: tuple[dict, ...]
+    tried: tuple[Tried, ...]
+    accepted: str | None
+
+    def as_dict(self) -> dict:
+        return {"ranking": list(self.ranking), "tried": [t.as_dict() for t in self.tried], "accepted": self.accepted}
+
+
+def rounds_stage(train: Problem, test: Problem, library, model: Model, current: dict, say) -> tuple[Round, ...]:
     """Up to ``MAX_EFFECTS`` rounds: rank the remaining effects by their signatures, fit the leaders
     (with the effects already chosen), add the accepted one with the largest held-out gain."""
     rounds = []
@@ -736,37 +796,49 @@ def rounds_stage(train: Problem, test: Problem, library, model: Model, current: 
             j = judge(e, f.interval[e.name], current["chi2_train"], f.chi2_train, f.n_train,
                       current["err_heldout"], f.err_heldout)
             fits[e.name] = f
-            tried.append({"effect": e.name, "values": f.values, "interval": f.interval,
-                          "err_train": f.err_train, "err_heldout": f.err_heldout, "heldout_gain": j.heldout_gain,
-                          "bic_gain": j.bic_gain, "params": sum(len(BY_NAME[x].params) for x in f.effects),
-                          "present": j.present, "accepted": j.accepted})
+            tried.append(Tried(e.name, f.values, f.interval, f.err_train, f.err_heldout, j.heldout_gain, j.bic_gain,
+                               sum(len(BY_NAME[x].params) for x in f.effects), j.present, j.accepted))
             say(f"  {e.name}: held-out error {f.err_heldout:.2f} ({j.heldout_gain:+.0%}), BIC gain {j.bic_gain:.1f}")
-        best = max((t for t in tried if t["accepted"]), key=lambda t: t["heldout_gain"], default=None)
-        rounds.append({"ranking": ranking, "tried": tried, "accepted": best["effect"] if best else None})
+        best = max((t for t in tried if t.accepted), key=lambda t: t.heldout_gain, default=None)
+        rounds.append(Round(tuple(ranking), tuple(tried), best.effect if best else None))
         if best is None:
             break
-        f = fits[best["effect"]]
-        model.chosen.append(BY_NAME[best["effect"]])
+        f = fits[best.effect]
+        model.chosen.append(BY_NAME[best.effect])
         model.base = f.values
         for name in f.effects:
             model.found[name] = (f.values[name], f.interval[name])
         current = {"err_heldout": f.err_heldout, "chi2_train": f.chi2_train}
-        say(f"added {best['effect']}")
-    return rounds
+        say(f"added {best.effect}")
+    return tuple(rounds)
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(frozen=True)
 class Calibration:
-    """What the loop found: the fitted model (``effects`` on top of the ``nominal`` values) and the
-    JSON-ready ``summary`` (trials, conventions, errors at each stage, rounds, verdict; see report.write)."""
+    """What the loop found: the fitted model (``effects`` on top of the ``nominal`` values), the verdict, each
+    stage's typed result, and the JSON-ready ``summary`` that report.json records (the same results, as
+    report.write formats them; a caller may add to it, as ``smx calibrate`` adds its ``--set`` changes).
+
+    Attributes:
+      before, after_nominal, after: the model's errors with the preset, the nominal values (with what the
+        nominal stage added) and the final model.
+      nominal_stage: the nominal parameters and joint hypotheses (None with ``nominal=False``).
+      noise: the tracking-noise stage; tilt: the plate-tilt stage; rounds: the effect rounds.
+      added: the structural effects added, in order.
+    """
 
     summary: dict
     effects: EffectSet
     nominal: dict
-
-    @property
-    def verdict(self) -> str:
-        return self.summary["verdict"]
+    verdict: str
+    before: Errors
+    after_nominal: Errors
+    after: Errors
+    nominal_stage: NominalStage | None
+    noise: NoiseStage
+    tilt: TiltStage
+    rounds: tuple[Round, ...]
+    added: tuple[str, ...]
 
 
 def added_entry(e: Effect, values: dict, interval: dict, statistical: dict | None = None) -> dict:
@@ -823,13 +895,13 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
                          f"{CONTACT_W} W of each other, where body motion is chaotic and not compared")
     null = EffectSet()
     before = errors(train, test, null)
-    say(f"preset model: held-out error {before['err_heldout']:.2f}")
+    say(f"preset model: held-out error {before.err_heldout:.2f}")
     conv = conventions(train)
     if conv.get("warning"):
         say(conv["warning"])
     model = Model()
     noise = noise_stage(trials, train, test, library, model, say)
-    if noise.get("applies"):  # measured without the model: the rounds do not fit it again
+    if noise.applies:  # measured without the model: the rounds do not fit it again
         library = tuple(e for e in library if e.name != "tracking_noise")
     # is there a phase offset between the robots? Read off their own curves before any fit (after version
     # 0.4.1): where it is absent, no fit tries one (on fresh seeds a model fit named offsets of 0.006-0.008
@@ -920,12 +992,14 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
             return model.found[name][1]
         return None
 
+    answer = verdict(after.err_heldout, model.chosen, aoff)
     summary = {
         "trials": {"train": [t.name for t in train_t], "heldout": [t.name for t in test_t]},
         "conventions": conv, "nominal": nominal_fit.as_dict() if nominal_fit else None,
         "nominal_findings": nominal_findings(nominal_fit) if nominal_fit else [],
         "measured": {k: list(v) for k, v in train.priors.items()},
-        "before": before, "after_nominal": after_nominal, "after": after, "rounds": rounds,
+        "before": before.as_dict(), "after_nominal": after_nominal.as_dict(), "after": after.as_dict(),
+        "rounds": [r.as_dict() for r in rounds],
         "nominal_hypotheses": nom.hypotheses if nom else [], "plate_hypotheses": list(plate_hypotheses),
         "delay_test": nom.delay.as_dict() if nom else None,
         "offset_test": otest.as_dict() if otest is not None else None,
@@ -935,13 +1009,14 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         "rise_test": ({**nom.rise.as_dict(), "reading": servo_reading(nom.rise)} if nom and nom.rise else None),
         "added": [added_entry(e, *model.found[e.name], statistical=measured_interval(e.name))
                   for e in model.chosen],
-        "verdict": verdict(after["err_heldout"], model.chosen, aoff), "model_runs": train.runs + test.runs + tilt.runs,
+        "verdict": answer, "model_runs": train.runs + test.runs + tilt.runs,
         "drift": {**tilt.drift, "tilt_fit": tilt.tilt,
                   "tilt_heldout": tilt_heldout.as_dict() if tilt_heldout is not None else None},
-        "noise_test": noise, "observables": obs,
+        "noise_test": noise.as_dict(), "observables": obs,
         "plate_level": {"p": drift["p"], "dof": drift["dof"], "threshold_p": policy.P_LEVEL,
                         "anisotropic_plate_tried": aniso_asked and plate_skip is None, "reason": plate_skip},
         "criteria": {"min_heldout_gain": MIN_HELDOUT_GAIN, "unexplained_error": UNEXPLAINED,
                      "bic": "chi2 drop > k ln n on training trials"},
         "numerics": sorted({(t.params.integrator, t.params.timestep) for t in trials})}
-    return Calibration(summary, final, dict(train.nominal))
+    return Calibration(summary, final, dict(train.nominal), answer, before, after_nominal, after, nom, noise, tilt,
+                       rounds, tuple(e.name for e in model.chosen))
