@@ -123,6 +123,7 @@ def main(argv=None) -> int:
     prim = em.of(em.primary)
     lab_lo, lab_hi = 0.43, 0.59
     out.update({
+        "trials": a.trials, "usable": a.valid, "flagged": a.trials - a.valid,
         "emergence": em.as_json(),
         "chains": {"overlap": vars(lt.overlap), "exact": vars(lt.exact), "overlap_changes": vars(lt.overlap_changes)},
         "spreading": {"plateau": vars(plateau), "phi_tau": vars(times.phi_tau), "phi_at_bound": times.phi_at_bound,
@@ -144,6 +145,7 @@ def main(argv=None) -> int:
         print(f"{r.reading.label + star:<70} {r.emerged:>4}/{r.trials:<4} {r.fraction:6.2f} "
               f"[{r.interval[0]:.2f}, {r.interval[1]:.2f}] {r.fisher_p:9.1e} "
               f"{r.distance.mean:6.2f} ± {r.distance.sem:4.2f}")
+    print(f"{a.trials} trials, {a.trials - a.valid} flagged by the engine")
     print(f"chains: overlap mean {lt.overlap.mean:.1f} median {lt.overlap.median:.0f} (n {lt.overlap.n}, "
           f"{lt.overlap.censored} censored); exact mean {lt.exact.mean:.1f} median {lt.exact.median:.0f} (n {lt.exact.n})")
     print(f"spreading: plateau median {plateau.median:.0f}; phi tau median {times.phi_tau.median:.1f} "
