@@ -261,3 +261,48 @@ def test_a_bad_reading_is_one_line_and_exit_2_before_anything_runs(tmp_path):
     assert r.exit_code == 2 and r.output.startswith("error: unknown reading 'glides'") and r.output.count("\n") == 1
     assert not (tmp_path / "d").exists() and not (tmp_path / "p.md").exists()
     assert EM.parse_reading(None) is EM.PRIMARY is EM.Reading.PAIR and EM.parse_reading(" Apart") is EM.Reading.APART
+
+
+def test_touch_runs_agree_with_a_period_by_period_count_on_random_trials():
+    """An independent count, period by period in plain Python, of every pair's runs of consecutive touches,
+    their third-robot periods and the pair centre's net displacement from the end of period 30, on random
+    trials of 5 robots (touches flickering at random, robots walking at random, one leaving the plate)."""
+    rng = np.random.default_rng(11)
+    n, k = 5, 160
+    pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+    for _ in range(5):
+        touched = rng.uniform(size=(k, len(pairs))) < rng.uniform(0.5, 0.97, len(pairs))
+        start = np.zeros((n, 5))
+        start[:, :2] = rng.normal(0, 0.05, (n, 2))
+        poses = np.repeat(start[None], k, 0)
+        poses[:, :, :2] += np.cumsum(rng.normal(0, 0.002, (k, n, 2)), axis=0)
+        left = np.zeros(n, int)
+        left[3] = 120  # robot 3 ends period 120 off the plate: its pairs' runs stop before it
+        got = {(q.pair, q.start): q for q in EM.touch_runs(poses, touched, start, W, left_plate=left)}
+        want = {}
+        xy = np.concatenate([start[None, :, :2], poses[..., :2]]) / W
+        for p, (i, j) in enumerate(pairs):
+            t = 0
+            while t < k:
+                ok = lambda u: touched[u, p] and not ((i == 3 or j == 3) and u >= 119)  # noqa: E731
+                if not ok(t):
+                    t += 1
+                    continue
+                s = t
+                while t < k and ok(t):
+                    t += 1
+                third = 0
+                for u in range(s, t):
+                    others = [q for q, (a, b) in enumerate(pairs) if q != p and ({a, b} & {i, j})]
+                    # a touch with a third robot counts as the bound-and-apart rule counts it, wherever that
+                    # robot is (the simulated plane goes on past the plate's edge)
+                    third += any(touched[u, q] for q in others)
+                c = (xy[:, i] + xy[:, j]) / 2
+                late = max(s, 30)
+                net_late = float(np.hypot(*(c[t] - c[late]))) if t > late else 0.0
+                want[((i, j), s)] = (t - s, third, float(np.hypot(*(c[t] - c[s]))), net_late)
+        assert set(got) == set(want)
+        for key, (length, third, net, net_late) in want.items():
+            q = got[key]
+            assert (q.length, q.third_periods) == (length, third), key
+            assert q.net_W == pytest.approx(net, abs=1e-12) and q.net_late_W == pytest.approx(net_late, abs=1e-12)

@@ -98,7 +98,8 @@ class TouchRun:
       pair: the robots (i, j), i < j.
       start: first period (0-based); ``length``: periods.
       censored: the run reached the last period of a trial that ran to its end.
-      third_periods: periods of the run in which a robot of the pair touched a third robot.
+      third_periods: periods of the run in which a robot of the pair touched a third robot (any third robot,
+        on the plate or past its edge, as the bound-and-apart rule counts it).
       apart_periods: periods of the run that were bound and apart (reading (a)'s per-period rule).
       net_W: |c[s + L] - c[s]|, the pair centre's net displacement over the whole run (W).
       net_late_W: |c[s + L] - c[max(s, SPREAD_PERIODS)]|, the same from the end of period 30 (W); 0 for a
