@@ -10,10 +10,13 @@ The rules, in the order a calibration meets them:
   it out (:func:`servo_skip_reason`); an anisotropic plate only where the plate-frame drift reads the trials
   and finds drift (:func:`plate_skip_reason`, ``P_LEVEL``);
 * a plate tilt named from the drift is kept by the drift test's own criterion (:func:`tilt_accepted`,
-  ``TILT_Z2``, ``P_ONE_VECTOR``);
+  ``TILT_Z2``; the step-following gate :func:`follows_the_robot`, ``P_ONE_VECTOR``);
 * every effect fitted through the model passes one rule (:func:`judge`): BIC gain > 0, held-out gain
   >= ``MIN_HELDOUT_GAIN``, and present (:func:`is_present`); a joint servo hypothesis of the nominal stage
-  by :func:`judged` (the delay test's reading and the delay floor);
+  by :func:`judged` (the delay test's reading and the delay floor); structure read off the data before any
+  fit (a measured phase offset, arms read on the plate) by :func:`measured_structure`, and added first
+  (:func:`first_choice`); of a lag and a dead time that both pass, the one the arm rise reads
+  (:func:`servo_choice`);
 * the rounds fit at most ``MAX_EFFECTS`` effects, a candidate only where its grid gain is >= ``MIN_SHARE``
   of the leader's;
 * the verdict calls a held-out error above ``UNEXPLAINED`` an unexplained residual (:func:`verdict`).
@@ -27,8 +30,10 @@ import math
 import numpy as np
 
 from .drift import MIN_SPREAD_DEG
+from .armdrag import DragTest
 from .effects import Effect
 from .observables import DELAY_MIN_MS, DelayTest
+from .phase import OffsetTest
 
 SERVO_HYPOTHESES = ("servo_lag", "servo_dead_time")  # fitted jointly with the nominal servo
 # an effect fitted through the model must lower the held-out error by this share (chosen, not fitted: it asks
@@ -133,6 +138,7 @@ def servo_skip_reason(trials, dtest: DelayTest) -> str | None:
 
 
 ANISO = "anisotropic_friction"
+ARM_PLATE = "arm_plate_contact"
 # the plate-frame drift's p-value above which the plate shows no sign of being other than level and isotropic
 # (evidence: on stress sets calibrated with the joint plate hypothesis, 8 of the 9 plates named where none was
 # hidden drifted at p 0.70-0.99, and 8 of the 10 named rightly at p < 0.05)
@@ -186,3 +192,70 @@ def verdict(err_heldout: float, chosen: list, arm_offset: ArmOffsetReading | Non
     if arm_offset is not None and arm_offset.present:
         v = f"unexplained: {arm_offset.describe()} (outside the library; taken out of the arm tracks); then {v}"
     return v
+
+
+# ------------------------------------------------------------------ structure read off the data
+
+MEASURED_OFFSET = "measured on the robots' curves"
+MEASURED_DRAG = "read on the body's turning between kicks"
+
+
+def measured_structure(name: str, otest: OffsetTest | None, j: Judgement, rule: str,
+                    drag: DragTest | None = None) -> tuple[Judgement, str]:
+    """Structure read off the data before any fit is not asked to win a held-out contest:
+
+    * a phase offset established on the robots' own curves (``OffsetTest.established``: present, its
+      interval clear of zero) is accepted whatever its joint fit gains held out: a timing between the
+      robots, measured, that no fit needs to confirm; the model's mismatch between their trials can cost it
+      held out (evidence: a measured offset lost 10 % held out beside a plate whose grip depends on the
+      robot's heading, and a plate was named instead);
+    * arms on the plate read present by the arm-drag reading (``DragTest.present``) are accepted where their
+      joint fit sizes them present (its interval clear of no drag) and gains by BIC without losing held out,
+      as a servo hypothesis after a positive delay test is (evidence: a drag read at 32 deg/s, fitted
+      present beside a measured offset, had been refused at a 16 % held-out loss; and a heading-dependent
+      grip outside the library, read as a drag, had been added at a 4 % held-out loss before "without
+      losing").
+
+    Any other hypothesis keeps its judgement."""
+    if name == "phase_offset" and otest is not None and otest.established:
+        return dataclasses.replace(j, accepted=True), MEASURED_OFFSET
+    if name == ARM_PLATE and drag is not None and drag.present and j.present:
+        return dataclasses.replace(j, accepted=j.bic_gain > 0 and j.heldout_gain >= 0), MEASURED_DRAG
+    return j, rule
+
+
+def first_choice(passed: list, otest: OffsetTest | None, drag: DragTest | None = None):
+    """The joint hypothesis the nominal stage adds first: what was read off the data
+    (:func:`measured_structure`: a measured offset, else arms on the plate read present), so that the others
+    are judged beside it; else the accepted one with the largest held-out gain; None."""
+    for name, read in (("phase_offset", otest is not None and otest.established),
+                       (ARM_PLATE, drag is not None and drag.present)):
+        if read:
+            for c in passed:
+                if c[2].name == name:
+                    return c
+    return max(passed, key=lambda c: c[1], default=None)
+
+
+def servo_choice(passed: list, hypotheses: list, reading: str | None, say) -> list:
+    """Where a lag and a dead time both passed (two readings of one servo's timing), keep the one the arm
+    rise reads (``observables.servo_reading``) and mark the other refused in ``hypotheses``; without a
+    reading, or with one servo hypothesis passed, leave them to the held-out gain."""
+    names = {c[2].name for c in passed}
+    if reading is None or not set(SERVO_HYPOTHESES) <= names:
+        return passed
+    other = next(x for x in SERVO_HYPOTHESES if x != reading)
+    for h in hypotheses:
+        if h["effect"] == other and h.get("accepted"):
+            h["accepted"] = False
+            h["reason"] = f"the arm rise reads a {'lag' if reading == 'servo_lag' else 'dead time'}"
+    say(f"  both servo timings passed: kept {reading}, which the arm rise reads")
+    return [c for c in passed if c[2].name != other]
+
+
+def follows_the_robot(read: dict, beyond_model: bool) -> bool:
+    """The tilt's step-following gate (``tilt_accepted``): the drift follows the robot's own step better than
+    it fits one drift vector. Read beyond the model (where the model already drags its arms on the plate or
+    holds an anisotropic plate, its own drift on a level plate follows the robot's step), the gate stops a
+    tilt only where one drift vector does not fit the drift the model leaves (p < ``P_ONE_VECTOR``)."""
+    return bool(read["follows_the_robot"] and (not beyond_model or read["p_one_vector"] < P_ONE_VECTOR))

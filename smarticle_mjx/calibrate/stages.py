@@ -28,8 +28,9 @@ from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, NOMINAL_EFFECTS, NOMINAL_NFEV
                   observable_stages, signatures, split, stage_tracks, where_residual)
 from . import policy
 from .policy import (  # noqa: F401  (the acceptance rules; re-exported for the readings that name them here)
-    ANISO, BELOW_FLOOR, MAX_EFFECTS, MIN_HELDOUT_GAIN, MIN_SHARE, NO_ARMS, P_LEVEL, P_ONE_VECTOR, TILT_Z2,
-    UNEXPLAINED, Judgement, below_delay_floor, floor_note, is_present, judge, judged, plate_skip_reason,
+    ANISO, ARM_PLATE, BELOW_FLOOR, MAX_EFFECTS, MEASURED_DRAG, MEASURED_OFFSET, MIN_HELDOUT_GAIN, MIN_SHARE,
+    NO_ARMS, P_LEVEL, P_ONE_VECTOR, TILT_Z2, UNEXPLAINED, Judgement, below_delay_floor, first_choice, floor_note,
+    follows_the_robot, is_present, judge, judged, measured_structure, plate_skip_reason, servo_choice,
     servo_skip_reason, tilt_accepted, verdict)
 from .observables import DELAY_MIN_MS, DelayTest, delay_test, observables, servo_reading
 from .nominal import BY_NAME as NOMINAL_BY_NAME, apply as apply_nominal, fit_nominal
@@ -89,7 +90,6 @@ class NominalStage:
     rise: DelayTest | None = None  # the arm rise's excess over the preset model's, split the same way
 
 
-ARM_PLATE = "arm_plate_contact"
 
 
 def drag_plan(dtest: DragTest | None, plate_hypotheses: tuple[str, ...], library) -> tuple[tuple, tuple, str]:
@@ -340,63 +340,6 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
 
 
 SERVO_NULL = "servo restarted"  # the key of the nominal fit restarted from the preset servo, without an effect
-MEASURED_OFFSET = "measured on the robots' curves"
-MEASURED_DRAG = "read on the body's turning between kicks"
-
-
-def measured_structure(name: str, otest: OffsetTest | None, j: Judgement, rule: str,
-                    drag: DragTest | None = None) -> tuple[Judgement, str]:
-    """Structure read off the data before any fit is not asked to win a held-out contest:
-
-    * a phase offset established on the robots' own curves (``OffsetTest.established``: present, its
-      interval clear of zero) is accepted whatever its joint fit gains held out (added after version 0.4.1):
-      a timing between the robots, measured, that no fit needs to confirm; the model's mismatch between
-      their trials can cost it held out (fresh seed 2047, set 6: +10 % beside a plate whose grip depends on
-      the robot's heading, and a plate named instead);
-    * arms on the plate read present by the arm-drag reading (``DragTest.present``) are accepted where their
-      joint fit sizes them present (its interval clear of no drag) and gains by BIC without losing held out,
-      as a servo hypothesis after a positive delay test is (added after seed 2048's set 26: a drag read at
-      32 deg/s, fitted jointly beside a measured offset, present, refused at +16 % held out; "without
-      losing" added after seed 2050's set 1, where a heading-dependent grip outside the library turned
-      the robot between kicks, read as a drag, and was added at -4 %).
-
-    Any other hypothesis keeps its judgement."""
-    if name == "phase_offset" and otest is not None and otest.established:
-        return dataclasses.replace(j, accepted=True), MEASURED_OFFSET
-    if name == ARM_PLATE and drag is not None and drag.present and j.present:
-        return dataclasses.replace(j, accepted=j.bic_gain > 0 and j.heldout_gain >= 0), MEASURED_DRAG
-    return j, rule
-
-
-def first_choice(passed: list, otest: OffsetTest | None, drag: DragTest | None = None):
-    """The joint hypothesis the nominal stage adds first: what was read off the data
-    (:func:`measured_structure`: a measured offset, else arms on the plate read present), so that the others
-    are judged beside it; else the accepted one with the largest held-out gain; None."""
-    for name, read in (("phase_offset", otest is not None and otest.established),
-                       (ARM_PLATE, drag is not None and drag.present)):
-        if read:
-            for c in passed:
-                if c[2].name == name:
-                    return c
-    return max(passed, key=lambda c: c[1], default=None)
-
-
-def servo_choice(passed: list, hypotheses: list, reading: str | None, say) -> list:
-    """Where a lag and a dead time both passed (two readings of one servo's timing), keep the one the arm
-    rise reads (``observables.servo_reading``) and mark the other refused in ``hypotheses``; without a
-    reading, or with one servo hypothesis passed, leave them to the held-out gain (added after 0.4.1)."""
-    names = {c[2].name for c in passed}
-    if reading is None or not set(SERVO_HYPOTHESES) <= names:
-        return passed
-    other = next(x for x in SERVO_HYPOTHESES if x != reading)
-    for h in hypotheses:
-        if h["effect"] == other and h.get("accepted"):
-            h["accepted"] = False
-            h["reason"] = f"the arm rise reads a {'lag' if reading == 'servo_lag' else 'dead time'}"
-    say(f"  both servo timings passed: kept {reading}, which the arm rise reads")
-    return [c for c in passed if c[2].name != other]
-
-
 @dataclasses.dataclass
 class SecondHypothesis:
     fit: object  # nominal.NominalFit of the nominal parameters with both effects, or None: none accepted
@@ -679,8 +622,7 @@ def tilt_stage(trials: list[Trial], train: Problem, model: Model, say, drift: di
         # drift, so a step-following rest must show. Elsewhere the data's own reading, as before.
         tilt["gate_beyond_model"] = ARM_PLATE in model.base or ANISO in model.base
         read = tilt["plate_models_beyond_model"] if tilt["gate_beyond_model"] else drift["plate_models"]
-        tilt["follows_the_robot"] = bool(read["follows_the_robot"]
-                                         and (not tilt["gate_beyond_model"] or read["p_one_vector"] < P_ONE_VECTOR))
+        tilt["follows_the_robot"] = follows_the_robot(read, tilt["gate_beyond_model"])
         if tilt["gate_beyond_model"]:
             say(f"  the drift beyond the model's on a level plate: one drift vector chi2 {read['chi2_one_vector']:.1f}"
                 f" (p {read['p_one_vector']:.2g}), one anisotropy of the robot's step {read['chi2_anisotropy']:.1f}"
