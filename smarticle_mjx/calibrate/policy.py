@@ -111,6 +111,8 @@ def below_delay_floor(effect: Effect, interval: dict) -> bool:
     return all(np.isfinite(e) and e * 1e3 < DELAY_MIN_MS for e in ends)
 
 
+# True: try a servo timing without arm tracks, by the held-out rule (a counterfactual for the stress suite's
+# --servo-without-arms, run apart with --tag; not the rule)
 SERVO_WITHOUT_ARMS = False
 NO_ARMS = ("no arm angles were tracked: body motion alone cannot tell a servo's timing from a servo law unlike "
            "the model's")

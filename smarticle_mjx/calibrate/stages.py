@@ -80,8 +80,12 @@ class Model:
         self.found[e.name] = (values, interval)
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(frozen=True)
 class NominalStage:
+    """The nominal stage: the robot's nominal parameters fitted (with the joint hypotheses accepted), their
+    values fitted alone and the errors then, every joint hypothesis as judged (the report's entries), and the
+    delay and rise tests read before it."""
+
     fit: object  # nominal.NominalFit (with an accepted hypothesis's nominal values), or None
     start: dict  # the nominal values fitted alone
     errors: Errors  # with the nominal values alone
@@ -340,8 +344,12 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
 
 
 SERVO_NULL = "servo restarted"  # the key of the nominal fit restarted from the preset servo, without an effect
-@dataclasses.dataclass
+
+
+@dataclasses.dataclass(frozen=True)
 class SecondHypothesis:
+    """A second joint hypothesis tried beside the accepted one: the joint fit where one was accepted."""
+
     fit: object  # nominal.NominalFit of the nominal parameters with both effects, or None: none accepted
     effect: Effect | None
     tried: list  # entries for the report's nominal hypotheses, marked "beside"
@@ -543,10 +551,12 @@ def plate_third_start(train: Problem, nom: dict, e: Effect, ended=()) -> dict:
 # counterfactual for the stress suite's --swapped-split, run apart with --tag: does what is named depend on
 # which half of the trials is held out?)
 SPLIT_SWAPPED = False
-# True: try a servo timing without arm tracks, by the held-out rule (a counterfactual for the stress suite's
-# --servo-without-arms, run apart with --tag; not the rule)
-@dataclasses.dataclass
+
+
+@dataclasses.dataclass(frozen=True)
 class TiltStage:
+    """The plate-tilt stage: the model-free drift test, the tilt fitted to a significant drift, its runs."""
+
     drift: dict  # the model-free drift test
     tilt: dict | None  # the tilt fitted to a significant drift
     runs: int  # model runs it took
