@@ -75,7 +75,7 @@ PACKAGE = f"smarticle-mjx {__version__}"  # a store's ``package`` attribute: whi
 # that changes some stored number of some study whose configuration, model and seed stay the same; a release
 # that changes reducers, reports, calibration or the CLI keeps it, so a study's stores are reused across it
 # (studies.stale_reason). Stores written before it existed carry none and are reused only by their own release.
-PHYSICS_VERSION = 1  # since December 2026 (package 0.4.18: the physics of every release since 0.4.1)
+PHYSICS_VERSION = 1  # since December 2026 (package 0.4.18)
 
 
 def versions() -> dict:
