@@ -32,6 +32,7 @@ from smarticle_mjx.reduce import chains as CH
 from smarticle_mjx.reduce import emergence as EM
 from smarticle_mjx.reduce import relaxation as RX
 from smarticle_mjx.reduce import spreading as SP
+from smarticle_mjx.report import lab_relax_fraction
 from smarticle_mjx.store import read_relax
 
 ROOT = pathlib.Path(__file__).resolve().parent
@@ -113,15 +114,14 @@ def main(argv=None) -> int:
         return 0 if rep["reproduced"] else 1
     em = EM.emergence(data)
     usable = np.flatnonzero(data.usable)
-    W, D = float(data.body_length), float(data.body_thickness)
-    lt = CH.chain_lifetimes([(data.touched[t], data.left_plate[t], data.periods_run[t]) for t in usable])
+    lt = CH.study_chains(data)
     _, crowd = RX.crowd(data)
     phi = [SP.phi_spreading(c.phi) for c in crowd]
     cont = [SP.fit_decay(SP.contacts_per_period(data.touched[t], data.periods_run[t]), t0=1) for t in usable]
     times = SP.spreading_times(phi, cont)
     plateau = RX.crowd_summary(crowd).plateau
     prim = em.of(em.primary)
-    lab_lo, lab_hi = 0.43, 0.59
+    _, (lab_lo, lab_hi) = lab_relax_fraction()
     out.update({
         "trials": a.trials, "usable": a.valid, "flagged": a.trials - a.valid,
         "emergence": em.as_json(),

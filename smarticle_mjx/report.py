@@ -373,12 +373,8 @@ def crowd_times(data: RelaxRecord, trials) -> dict:
     constants (reduce.spreading) of the usable trials (``trials``: their reduce.relaxation.CrowdTrial), as a
     report's JSON records them."""
     from .reduce import chains as CH, spreading as SP
-    usable = np.flatnonzero(data.usable)
-    lt = CH.chain_lifetimes([(data.touched[t], data.left_plate[t], data.periods_run[t]) for t in usable])
-    sp = SP.spreading_times([SP.phi_spreading(c.phi) for c in trials],
-                            [SP.fit_decay(SP.contacts_per_period(data.touched[t], data.periods_run[t]), t0=1)
-                             for t in usable])
-    return {"chains": dataclasses.asdict(lt), "spreading": dataclasses.asdict(sp)}
+    return {"chains": dataclasses.asdict(CH.study_chains(data)),
+            "spreading": dataclasses.asdict(SP.study_spreading(data, trials))}
 
 
 def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 2.0, reading=None) -> dict:

@@ -26,7 +26,7 @@ import dataclasses
 
 import numpy as np
 
-from .relaxation import CHAIN_MIN, Spread, touch_components, trial_arrays
+from .relaxation import CHAIN_MIN, Spread, touch_components, touch_graph, trial_arrays
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,14 +64,8 @@ def chains_per_period(touched, left_plate=None, periods_run=None, n: int | None 
     if n is None:
         n = int(round((1 + np.sqrt(1 + 8 * p)) / 2))
     _, touched, run, pairs, on = trial_arrays(np.zeros((k, n, 2)), touched, left_plate, periods_run)
-    out = []
-    for t in range(k):
-        adj = np.zeros((n, n), bool)
-        live = touched[t] & on[t, pairs[:, 0]] & on[t, pairs[:, 1]]
-        adj[pairs[live, 0], pairs[live, 1]] = True
-        adj |= adj.T
-        out.append([tuple(c) for c in touch_components(adj, on[t]) if len(c) >= CHAIN_MIN])
-    return out
+    return [[tuple(c) for c in touch_components(touch_graph(touched[t], on[t], pairs), on[t]) if len(c) >= CHAIN_MIN]
+            for t in range(k)]
 
 
 def track_chains(per_period: list[list[tuple[int, ...]]], periods_run: int | None = None) -> tuple[ChainTrack, ...]:
@@ -151,6 +145,13 @@ class ChainLifetimes:
     overlap: Spread
     exact: Spread
     overlap_changes: Spread
+
+
+def study_chains(data) -> ChainLifetimes:
+    """:func:`chain_lifetimes` of a relaxation study's usable trials (``smarticle_mjx.store.read_relax``
+    output)."""
+    return chain_lifetimes([(data.touched[t], data.left_plate[t], data.periods_run[t])
+                            for t in np.flatnonzero(data.usable)])
 
 
 def chain_lifetimes(trials) -> ChainLifetimes:

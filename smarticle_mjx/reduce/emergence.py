@@ -147,7 +147,7 @@ class TouchRun:
 
 
 def touch_runs(poses, touched, start, body_length: float, left_plate=None, periods_run=None, trial: int = -1,
-               min_periods: int = 1, apart_W: float = 2.0) -> tuple[TouchRun, ...]:
+               min_periods: int = 1, apart_W: float = 2.0, episodes=None) -> tuple[TouchRun, ...]:
     """Every touch run of at least ``min_periods`` of one trial, in order of start and pair.
 
     Args:
@@ -160,13 +160,17 @@ def touch_runs(poses, touched, start, body_length: float, left_plate=None, perio
       trial: the trial's number, recorded in each run.
       min_periods: shortest run returned.
       apart_W: the bound-and-apart rule's distance, for ``apart_periods``.
+      episodes: the trial's bound-and-apart episodes (``relaxation.trial_episodes`` with this ``apart_W``),
+        where the caller has them; found here otherwise.
     """
     poses, touched, run, pairs, on = trial_arrays(poses, touched, left_plate, periods_run)
     k, n = poses.shape[:2]
     xy = np.concatenate([np.asarray(start, float)[None, :, :2], poses[..., :2]]) / body_length  # [K + 1, N, 2]
     third = third_touch(touched, pairs)
     apart_mask = {}
-    for e in trial_episodes(poses, touched, start, left_plate, periods_run, body_length, apart_W):
+    if episodes is None:
+        episodes = trial_episodes(poses, touched, start, left_plate, periods_run, body_length, apart_W)
+    for e in episodes:
         apart_mask.setdefault(e.pair, np.zeros(k, bool))[e.start:e.start + e.lifetime] = True
     out = []
     for p, (i, j) in enumerate(pairs):
@@ -327,10 +331,11 @@ def emergence(data: RelaxRecord, keep_periods: int = KEEP_PERIODS, periods: int 
     runs, apart = {}, {}
     for t in np.flatnonzero(data.usable):
         tr = int(data.trial[t])
+        episodes = trial_episodes(data.poses[t], data.touched[t], data.start_poses[t], data.left_plate[t],
+                                  data.periods_run[t], W, apart_W, trial=tr)
         runs[tr] = touch_runs(data.poses[t], data.touched[t], data.start_poses[t], W, data.left_plate[t],
-                              data.periods_run[t], tr, keep_periods, apart_W)
-        eps = [e for e in trial_episodes(data.poses[t], data.touched[t], data.start_poses[t], data.left_plate[t],
-                                         data.periods_run[t], W, apart_W, trial=tr) if e.lifetime >= periods]
+                              data.periods_run[t], tr, keep_periods, apart_W, episodes)
+        eps = [e for e in episodes if e.lifetime >= periods]
         best = max(eps, key=lambda e: e.lifetime) if eps else None
         apart[tr] = None if best is None else (best.distance_W, best.kind)
     return emergence_from_runs(runs, apart, keep_periods, periods)

@@ -575,6 +575,16 @@ def phi_plateau(phi, window: int = PLATEAU_WINDOW, tol: float = PLATEAU_TOL,
     return Plateau(max(end, 0), True, float("nan"), last, end, window, tol)
 
 
+def touch_graph(touched_t: np.ndarray, on_t: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """[N, N] symmetric adjacency of one period's touches (``touched_t`` [P]) between robots on the plate
+    (``on_t`` [N])."""
+    n = len(on_t)
+    adj = np.zeros((n, n), bool)
+    live = touched_t & on_t[pairs[:, 0]] & on_t[pairs[:, 1]]
+    adj[pairs[live, 0], pairs[live, 1]] = True
+    return adj | adj.T
+
+
 def touch_components(adj: np.ndarray, alive: np.ndarray) -> list[list[int]]:
     """Connected components (sorted member lists) of the graph ``adj`` [N, N] over robots ``alive``."""
     n = len(adj)
@@ -635,10 +645,7 @@ def crowd_trial(poses, touched, start, body_length: float, body_thickness: float
     episodes: list[ChainEpisode] = []
     open_: dict[tuple[int, ...], list[int]] = {}  # members -> [start, loop_periods]
     for t in range(k):
-        adj = np.zeros((n, n), bool)
-        live = touched[t] & on[t, pairs[:, 0]] & on[t, pairs[:, 1]]
-        adj[pairs[live, 0], pairs[live, 1]] = True
-        adj |= adj.T
+        adj = touch_graph(touched[t], on[t], pairs)
         degree[t] = np.where(on[t], adj.sum(1), -1)
         now = {}
         for comp in touch_components(adj, on[t]):

@@ -125,6 +125,14 @@ class SpreadingTimes:
     first_period_share: Spread
 
 
+def study_spreading(data, crowd_trials) -> SpreadingTimes:
+    """:func:`spreading_times` of a relaxation study's usable trials (``smarticle_mjx.store.read_relax``
+    output), from their ``reduce.relaxation.CrowdTrial`` (``crowd_trials``, the same trials in order)."""
+    usable = np.flatnonzero(data.usable)
+    return spreading_times([phi_spreading(c.phi) for c in crowd_trials],
+                           [fit_decay(contacts_per_period(data.touched[t], data.periods_run[t]), t0=1) for t in usable])
+
+
 def spreading_times(phi: list[PhiSpreading], contact_fits: list[DecayFit]) -> SpreadingTimes:
     ok = lambda fits: [f.tau for f in fits if np.isfinite(f.tau) and not f.at_bound]  # noqa: E731
     fits = [p.fit for p in phi]

@@ -121,27 +121,21 @@ def relax(paths: list, figures: pathlib.Path, made: list, reading=None) -> tuple
     ``validation.json`` records (report.relax_summary with Fisher's exact p of its emergence against the
     lab's, every emergence reading and both chain readings); draws its two figures. ``reading``: the
     emergence reading the claims judge (reduce.emergence; None: the primary one)."""
-    from scipy.stats import fisher_exact
     from ..reduce import chains as CH, emergence as EM, relaxation as RX, spreading as SP
-    from ..report import LAB_RELAX, lab_relax_fraction, relax_summary, trial_figure
+    from ..report import lab_relax_fraction, relax_summary, trial_figure
     from ..specs import relax_config_from_json
     from ..store import read_relax
     data = read_relax(paths)
     ra, (crowd, crowd_trials) = RX.analyse(data), RX.crowd(data)
-    usable = np.flatnonzero(data.usable)
-    spreading = SP.spreading_times([SP.phi_spreading(c.phi) for c in crowd_trials],
-                                   [SP.fit_decay(SP.contacts_per_period(data.touched[t], data.periods_run[t]), t0=1)
-                                    for t in usable])
+    spreading = SP.study_spreading(data, crowd_trials)
     reading = EM.parse_reading(reading)
     em = EM.emergence(data)
     a = relax_summary(data, crowd=crowd, analysis=ra, reading=reading, emergence=em)
     a["emergence"] = em.as_json(with_runs=False)  # the page's numbers; a report of the stores keeps the runs
-    chains = CH.chain_lifetimes([(data.touched[t], data.left_plate[t], data.periods_run[t]) for t in usable])
+    chains = CH.study_chains(data)
     made += trial_figure(data, ra, figures)
     made += [p.name for p in plots.lifetime_contour(ra.episodes, ra.fit, ra.min_periods, figures)]
-    k, n = ra.emerged, ra.valid
-    lab_k, lab_n = LAB_RELAX["emerged"], LAB_RELAX["trials"]
-    p_fisher = float(fisher_exact([[k, n - k], [lab_k, lab_n - lab_k]])[1]) if n else float("nan")
+    p_fisher = em.of(EM.Reading.APART).fisher_p  # the bound-and-apart count's test against the lab's
     a = {**a, "p_fisher": p_fisher}
     fraction, interval = lab_relax_fraction()
     return Relaxation(ra, crowd, relax_config_from_json(data.settings), fraction, interval, p_fisher,
