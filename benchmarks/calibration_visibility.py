@@ -30,13 +30,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import pathlib
-import tempfile
 import time
 
 import numpy as np
 
 from calibration_stress import RESULTS, SERVO, _indices, draw_set
+from smarticle_mjx.calibrate import independent as IND
 from smarticle_mjx.calibrate.observables import crossings
 from smarticle_mjx.calibrate.stress import (  # noqa: F401  (the measure lives in the package)
     DEFAULT_NOISE, NOISE_KEYS, VISIBLE)

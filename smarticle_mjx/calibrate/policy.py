@@ -31,6 +31,7 @@ import numpy as np
 
 from .drift import MIN_SPREAD_DEG
 from .armdrag import DragTest
+from .armoffset import ArmOffsetReading
 from .effects import Effect
 from .observables import DELAY_MIN_MS, DelayTest
 from .phase import OffsetTest

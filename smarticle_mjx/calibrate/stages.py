@@ -19,8 +19,8 @@ import numpy as np
 
 from .data import Trial, priors
 from .discrepancy import carry, log_sd
-from .armoffset import ArmOffsetReading, read_offsets, without_offsets
-from .drift import MIN_SPREAD_DEG, drift_test, fit_tilt
+from .armoffset import read_offsets, without_offsets
+from .drift import drift_test, fit_tilt
 from .noise import NoiseReading, effect_values as noise_values, noise_test
 from .effects import BY_NAME, LIBRARY, Effect, EffectSet, on_bound_away_from_null, value_to_unit
 from .fit import (FIT_CANDIDATES, HYPOTHESIS_NFEV, NOMINAL_EFFECTS, NOMINAL_NFEV, PLATE_HYPOTHESES,
@@ -32,7 +32,7 @@ from .policy import (  # noqa: F401  (the acceptance rules; re-exported for the 
     NO_ARMS, P_LEVEL, P_ONE_VECTOR, TILT_Z2, UNEXPLAINED, Judgement, below_delay_floor, first_choice, floor_note,
     follows_the_robot, is_present, judge, judged, measured_structure, plate_skip_reason, servo_choice,
     servo_skip_reason, tilt_accepted, verdict)
-from .observables import DELAY_MIN_MS, DelayTest, delay_test, observables, servo_reading
+from .observables import DelayTest, delay_test, observables, servo_reading
 from .nominal import BY_NAME as NOMINAL_BY_NAME, apply as apply_nominal, fit_nominal
 from .armdrag import DragTest, drag_test
 from .phase import OffsetTest, estimate_offset, offset_test
