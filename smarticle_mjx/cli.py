@@ -387,10 +387,13 @@ def validate(
     set_: list[str] = typer.Option([], "--set", help=_SET_HELP + "; every study and lone robot; stores go to "
                                    "DATA/MODEL~FIELD=VALUE"),
     reading: Optional[str] = typer.Option(None, help=_READING_HELP),
+    suite: str = typer.Option("small", help="small: every claim, studies cut to a day's work "
+                              "(docs/validation.md); paper: the basin-scan claims at the paper's study sizes "
+                              "(docs/validation-paper.md; hours of compute, every study resumable)"),
 ):
     """Measure the paper's claims from the studies in sweeps/ and write docs/validation.md."""
     from .validate import SWEEPS, parse_studies, run_validation
-    chosen = parse_studies(studies)
+    chosen = parse_studies(studies, suite)
     from . import presets
     overrides = _sets(set_)
     # a bad value: one line before the progress bar starts (run_validation would refuse it too, inside the bar)
@@ -401,7 +404,7 @@ def validate(
     with bar:
         res = run_validation(data, out, sweeps or SWEEPS, model=_model(model), on_progress=progress,
                              single_periods=single_periods, studies=chosen, imperfections=imperfections,
-                             overrides=overrides, reading=reading)
+                             overrides=overrides, reading=reading, suite=suite)
     _echo([f"{r.verdict:>16}: {r.claim}" for r in res.rows]
           + [f"note: {n}" for n in res.extra.get("notes", [])] + [f"wrote {out}"])
 

@@ -163,9 +163,10 @@ def lifetimes(runs, periods: int, out_dir, stem, title="", formats=("png",)):
     return save_figure(fig, out_dir, stem, formats)
 
 
-def versus_amplitude(amplitudes, panels: dict, out_dir, stem="vs_amplitude", formats=("png",)):
+def versus_amplitude(amplitudes, panels: dict, out_dir, stem="vs_amplitude", formats=("png",), marks=None):
     """One panel per quantity vs alpha_max; ``panels[ylabel] = (values, errors)``;
-    errors per point are a symmetric half-width or a (below, above) pair, or None."""
+    errors per point are a symmetric half-width or a (below, above) pair, or None. ``marks[ylabel]``:
+    (lo, hi, label), an amplitude interval shaded and labelled in that panel."""
     plt = pyplot()
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.4), squeeze=False)
     for ax, (yl, (v, e)) in zip(axes[0], panels.items()):
@@ -173,6 +174,10 @@ def versus_amplitude(amplitudes, panels: dict, out_dir, stem="vs_amplitude", for
             e = np.asarray(e, float)
             e = np.nan_to_num(e.T if e.ndim == 2 else e, nan=0.0)
         ax.errorbar(amplitudes, v, yerr=e, marker="o", ms=4, capsize=3)
+        if marks and yl in marks:
+            lo, hi, label = marks[yl]
+            ax.axvspan(lo, hi, color="tab:orange", alpha=0.2, label=label)
+            ax.legend(fontsize=7, loc="best")
         ax.set(xlabel=r"$\alpha_{max}$ (deg)", ylabel=yl)
     return save_figure(fig, out_dir, stem, formats)
 

@@ -23,7 +23,7 @@ import numpy as np
 from . import configs as C
 from . import imperfections, presets
 from .gait import GaitSpec
-from .suite import STUDIES
+from .suite import STUDY_NAMES
 from .scene import SceneParams
 
 @dataclasses.dataclass(frozen=True)
@@ -344,6 +344,11 @@ class BoundStudy:
         ``keep_window`` periods); otherwise every amplitude starts from the
         source gliders.
       steady_window: last periods over which steady |r| is averaged.
+      converge_tol: 0 (the default): steady |r| is the mean over the last ``steady_window`` periods.
+        Otherwise (W) each pair's steady |r| is read where it has converged: the first period at which its
+        mean |r| over the last ``steady_window`` periods differs by less than this from the mean over the
+        ``steady_window`` periods before, the pair bound in all of them (``reduce.gliders.
+        converged_separation``); ``periods`` is then the most a stage runs.
     """
 
     source: str
@@ -357,12 +362,17 @@ class BoundStudy:
     steady_window: int = 10
     keep_window: int = 5
     seed: int = 0
+    converge_tol: float = 0.0
     description: str = ""
     figure: str = ""
 
     def validate(self) -> None:
-        if self.source not in STUDIES:
-            raise ValueError(f"bound study: unknown source study {self.source!r} (known: {', '.join(STUDIES)})")
+        if not (self.converge_tol >= 0 and math.isfinite(self.converge_tol)):
+            raise ValueError(f"bound study: converge_tol must be >= 0 W, got {self.converge_tol}")
+        if self.converge_tol > 0 and self.periods < 2 * self.steady_window:
+            raise ValueError("bound study: with converge_tol, periods must be at least twice the steady window")
+        if self.source not in STUDY_NAMES:
+            raise ValueError(f"bound study: unknown source study {self.source!r} (known: {', '.join(STUDY_NAMES)})")
         if self.glider not in ("C1", "C2"):
             raise ValueError(f"bound study: glider must be C1 or C2, got {self.glider!r}")
         if self.pairs <= 0 or self.periods <= 0 or not self.amplitudes_deg:

@@ -198,6 +198,48 @@ def steady_separation(rel, touched, window: int = 20) -> SteadyPairs:
                        float(per.std(ddof=1) / np.sqrt(n)) if n > 1 else np.nan, n, per)
 
 
+@dataclasses.dataclass(frozen=True)
+class ConvergedPairs:
+    """Steady |r| (W) of pairs read where each converged (:func:`converged_separation`): the pairs that
+    converged, each one's steady |r| [G] and the period it was read at [G] (the end of its window), and
+    the pairs bound through some pair of windows but never converged within the periods run."""
+
+    per_pair: np.ndarray
+    at_period: np.ndarray
+    unconverged: int
+
+    @property
+    def pairs(self) -> int:
+        return len(self.per_pair)
+
+
+def converged_separation(rel, touched, window: int = 10, tol: float = 0.01) -> ConvergedPairs:
+    """Each pair's steady |r| read where it has converged: the first period t (t >= 2 ``window``) at which
+    the mean |r| over periods [t - window, t) differs from the mean over [t - 2 window, t - window) by less
+    than ``tol`` (W), the pair bound in every one of those 2 ``window`` periods; its steady |r| is the later
+    window's mean. ``rel`` [M, K, 3] once per period (|r| first), ``touched`` [M, K]."""
+    rel, t = np.asarray(rel, float), np.asarray(touched, bool)
+    M, K = t.shape
+    if window < 1 or tol <= 0:
+        raise ValueError(f"converged_separation: window >= 1 and tol > 0 expected, got {window} and {tol}")
+    r = rel[..., 0]
+    per, at, unconverged = [], [], 0
+    for m in range(M):
+        tried = False
+        for end in range(2 * window, K + 1):
+            if not t[m, end - 2 * window:end].all():
+                continue
+            tried = True
+            later, earlier = r[m, end - window:end].mean(), r[m, end - 2 * window:end - window].mean()
+            if abs(later - earlier) < tol:
+                per.append(later)
+                at.append(end)
+                break
+        else:
+            unconverged += tried
+    return ConvergedPairs(np.asarray(per, float), np.asarray(at, np.int64), int(unconverged))
+
+
 def sign_runs(phi) -> np.ndarray:
     """Lengths (periods) of the runs in which phi - 180 deg keeps its sign.
 

@@ -18,7 +18,7 @@ from ..plots import check_out_dir
 from ..scene import SceneParams
 from ..specs import ScanConfig
 from ..studyfile import read_study
-from ..suite import STUDIES, SWEEPS
+from ..suite import STUDIES, SUITES, SWEEPS, suite as suite_studies
 from ..studies import ensure
 from . import evidence, page
 from .claims import CLAIMS, Validation
@@ -61,35 +61,45 @@ def single_robots(params: SceneParams, amplitudes=SINGLE_AMPLITUDES, periods: in
 
 
 def evaluate(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None = None,
-             extra: dict | None = None, reading=None) -> Validation:
-    """Every claim's row from the stores there are (figures drawn into ``figures``); ``extra``: entries added
-    to the numbers behind the rows (notes, the robots' set); ``reading``: the relaxation's emergence reading
-    (reduce.emergence; None: the primary one)."""
-    ev, numbers, made = evidence.gather(stores, singles, figures, specs, reading)
-    return Validation(tuple(c.row(ev.get(c.key), stores) for c in CLAIMS), {**numbers, **(extra or {})},
+             extra: dict | None = None, reading=None, claims=None, suite: str = "small") -> Validation:
+    """Every claim's row (of ``claims``; None: all of them) from the stores there are (figures drawn into
+    ``figures``); ``extra``: entries added to the numbers behind the rows (notes, the robots' set);
+    ``reading``: the relaxation's emergence reading (reduce.emergence; None: the primary one)."""
+    claims = CLAIMS if claims is None else claims
+    ev, numbers, made = evidence.gather(stores, singles, figures, specs, reading, claims)
+    return Validation(tuple(c.row(ev.get(c.key), stores, suite) for c in claims), {**numbers, **(extra or {})},
                       tuple(made))
 
 
-def parse_studies(text: str | None) -> list[str] | None:
-    """'random_90, relax' -> the named studies (None: all); ValueError naming the unknown ones."""
+def paper_claims(studies: dict) -> list:
+    """The claims a suite of ``studies`` judges: those measured from studies alone, all among them."""
+    return [c for c in CLAIMS if c.studies and set(c.studies) <= set(studies)]
+
+
+def parse_studies(text: str | None, suite: str | None = None) -> list[str] | None:
+    """'random_90, relax' -> the named studies of suite ``suite`` (None: all); ValueError naming the unknown
+    ones (or an unknown suite)."""
+    known = suite_studies(suite)
     if text is None:
         return None
     chosen = [x.strip() for x in text.split(",") if x.strip()]
-    bad = [x for x in chosen if x not in STUDIES]
+    bad = [x for x in chosen if x not in known]
     if bad or not chosen:
-        raise ValueError(f"--studies: unknown {', '.join(bad) or '(none given)'}; known: {', '.join(STUDIES)}")
+        raise ValueError(f"--studies: unknown {', '.join(bad) or '(none given)'}; known: {', '.join(known)}")
     return chosen
 
 
-def check_inputs(data, out_md, sweeps, single_periods: int, studies=None) -> None:
-    """ValueError, before anything runs, for missing study files, unknown studies or unusable paths."""
+def check_inputs(data, out_md, sweeps, single_periods: int, studies=None, suite: str | None = None) -> None:
+    """ValueError, before anything runs, for an unknown suite, missing study files, unknown studies or
+    unusable paths."""
+    known = suite_studies(suite)
     data, out_md, sweeps = pathlib.Path(data), pathlib.Path(out_md), pathlib.Path(sweeps)
-    missing = [f for f in STUDIES.values() if not (sweeps / f).is_file()]
+    missing = [f for f in known.values() if not (sweeps / f).is_file()]
     if missing:
         raise ValueError(f"study files missing in {sweeps}: {', '.join(missing)}")
-    unknown = [s_ for s_ in (studies or []) if s_ not in STUDIES]
+    unknown = [s_ for s_ in (studies or []) if s_ not in known]
     if unknown:
-        raise ValueError(f"unknown studies {unknown}; known: {', '.join(STUDIES)}")
+        raise ValueError(f"unknown studies {unknown}; known: {', '.join(known)}")
     if not out_md.parent.is_dir():
         raise ValueError(f"output directory {out_md.parent} does not exist")
     check_out_dir(data)
@@ -107,9 +117,14 @@ def data_folder(data, model: str, imperfections: str = "none", overrides=()) -> 
 def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Path = SWEEPS,
                    model: str = presets.DEFAULT, on_progress=None, command: str | None = None,
                    single_periods: int = SINGLE_PERIODS, studies: list[str] | None = None,
-                   imperfections: str = "none", overrides=(), reading=None) -> Validation:
-    """Run or reuse the studies (all, or those named in ``studies``) with model preset ``model`` in
-    ``data/<model>/``, measure every claim from the complete stores there are, write the page.
+                   imperfections: str = "none", overrides=(), reading=None, suite: str | None = None) -> Validation:
+    """Run or reuse the studies of suite ``suite`` (``suite.SUITES``; None: the small one; all its studies,
+    or those named in ``studies``) with model preset ``model`` in ``data/<model>/``, measure every claim
+    of that suite from the complete stores there are, write the page.
+
+    The small suite's page judges every claim (lone robots simulated beside the studies); the paper
+    suite's page (:func:`.page.write_paper_page`) judges the basin-scan claims, those whose studies are all
+    among its own, and adds the rebinding of pairs that came apart.
 
     ``imperfections``: run every study with the robots' imperfections of that set (drawn from each
     study's seed; smarticle_mjx/imperfections.py), in ``data/<model>+<set>/``. ``overrides``: scene
@@ -120,24 +135,32 @@ def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Pat
     from ..reduce.emergence import parse_reading
     reading = parse_reading(reading)
     overrides = presets.overrides(overrides)
-    check_inputs(data, out_md, sweeps, single_periods, studies)
+    check_inputs(data, out_md, sweeps, single_periods, studies, suite)
+    known = suite_studies(suite)
     ideal = imp.get(imperfections).ideal
     params = presets.apply(presets.params(model), overrides)
     data = data_folder(data, model, imperfections, overrides)
     data.mkdir(parents=True, exist_ok=True)
-    wanted = list(STUDIES) if studies is None else list(studies)
-    specs = {name: read_study(sweeps / f) for name, f in STUDIES.items()}
+    wanted = list(known) if studies is None else list(studies)
+    specs = {name: read_study(sweeps / f) for name, f in known.items()}
     stores: dict = {}
     notes: list[str] = []
     for name, spec in specs.items():
-        got = ensure(spec, data, pathlib.Path(STUDIES[name]).stem, model,
+        got = ensure(spec, data, pathlib.Path(known[name]).stem, model,
                      {k: (v if isinstance(v, list) else [v]) for k, v in stores.items()}, on_progress, notes,
                      run=name in wanted, imperfections=imperfections, overrides=overrides)
         if got:
             # a scan is one store; a staged study (started-bound, relaxation) a list of them
             stores[name] = got[0] if isinstance(spec, ScanConfig) else got
-    singles = single_robots(params, periods=single_periods, imperfections=imperfections)
     figures = out_md.parent / out_md.stem
+    if known is not STUDIES:
+        result = evaluate(stores, {}, figures, specs, {"notes": notes, "suite": "paper"}, reading,
+                          claims=paper_claims(known), suite="paper")
+        page.write_paper_page(result, stores, out_md, figures, command or page.relative_command(
+            pathlib.Path(data).parent, out_md, model, imperfections=imperfections, overrides=overrides,
+            reading=reading, suite="paper"), model, specs, imperfections=imperfections, overrides=overrides)
+        return result
+    singles = single_robots(params, periods=single_periods, imperfections=imperfections)
     result = evaluate(stores, singles, figures, specs,
                       {"notes": notes, **({} if ideal else {"imperfections": {
                           "set": imperfections, "lone_robots_per_amplitude": LONE_ROBOTS_DRAWN}})}, reading)

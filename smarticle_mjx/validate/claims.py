@@ -78,12 +78,14 @@ class Claim:
     def outcome(self, evidence) -> Outcome:
         return self.measure(evidence)
 
-    def row(self, evidence, stores=()) -> "ClaimRow":
-        """The page's row; ``evidence`` None: a study is missing (``stores``: the studies there are)."""
+    def row(self, evidence, stores=(), suite: str = "small") -> "ClaimRow":
+        """The page's row; ``evidence`` None: a study is missing (``stores``: the studies there are; ``suite``:
+        the suite the page is of, named in the command that runs the missing study)."""
         if evidence is None:
             study = next((s for s in self.studies if s not in stores), self.studies[0])
+            run = "smx validate" if suite == "small" else f"smx validate --suite {suite}"
             return ClaimRow(self.text, self.paper, f"study {study} not run yet", "–", VERDICTS[None],
-                            f"Run `smx validate --studies {study}` (the page is written from the complete stores "
+                            f"Run `{run} --studies {study}` (the page is written from the complete stores "
                             "there are).", run=False)
         o = self.measure(evidence)
         return ClaimRow(self.text, self.paper, o.measured, self.test if o.test is None else o.test, VERDICTS[o.holds],
@@ -366,31 +368,41 @@ def _mirror_robots(ev: Mirror) -> str:
 def descent(ev: Descent) -> Outcome:
     """``ev``: steady |r| per amplitude in increasing amplitude, the window averaged, the periods per stage
     and whether stages continued (:class:`.inputs.Descent`)."""
-    sep = [dataclasses.astuple(s) for s in ev.sep]
-    win = ev.window
-    x = np.array([s_[0] for s_ in sep])
-    y = np.array([s_[1] for s_ in sep], float)
+    sep, win = ev.sep, ev.window
+    x = np.array([s_.amplitude_deg for s_ in sep])
+    y = np.array([s_.r_W for s_ in sep], float)
     ok = np.isfinite(y)
     from scipy.stats import spearmanr
     rho, p = spearmanr(x[ok], y[ok]) if ok.sum() >= 3 else (np.nan, np.nan)
     drops = y[:-1] - y[1:]  # decrease from one amplitude to the next higher one
     where = f"{x[np.nanargmax(drops)]:g}→{x[np.nanargmax(drops) + 1]:g}°" if np.isfinite(drops).any() else "–"
     near85 = where in ("80→85°", "85→90°", "80→90°")
+    if ev.tolerance > 0:
+        read = (f"pairs converged to {f(ev.tolerance, 'g')} W over {win} periods; not converged in brackets after "
+                "the slash")
+        counts = lambda s_: f"{s_.pairs}/{s_.unconverged}"  # noqa: E731
+        how = (f"each pair's steady \\|r\\| read where it converged: the first period at which its mean over "
+               f"the last {win} periods differs by less than {f(ev.tolerance, 'g')} W from the mean over the {win} "
+               f"before, bound in all of them (at most {ev.periods} periods per amplitude; pairs that parted or never "
+               "converged are not in the mean; 95 % bootstrap intervals over pairs in the figure)")
+    else:
+        read = f"pairs bound through the last {win} periods"
+        counts = lambda s_: f"{s_.pairs}"  # noqa: E731
+        how = (f"steady \\|r\\| = mean over the last {win} periods of pairs bound in all of them (pair count in "
+               "brackets; 95 % bootstrap intervals over pairs in the figure)")
+    started = sep[-1].started if sep else 0
     return Outcome(bool(rho < 0 and p < ALPHA and near85) if np.isfinite(rho) else None,
-                   ", ".join(f"{a:g}°: {f(r)} ({n})" for a, r, lo, hi, n, _ in sep)
-                   + f" W (pairs bound through the last {win} periods); Spearman ρ = {f(rho)} (p = {f(p, '.2g')}); "
-                     f"largest drop {where}",
-                   f"Pairs started bound, as the paper did: {sep[-1][5] if sep else 0} steady C1 gliders of the 90° "
+                   ", ".join(f"{s_.amplitude_deg:g}°: {f(s_.r_W)} ({counts(s_)})" for s_ in sep)
+                   + f" W ({read}); Spearman ρ = {f(rho)} (p = {f(p, '.2g')}); largest drop {where}",
+                   f"Pairs started bound, as the paper did: {started} steady C1 gliders of the 90° "
                    f"random study, run {ev.periods} periods at each amplitude "
                    + ("(each stage starting where the pairs still bound at the end of the previous one ended)"
                       if ev.continuation else
                       "(each amplitude started from those gliders at rest, arms at the gait's first corner; stepping "
                       "down with each stage starting where the previous one ended was tried first: all 32 pairs "
                       "stayed bound at 85° and all parted within a period at 80°)")
-                   + "; steady \\|r\\| = mean over "
-                   f"the last {win} periods of pairs bound in all of them (pair count in brackets; 95 % bootstrap "
-                   "intervals over pairs in the figure). Before (model `paper`, November 2026), pairs found bound "
-                   "among random starts gave ρ = −0.60, p = 0.28.")
+                   + f"; {how}. Before (model `paper`, November 2026), pairs found bound among random starts gave "
+                     "ρ = −0.60, p = 0.28.")
 
 
 # ----------------------------------------------------------- P_b vs amplitude

@@ -17,7 +17,8 @@ import numpy as np
 from .. import plots
 from ..configs import TWO_PI
 from ..reduce import binding, gliders as GL, transport
-from ..reduce import analysis
+from ..reduce import analysis, rebinding as rebind
+from ..reduce.rebinding import Rebinding
 from ..report import amplitude_panels, analyse_store_run, pb_rows
 from ..store import Store
 from .claims import CLAIMS, pb_groups
@@ -87,19 +88,40 @@ def mirror(a90: analysis.RunAnalysis, acw: analysis.RunAnalysis) -> Mirror:
                   acw.options.glider_min_periods)
 
 
-def descent(paths: list, window: int) -> list[SteadyR]:
+def descent(paths: list, window: int, tolerance: float = 0.0) -> list[SteadyR]:
     """Steady |r| per amplitude of the started-bound stages (mean over the last ``window`` periods of
-    pairs bound in all of them, bootstrap interval over pairs), in increasing amplitude."""
+    pairs bound in all of them; with ``tolerance`` > 0, each pair read where it converged,
+    ``reduce.gliders.converged_separation``), bootstrap interval over pairs, in increasing amplitude."""
     sep = []
     for path in paths:
         st = Store(path)
         d = st.run(st.runs[0], fields=("rel", "touched", "valid"))
         t = d["touched"][:, :, 0] & d["valid"][:, None]
-        ss = GL.steady_separation(d["rel"].astype(float), t, window=min(window, t.shape[1]))
-        m, lo, hi, n = transport.bootstrap_interval(ss.per_pair)
-        sep.append((float(st.run_attrs[st.runs[0]]["amplitude_deg"]), m, lo, hi, n, int(d["valid"].sum())))
+        unconverged = 0
+        if tolerance > 0:
+            cs = GL.converged_separation(d["rel"].astype(float), t, window=window, tol=tolerance)
+            per, unconverged = cs.per_pair, cs.unconverged
+        else:
+            per = GL.steady_separation(d["rel"].astype(float), t, window=min(window, t.shape[1])).per_pair
+        m, lo, hi, n = transport.bootstrap_interval(per)
+        sep.append((float(st.run_attrs[st.runs[0]]["amplitude_deg"]), m, lo, hi, n, int(d["valid"].sum()),
+                    unconverged))
     sep.sort()
     return [SteadyR(*x) for x in sep]
+
+
+def rebinding(path) -> list[Rebinding]:
+    """Per amplitude run of a scan run with its early exit off (``quiet_periods = 0``): how often a pair
+    that came apart bound again (:func:`smarticle_mjx.reduce.rebinding.rebinding`), in increasing amplitude.
+    ValueError, one line, for a scan that retired lanes early (its partings are cut short)."""
+    st = Store(path)
+    if int(st.config["scan"].get("quiet_periods", 2)) != 0:
+        raise ValueError(f"{path}: rebinding needs a scan with its early exit off (quiet_periods = 0)")
+    out = []
+    for run in st.runs:
+        d = st.run(run, fields=("touched", "valid"))
+        out.append(rebind.rebinding(d["touched"][:, :, 0], d["valid"], float(st.run_attrs[run]["amplitude_deg"])))
+    return sorted(out, key=lambda r: r.amplitude_deg)
 
 
 def pb(runs: list[analysis.RunAnalysis]) -> BindingVsAmplitude:
@@ -279,15 +301,20 @@ def _mirror(ctx: Context) -> Mirror:
 def _descent(ctx: Context) -> Descent:
     spec = ctx.specs.get("descent")
     win = spec.steady_window if spec is not None else 10
-    sep = descent(ctx.stores["descent"], win)
+    tol = spec.converge_tol if spec is not None else 0.0
+    sep = descent(ctx.stores["descent"], win, tol)
     ctx.extra["descent"] = [dataclasses.asdict(x) for x in sep]
     if sep:
+        amps, r = np.array([x.amplitude_deg for x in sep]), np.array([x.r_W for x in sep])
+        label = "steady |r| (W), started bound"
+        drops = r[:-1] - r[1:]  # the decrease from one amplitude to the next higher one, as the claim reads it
+        marks = {label: (amps[int(np.nanargmax(drops))], amps[int(np.nanargmax(drops)) + 1], "largest drop")} \
+            if np.isfinite(drops).any() else None
         ctx.draw(plots.versus_amplitude(
-            [x.amplitude_deg for x in sep],
-            {"steady |r| (W), started bound": ([x.r_W for x in sep], [(x.r_W - x.lo, x.hi - x.r_W) for x in sep])},
-            ctx.figures, "steady_separation"))
+            list(amps), {label: (list(r), [(x.r_W - x.lo, x.hi - x.r_W) for x in sep])},
+            ctx.figures, "steady_separation", marks=marks))
     return Descent(tuple(sep), win, Store(ctx.stores["descent"][0]).config["scan"]["periods"],
-                   bool(spec is not None and spec.continuation))
+                   bool(spec is not None and spec.continuation), tol)
 
 
 @builds("amplitude", ("amplitude",))
@@ -310,6 +337,18 @@ def _relax(ctx: Context) -> Relaxation:
     return ev
 
 
+@builds("rebinding", ("rebind",))
+def _rebinding(ctx: Context) -> list[Rebinding]:
+    rows = rebinding(ctx.stores["rebind"])
+    ctx.extra["rebinding"] = [r.as_json() for r in rows]
+    ctx.draw(plots.versus_amplitude(
+        [r.amplitude_deg for r in rows],
+        {"rebound / parted": ([r.rate for r in rows], [(r.rate - r.lo, r.hi - r.rate) for r in rows]),
+         "parted / valid": ([r.parted / r.valid if r.valid else np.nan for r in rows], None)},
+        ctx.figures, "rebinding"))
+    return rows
+
+
 def _msd_figure(ctx: Context) -> None:
     """Every MSD curve the page has, in one figure, after the builders that measure them."""
     curves = {}
@@ -327,7 +366,8 @@ def _msd_figure(ctx: Context) -> None:
         ctx.draw(plots.msd_curves(curves, ctx.figures))
 
 
-def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None = None, reading=None):
+def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | None = None, reading=None,
+           claims=None):
     """Evidence for every claim from the stores there are; figures drawn into ``figures``.
 
     Each claim names the evidence it needs (``claims.Claim.evidence``, a builder of :data:`BUILDERS`);
@@ -339,6 +379,7 @@ def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | Non
       singles: lone robots' tracks (:func:`smarticle_mjx.validate.single_robots`).
       specs: study name -> its spec (the started-bound studies' windows).
       reading: the relaxation's emergence reading the claims judge (None: the primary one).
+      claims: the claims gathered for (None: every claim).
 
     Returns:
       (claim key -> its evidence, None where a study is missing; the numbers written beside the page;
@@ -346,6 +387,8 @@ def gather(stores: dict, singles: dict, figures: pathlib.Path, specs: dict | Non
     """
     figures.mkdir(parents=True, exist_ok=True)
     ctx = Context(stores, singles, figures, specs, reading)
-    ev = {c.key: ctx.get(c.evidence) for c in CLAIMS}
+    ev = {c.key: ctx.get(c.evidence) for c in (CLAIMS if claims is None else claims)}
+    if "rebind" in stores:  # a measure beside the claims (the paper suite): the page prints its table
+        ctx.get("rebinding")
     _msd_figure(ctx)
     return ev, ctx.extra, ctx.made

@@ -102,8 +102,9 @@ class Mirror:
 @dataclasses.dataclass(frozen=True)
 class SteadyR:
     """Steady |r| (W) of the started-bound pairs at one amplitude: the mean over the last ``window``
-    periods of pairs bound in all of them, its 95 % bootstrap interval over pairs, those pairs and the
-    pairs started."""
+    periods of pairs bound in all of them (or, with a convergence tolerance, over the pairs that converged,
+    each read where it did), its 95 % bootstrap interval over pairs, those pairs and the pairs started; with
+    a tolerance, the pairs bound long enough to be tried that never converged."""
 
     amplitude_deg: float
     r_W: float
@@ -111,17 +112,20 @@ class SteadyR:
     hi: float
     pairs: int
     started: int
+    unconverged: int = 0
 
 
 @dataclasses.dataclass(frozen=True)
 class Descent:
-    """Steady |r| per amplitude (increasing amplitude), the window averaged, the periods of each stage and
-    whether each stage started where the previous one ended."""
+    """Steady |r| per amplitude (increasing amplitude), the window averaged, the periods of each stage (the
+    most, with a convergence tolerance), whether each stage started where the previous one ended, and the
+    convergence tolerance (W; 0: the last window read)."""
 
     sep: tuple[SteadyR, ...]
     window: int
     periods: int
     continuation: bool
+    tolerance: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)

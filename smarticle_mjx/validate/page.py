@@ -26,13 +26,15 @@ def step_check_path(imperfections: str = "none") -> pathlib.Path:
     return STEP_CHECK if imperfections == "none" else STEP_CHECK.with_name(f"validation_step_{imperfections}.json")
 
 
-def study_line(name: str, paths) -> str:
+def study_line(name: str, paths, files: dict | None = None) -> str:
+    """The studies table's row of study ``name`` (its file from ``files``; None: the small suite's)."""
+    files = STUDIES if files is None else files
     paths = paths if isinstance(paths, list) else [paths]
     st = Store(paths[0])
     if st.kind == "relax":
         rc = st.config["relax"]
         n = sum(int(Store(p).config["relax"]["trials"]) for p in paths)
-        return (f"| {name} | `sweeps/{STUDIES[name]}` | {n} trials in {len(paths)} stages of {rc['n_robots']} robots, "
+        return (f"| {name} | `sweeps/{files[name]}` | {n} trials in {len(paths)} stages of {rc['n_robots']} robots, "
                 f"α {rc['amplitude_deg']:g}°, {rc['periods']} periods, {rc['gait']} {rc['chirality']}; model "
                 f"`{st.model}`; {st.attrs.get('package')}, mujoco {st.attrs.get('mujoco')} |")
     sc = st.config["scan"]
@@ -41,7 +43,7 @@ def study_line(name: str, paths) -> str:
     amps = [float(Store(p).config["scan"]["amplitudes_deg"][0]) for p in paths] if len(paths) > 1 \
         else sc["amplitudes_deg"]
     what = what.replace("|", "\\|")
-    return (f"| {name} | `sweeps/{STUDIES[name]}` | {what}, α {amps}, {sc['periods']} periods"
+    return (f"| {name} | `sweeps/{files[name]}` | {what}, α {amps}, {sc['periods']} periods"
             f"{' per stage' if len(paths) > 1 else ''}, {sc['gait']} {sc['chirality']}; model `{st.model}`; "
             f"{st.attrs.get('package')}, mujoco {st.attrs.get('mujoco')} |")
 
@@ -224,7 +226,7 @@ def robots_line(imperfections: str, paths=()) -> str:
 
 
 def relative_command(data: pathlib.Path, out_md: pathlib.Path, model: str, studies=None,
-                     imperfections: str = "none", overrides=(), reading=None) -> str:
+                     imperfections: str = "none", overrides=(), reading=None, suite: str = "small") -> str:
     """The regenerate command, with paths relative to the repository when they
     lie inside it (``DIR`` / ``PAGE`` placeholders otherwise), never one
     machine's absolute path."""
@@ -235,6 +237,106 @@ def relative_command(data: pathlib.Path, out_md: pathlib.Path, model: str, studi
         except ValueError:
             return placeholder
     cmd = f"smx validate --data {rel(data, 'DIR')} --out {rel(out_md, 'PAGE')} --model {model}"
+    cmd = cmd if suite == "small" else f"{cmd} --suite {suite}"
     cmd = cmd if imperfections == "none" else f"{cmd} --imperfections {imperfections}"
     cmd = cmd if parse_reading(reading) is PRIMARY else f"{cmd} --reading {parse_reading(reading).value}"
     return cmd + "".join(f" --set {k}={v}" for k, v in overrides)
+
+
+def study_size(spec) -> str:
+    """A study file's size in words ("5000 random starts × 75 periods"), for the paper page's comparison."""
+    from ..specs import BoundStudy, ScanConfig
+    if isinstance(spec, BoundStudy):
+        pairs = f"every steady {spec.glider} glider" if spec.pairs >= 10000 else \
+            f"the first {spec.pairs} steady {spec.glider} gliders"
+        read = f", read at convergence ({spec.converge_tol:g} W)" if spec.converge_tol > 0 else \
+            f", last {spec.steady_window} read"
+        return f"{pairs} × {spec.periods} periods{read}"
+    if isinstance(spec, ScanConfig):
+        n = spec.positions * spec.orientations if spec.configs == "polar" else spec.n
+        what = {"polar": f"{spec.positions} positions × {spec.orientations} orientations"}.get(
+            spec.configs, f"{n} {spec.configs} starts")
+        return f"{what} × {spec.periods} periods" + (f" at {len(spec.amplitudes_deg)} amplitudes"
+                                                      if len(spec.amplitudes_deg) > 1 else "")
+    return type(spec).__name__
+
+
+def _small_rows(path: pathlib.Path) -> dict[str, dict]:
+    """The small suite's rows (claim text -> row) from its page's ``validation.json``; empty if none."""
+    try:
+        return {r["claim"]: r for r in json.loads(pathlib.Path(path).read_text())["rows"]}
+    except (OSError, ValueError, KeyError):
+        return {}
+
+
+def write_paper_page(result: Validation, stores: dict, out_md: pathlib.Path, figures: pathlib.Path, command: str,
+                     model: str, specs: dict, imperfections: str = "none", overrides=(),
+                     small_json: pathlib.Path | None = None) -> None:
+    """The paper suite's page: the basin-scan claims judged on the studies at the paper's sizes, each verdict
+    beside the small suite's (read from that page's ``validation.json``, ``small_json``; default: the
+    ideal robots' page beside this one) with both study sizes; the claims whose verdict moved, each with what
+    differs between the two studies; the rebinding of pairs that came apart; the studies and the figures."""
+    from ..studyfile import read_study
+    from ..suite import PAPER_STUDIES
+    from .claims import CLAIMS
+    small_json = pathlib.Path(out_md).parent / "validation" / "validation.json" if small_json is None else small_json
+    small = _small_rows(small_json)
+    small_specs = {n: read_study(SWEEPS / f) for n, f in STUDIES.items() if (SWEEPS / f).is_file()}
+    rel = pathlib.Path(figures).name
+    every = [q for v in stores.values() for q in (v if isinstance(v, list) else [v])]
+    made = made_with(every)
+    cell = lambda x: str(x).replace("|", "\\|").replace("\\\\|", "\\|")  # noqa: E731
+    studies_of = {c.text: c.studies for c in CLAIMS}
+    sizes = lambda names, sp: "; ".join(f"{n}: {study_size(sp[n])}" for n in names if n in sp)  # noqa: E731
+    lines = ["# Validation against the paper at the paper's study sizes", "",
+             f"Model `{model}` (docs/model.md){overrides_line(overrides)}{robots_line(imperfections, every)}. "
+             f"{provenance(made)} Regenerate with `{command}`: every study is resumable (a killed run resumes where "
+             "it stopped; `--studies NAME,...` runs one at a time), complete stores are reused while the model, the "
+             "configuration and the physics version are the same "
+             f"(these took {wall_minutes(every):.0f} minutes of wall time on 2 cores).", "",
+             "The basin-scan claims of `docs/validation.md`, judged here on the studies the paper ran, at its sizes; "
+             "every other claim (lone robots, chirality, the diagonal gait, relaxations) stays on that page. "
+             f"{result.count_words()}. Each row states its test before the number; the small suite's verdict and "
+             "study size are beside it.", "",
+             "| claim | paper | measured at the paper's size | test | verdict | small suite | studies (paper size; small) |",
+             "|---|---|---|---|---|---|---|"]
+    moved = []
+    for r in result.rows:
+        names = studies_of.get(r.claim, ())
+        old = small.get(r.claim)
+        before = f"{old['verdict']}" if old else "not on the small page"
+        if old and r.run and old["verdict"] != r.verdict:
+            moved.append((r, old))
+        lines.append(f"| {cell(r.claim)} | {cell(r.paper)} | {cell(r.measured)} | {cell(r.test)} | **{r.verdict}** | "
+                     f"{before} | {cell(sizes(names, specs))}; small: {cell(sizes(names, small_specs))} |")
+    lines += ["", "## What changed at the paper's size", ""]
+    if not small:
+        lines.append(f"No small-suite page was found beside this one (`{small_json.parent.name}/{small_json.name}`).")
+    elif not moved:
+        lines.append("No verdict moved between the small suite and the paper's sizes.")
+    for r, old in moved:
+        names = studies_of.get(r.claim, ())
+        lines.append(f"- “{r.claim}”: {old['verdict']} on the small suite ({cell(old['measured'])}), **{r.verdict}** "
+                     f"here. What differs: {cell(sizes(names, small_specs))} → {cell(sizes(names, specs))}; the test is "
+                     "the same.")
+    reb = result.extra.get("rebinding")
+    if reb:
+        lines += ["", "## Pairs that came apart and bound again", "",
+                  "A default scan retires a pair after 2 periods without contact, so P_b cannot see a pair that "
+                  "parts and meets again. The rebinding study (`sweeps/paper_rebind.toml`) runs every period: a pair "
+                  f"parted when, after a bound period, it went {reb[0]['gap']} periods unbound; it rebound when it "
+                  "touched again later (`reduce/rebinding.py`; exact 95 % intervals).", "",
+                  "| α_max | valid | ever bound | parted | rebound | rate | 95 % interval | rebound and bound at the end |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for x in reb:
+            lines.append(f"| {x['amplitude_deg']:g}° | {x['valid']} | {x['ever_bound']} | {x['parted']} | {x['rebound']} | "
+                         f"{f(x['rate'])} | [{f(x['lo'])}, {f(x['hi'])}] | {x['rebound_at_end']} |")
+    lines += ["", "## Studies", "", "| study | file | store |", "|---|---|---|"]
+    for name, paths in stores.items():
+        lines.append(study_line(name, paths, PAPER_STUDIES))
+    if result.extra.get("notes"):
+        lines += ["", "## Stores replaced in this run", ""] + [f"- {n}" for n in result.extra["notes"]]
+    lines += ["", "## Figures", ""]
+    lines += [f"![{n}]({rel}/{n})" for n in result.figures]
+    out_md.write_text("\n".join(lines) + "\n")
+    (figures / "validation.json").write_text(json.dumps(result.as_json(model), indent=1, default=json_default))
