@@ -2,6 +2,7 @@
 
 import ast
 import pathlib
+import re
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "smarticle_mjx"
 
@@ -195,3 +196,24 @@ def test_the_calibration_stages_return_typed_results():
     assert _dict_stages("def noise_stage(x) -> dict:\n    pass\ndef tilt_stage(x) -> list[dict]:\n    pass\n"
                         "def calibrate(x):\n    pass\ndef helper(x) -> dict:\n    pass\n") == [
         "noise_stage -> dict", "tilt_stage -> list[dict]", "calibrate -> ?"]
+
+
+_HISTORY = re.compile(r"(version \d+\.\d+\.\d+|(since|after|until) (fresh )?seed \d{4}|(since|after) (November|December) "
+                      r"20\d\d)", re.I)
+
+
+def _history_lines(src: str) -> list[str]:
+    """Lines of ``src`` whose comments or docstrings date a rule by a package version or a seed."""
+    return [line.strip() for line in src.splitlines() if _HISTORY.search(line)]
+
+
+def test_the_calibration_code_keeps_no_version_history():
+    """When and on which sets a step of the calibration came in is research history: it lives in
+    notebook/calibration-rules.md, and the code states the step and its reason only."""
+    root = pathlib.Path(__file__).resolve().parents[1]
+    found = {p.name: _history_lines(p.read_text()) for p in (root / "smarticle_mjx" / "calibrate").glob("*.py")
+             if p.name != "stress.py"}  # the stress suite records which version ran which seed: its data
+    assert not any(found.values()), {k: v for k, v in found.items() if v}
+    assert _history_lines("x = 1  # since version 0.4.3\n# (since seed 2051)\ny = 2\n") == [
+        "x = 1  # since version 0.4.3", "# (since seed 2051)"]
+    assert (root / "notebook" / "calibration-rules.md").is_file()

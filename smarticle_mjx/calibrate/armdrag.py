@@ -30,9 +30,7 @@ read with it):
   (a floor against a slow creep a real plate or tracker may show, far under the 20-90 deg/s that arms
   dragging at mu 0.3 give);
 * **absent**: at least ``MIN_GROUPS`` groups, not present, and a drag of ``DETECTABLE`` would have shown:
-  the median rate plus twice the groups' median standard error stays under it (since fresh seed 2048's
-  set 2, where arms dragging at mu 0.3 under 0.8 deg of tracking noise read 16 deg/s at p = 0.0014 and
-  were ruled out by the first version, which called every reading that was not present absent);
+  the median rate plus twice the groups' median standard error stays under it;
 * **undecided** otherwise (the calibration then does what it did without a reading); nothing with fewer
   groups.
 """

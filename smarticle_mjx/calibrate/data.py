@@ -86,7 +86,7 @@ class Trial:
         return float(self.t[-1] - self.t[0])
 
 
-# The numerics the calibration's model runs with, unless ``--set`` names the field (since version 0.4.3):
+# The numerics the calibration's model runs with, unless ``--set`` names the field:
 # MuJoCo's discrete integrator at the preset's step. Lone robots are what a calibration compares, and what
 # moves a lone body is the slip of each arm move. With implicitfast that slip carries a term of the step
 # (2.9x its converged value at 0.25 ms, docs/timestep.md "the kick level"); with discrete it is converged at

@@ -5,10 +5,8 @@ robot that made the tracks; its statistical interval (Gauss-Newton, scaled by
 the reduced chi^2) does not carry that. The term widens it by a log-normal
 factor per effect and parameter, estimated on robots the library did not
 build: the stress suite's independent robots of every main-run suite seed
-scored by November 2026 (``benchmarks/calibration_discrepancy.py``,
-results/calibration_discrepancy.json; estimated first from seeds 2026-2029,
-version 0.4.0, then again by the same rule after version 0.4.1), by the
-method of moments
+listed in :data:`SEEDS` (``benchmarks/calibration_discrepancy.py``,
+results/calibration_discrepancy.json), by the method of moments
 
     sigma^2 = max(0, mean(ln(fitted / true)^2) - mean(s_stat^2))
 
@@ -29,10 +27,8 @@ import pathlib
 from .effects import LIBRARY
 
 # {effect: {parameter: (log_sd, cases it was estimated from, "own" | "pooled")}}, frozen from
-# benchmarks/calibration_discrepancy.py on every main-run stress-suite seed scored by November 2026
-# (2026-2031, 2040-2043, 2045-2051, 2058, 2059; after version 0.4.1; the first table, version 0.4.0,
-# took 2026-2029: tracking noise 0 from 11 cases, the arms on the plate the pooled 0.398; tests check
-# the table agrees with the script)
+# benchmarks/calibration_discrepancy.py on the stress-suite seeds of SEEDS (tests check the table agrees
+# with the script)
 MISMATCH_LOG_SD = {
     "servo_response": {"servo_scale": (0.409, 191, "pooled")},
     "servo_lag": {"extra_lag_s": (0.415, 23, "own")},
@@ -91,8 +87,7 @@ def carry(effect: str, values: dict, interval: dict) -> dict:
 # (run by benchmarks/calibration_discrepancy.py on the stress suite's stored rows; moved here so that the
 # tests check the frozen table against its estimate without importing a benchmark)
 
-# every main-run stress-suite seed scored before the estimate was made again (November 2026, after
-# version 0.4.1); the first estimate (version 0.4.0) took 2026-2029, the seeds run before the term existed
+# the stress-suite seeds the table was estimated on: every main-run seed scored before the estimate was made
 SEEDS = (2026, 2027, 2028, 2029, 2030, 2031, 2040, 2041, 2042, 2043, 2045, 2046, 2047, 2048, 2049, 2050, 2051,
          2058, 2059)
 MIN_CASES = 5

@@ -19,8 +19,8 @@ used. A group needs cycles at headings at least ``MIN_SPREAD_DEG`` apart,
 else s and v are not separable and it is left out.
 
 A cycle's step is the difference of the mean positions of two consecutive
-whole cycles (:func:`cycle_means`, since November 2026, after version
-0.3.5; before, of the positions at two cycle boundaries): the wobble within
+whole cycles (:func:`cycle_means`; not of the positions at two cycle
+boundaries): the wobble within
 a cycle repeats, so the means step by the same amount, while each frame's
 tracking error and the body's own jitter at the instant of a boundary enter
 a mean divided by the frames in it. The drift is then resolved to
@@ -256,7 +256,7 @@ class PlateDrift:
       chi2_anisotropy: of v_g = K w_g, one K for every gait.
       anisotropy: K (re, im) in the best fit: |K| about (1 - r) / (1 + r) for a ratio r of the plate's
         mobilities along its axes, arg / 2 the slipperier axis.
-      chi2_grip: of a grip that depends on the robot's heading (since seed 2051): a plate whose mu under a
+      chi2_grip: of a grip that depends on the robot's heading: a plate whose mu under a
         robot is mu (1 + e cos 2(h - h0)) scales the robot's step along itself, step = (1 + c1 cos 2h +
         c2 sin 2h) R(h) s, and the regression reads v_g = c1 u_g + c2 u'_g (u, u' what it reads from
         R(h) s cos 2h and R(h) s sin 2h at the gait's headings; c1, c2 one pair for every gait). Outside
@@ -309,7 +309,7 @@ def plate_drift_models(groups: list[tuple[list, list]], fits: list[dict | None] 
 
     ``offsets`` (per group: a model's drift v [2] and its covariance [2, 2], or None to leave the group out):
     the drift is read beyond that model's, v - v_model, with both covariances, so the comparison asks what
-    the model leaves unexplained (:func:`fit_tilt`, since version 0.4.10). The robot's own step s_g and the
+    the model leaves unexplained (:func:`fit_tilt`). The robot's own step s_g and the
     headings stay the measured ones."""
     rows = []
     fits = fits if fits is not None else [regress(list(zip(hs, ds))) for hs, ds in groups]
@@ -358,7 +358,7 @@ def plate_drift_beyond(data: list[tuple[list, list]], model: list[tuple[list, li
     ``data_fits``, ``model_fits``: their own :func:`regress` results where already made.
     The model's drift is read with the measured group's weights (its step variation and position error), so
     that the two regressions are the same linear map and what the model reproduces cancels exactly; its
-    error is the model's own (the spread of its steps about the regression). Since version 0.4.10."""
+    error is the model's own (the spread of its steps about the regression)."""
     data_fits = data_fits if data_fits is not None else [regress(list(zip(hs, ds))) for hs, ds in data]
     model_fits = model_fits if model_fits is not None else [regress(list(zip(hs, ds))) for hs, ds in model]
     offsets = []
@@ -434,12 +434,12 @@ def fit_tilt(trials, run_model, step_deg: float = 1.0, bound_deg: float = 4.0) -
 
     A gait whose model robot, pulled the way the data drift (their mean direction beyond the model's drift
     on a level plate, weighted as the fit weighs them), drifts against that way (:func:`downhill`) is left
-    out of the fit, of its chi^2 and of the mismatch term, and listed in ``uphill_groups`` with its response
-    (since November 2026, version 0.4.9); where no gait is left, there is no fit (``ok`` False).
+    out of the fit, of its chi^2 and of the mismatch term, and listed in ``uphill_groups`` with its response;
+    where no gait is left, there is no fit (``ok`` False).
 
     ``plate_models_beyond_model``: :func:`plate_drift_beyond` of the data against the level-plate model run,
-    whether or not a tilt is fitted (since version 0.4.10; the tilt stage's gate reads it where the model
-    drags its arms on the plate or holds an anisotropic plate).
+    whether or not a tilt is fitted (the tilt stage's gate reads it where the model drags its arms on the
+    plate or holds an anisotropic plate).
     """
     tracks = _gait_tracks(trials)
     meas = _drifts(tracks)

@@ -54,11 +54,9 @@ SERVO_NOMINAL = ("servo_speed", "servo_kp", "servo_torque", "servo_armature")  #
 # fitted jointly with the nominal parameters too: the nominal fit takes the plate's mu where the measured robot
 # slides unlike the model's (an independent robot's clean twin: mu 0.09 for a true 0.33), and only there does
 # an anisotropic plate change the model robot as it changes the measured one (docs/calibration.md). Arms
-# dragging on the plate likewise: the nominal fit mimics their turns and steps with a slipperier plate (stress
-# sets of seeds 2028-2040: mu 0.08-0.10 for a true 0.34-0.45, held-out 68-183 against the clean twins' 2-6),
-# from where the arm-plate mu fitted in the rounds gains nothing. Fitted that way it was named in 9 of 12 fresh
-# sets, but on clean sets of a whole fresh seed (2044) it absorbed a robot the library fits badly (1 of 9 fresh
-# clean sets beyond what the rounds add): so it is offered (``calibrate(plate_hypotheses=...)``,
+# dragging on the plate likewise: the nominal fit mimics their turns and steps with a slipperier plate, from
+# where the arm-plate mu fitted in the rounds gains nothing. Fitted jointly it names real drags, but on clean
+# sets it also absorbs a robot the library fits badly: so it is offered (``calibrate(plate_hypotheses=...)``,
 # ``smx calibrate --plate-hypothesis``) and not on by default (docs/calibration.md)
 PLATE_HYPOTHESES = ("anisotropic_friction",)  # the others of stages.PLATE_GRIDS may be asked for
 NOMINAL_NFEV, HYPOTHESIS_NFEV = 15, 10  # least-squares iterations (each costs a Jacobian: one run per parameter)  # rescale parameters the nominal fit already fits

@@ -249,11 +249,9 @@ def fit_nominal(problem, params: tuple[NominalParam, ...] = NOMINAL, max_nfev: i
             interval[nm] = (conv(j, x - 1.96 * s_), conv(j, x + 1.96 * s_))
         else:  # on a bound: no Gauss-Newton interval
             interval[nm] = (float("nan"), float("nan"))
-    # an effect's parameter that ended on a bound away from its null (version 0.4.13): the data want the
-    # effect at least that large, so its interval is one-sided, from the Gauss-Newton spread inward (the
-    # Jacobian's column there is the inward difference) to the bound; without it the effect could not be
-    # "present" however clear it is (stress set 2143/1: an anisotropic plate at ratio 2.99 of the bound 3.0,
-    # +27 % held out, refused for a missing interval)
+    # an effect's parameter that ended on a bound away from its null: the data want the effect at least that
+    # large, so its interval is one-sided, from the Gauss-Newton spread inward (the Jacobian's column there is
+    # the inward difference) to the bound; without it the effect could not be "present" however clear it is
     for j in range(kn, k):
         side = on_bound_away_from_null(eparams[j - kn], u[j])
         if not side:

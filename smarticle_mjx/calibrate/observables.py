@@ -11,8 +11,8 @@ effect moves, and how much of each the effect itself accounts for:
 
 * **arm delay** (ms): the time from the command's switch to the arm
   crossing its midpoint, averaged over every swing of every arm; it moves
-  with a servo lag, a dead time, a slower or weaker servo. Since November
-  2026 (after version 0.4.0) the average is taken over groups of swings
+  with a servo lag, a dead time, a slower or weaker servo. The average is
+  taken over groups of swings
   of one arm in one direction (per trial and robot), each group weighted
   alike, with the spread measured within groups: an arm read with a
   constant angle error crosses its midpoint early on the way up and late
@@ -27,7 +27,7 @@ effect moves, and how much of each the effect itself accounts for:
 * **body step** (mm/cycle): the length of that body-frame step, and the
   **rotation** (deg/cycle) of lone robots: they move with friction, masses
   and the arms' shape;
-* **arm rise** (ms; since November 2026, after version 0.4.1): the time an
+* **arm rise** (ms): the time an
   arm takes from a quarter to three quarters of its swing, no command
   matched. A dead time leaves it; a first-order lag lengthens it, most on
   short swings; a slower servo lengthens it in proportion to the amplitude.
@@ -365,8 +365,8 @@ def delay_test(measured: dict, model: dict, key: str = "arm_delay_ms") -> DelayT
                      True, bool(c > DELAY_MIN_MS and c > DELAY_Z * sc), bool(c + DELAY_Z * sc < DELAY_MIN_MS))
 
 
-# The arm rise's reading of a servo's timing (added after version 0.4.1; thresholds set on development
-# sets of suite seeds 2040-2044, benchmarks/arm_rise_dev.py). A dead time moves a swing whole and leaves its
+# The arm rise's reading of a servo's timing (thresholds set on development sets of suite seeds 2040-2044,
+# benchmarks/arm_rise_dev.py). A dead time moves a swing whole and leaves its
 # rise (a quarter to three quarters) as the servo makes it; a first-order lag smears the swing, and most the
 # shortest swings, so the rise's excess over the preset model, split as constant + slope x amplitude (the
 # delay test's split, :func:`delay_test` with key "arm_rise_ms"), has a constant above what a servo law

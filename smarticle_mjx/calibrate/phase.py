@@ -14,8 +14,7 @@ The curves are compared from one period after the trial's start on
 (``SETTLE_PERIODS``, trials of at least ``3 * SETTLE_PERIODS`` periods): a
 robot that starts at rest in a corner while its clock is part of a move on
 makes its first move late, and aligning that first period with the steady
-gait biased the reading (+0.1455 +- 0.0001 for a true 0.1494; since
-version 0.4.4).
+gait biased the reading (+0.1455 +- 0.0001 for a true 0.1494).
 """
 
 from __future__ import annotations

@@ -94,7 +94,7 @@ def check_output(out, overwrite: bool = False) -> None:
         raise ValueError(f"output directory {out.parent} does not exist")
 
 
-SCHEMA = 1  # report.json's layout (since December 2026); reports written before it carry none
+SCHEMA = 1  # report.json's layout; reports written before schema 1 existed carry none
 
 
 def write(cal, trials: list[Trial], out_dir) -> dict:
@@ -382,7 +382,7 @@ def drift_markdown(dr: dict | None, pl: dict | None) -> list[str]:
     gaits' directions and, per gait, the tilt that gait alone gives (or that it was left out: its model robot
     drifts uphill)."""
     lines: list[str] = []
-    if dr is not None and not dr.get("dof") and (pl or {}).get("reason"):  # since version 0.4.18
+    if dr is not None and not dr.get("dof") and (pl or {}).get("reason"):
         return ["## Plate-frame drift (model-free tilt test)", "",
                 f"Not read: no gait's lone-robot headings span {MIN_SPREAD_DEG:g}°. An anisotropic plate was not "
                 f"tried: {pl['reason']}.", ""]

@@ -40,10 +40,9 @@ def _mark_worker() -> None:
 
 # Model runs made by pmap's workers take one of these slots, one per core, for the whole run (scene, backend,
 # rollout). The workers themselves are cheap: every item of a pmap, nested or not, gets its own thread, and the
-# slots keep the cores busy with whatever run is ready, whichever fit or Jacobian column asked for it (since
-# version 0.4.11; before, a pmap inside a worker ran its items one after another, so five joint fits on two
-# cores left one idle while the fifth ran alone). Each run is the same computation either way, so the results
-# are too. NESTED = False restores the earlier schedule, for benchmarks/calibration_schedule.py.
+# slots keep the cores busy with whatever run is ready, whichever fit or Jacobian column asked for it. Each run
+# is the same computation either way, so the results are too. NESTED = False restores the earlier schedule
+# (a pmap inside a worker runs its items one after another), for benchmarks/calibration_schedule.py.
 _SLOTS = threading.BoundedSemaphore(max(1, os.cpu_count() or 1))
 NESTED = True
 MAX_THREADS = 64  # threads of one pmap (its items beyond that wait for one)
@@ -66,7 +65,7 @@ def pmap(fn, items: list, workers: int | None = None) -> list:
         n = min(len(items), workers or MAX_THREADS)
         if cores <= 1:
             n = 1
-    else:  # the schedule before version 0.4.11: one thread per core, and in order inside a worker
+    else:  # the earlier schedule: one thread per core, and in order inside a worker
         n = 1 if in_pool() else min(len(items), workers or cores)
     if n <= 1:
         return [fn(x) for x in items]

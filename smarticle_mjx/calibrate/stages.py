@@ -218,9 +218,8 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             continue
         tasks.append((name, e, preset_servo, e_start))
     if any(t[0] in SERVO_HYPOTHESES for t in tasks):
-        # and the null the same chance (added after version 0.4.3): the nominal parameters alone, their servo
-        # restarted at the preset, once for both timings (fresh seed 2061, set 0: a clean robot's restart from
-        # the preset servo ended lower than the nominal fit, and a 1.8 ms dead time was added for its gain)
+        # and the null the same chance: the nominal parameters alone, their servo restarted at the preset, once
+        # for both timings (a restart that helps without the timing is not the timing's gain)
         tasks.append((SERVO_NULL, None, preset_servo, None))
     # every joint fit at once, one thread each (each fit's own runs then go one after another)
     fits = pmap(lambda t: fit_nominal(train, effect=t[1], start=t[2], max_nfev=HYPOTHESIS_NFEV, effect_start=t[3]),
@@ -233,18 +232,11 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         done.setdefault(name, (e, []))[1].append(fe)
     restarts = {name: scores(train, test, fe) for name, fe in nulls.items()}  # each null's restart, scored once
     # a servo timing whose two probe starts both ended above its baseline in training (which a converged fit,
-    # containing the baseline, cannot) is fitted a third time, started absent from that baseline (version 0.4.5:
-    # 9 first-pass timings stored with seed 2063 and the development runs of seeds 2060 and 2062 had BIC gains
-    # of -102 to -2669; seed 2060, set 29: a lag's training error 38.3 and 96.0 from its two starts, BIC gain
-    # -777). It does not replace the probe's starts: started absent alone, the 26 ms dead time of seed 2063,
-    # set 16, stayed in the bent servo's valley below the 5 ms floor, where the probe from the nominal fit had
-    # named it (docs/calibration.md)
-    # a plate hypothesis the same way (version 0.4.12): on the sixteen fresh seeds 2049-2142 an anisotropic plate
-    # ended above its baseline in training (a BIC gain below zero, which a converged fit containing the baseline
-    # cannot have) in 25 sets; seed 2142, set 22, a plate hidden at 0.46: +61 % held out from its grid start, yet
-    # training error above the nominal parameters restarted at the grid's mu, so not named. Such a plate is
-    # fitted a third time from that baseline's end, the effect started at whichever of its null, its grid values
-    # and the values its two starts ended at fits best there, and judged against the null continued beside it
+    # containing the baseline, cannot) is fitted a third time, started absent from that baseline; it does not
+    # replace the probe's starts (started absent alone, a timing can stay in the bent servo's valley below the
+    # delay floor). A plate hypothesis the same way: fitted a third time from that baseline's end, the effect
+    # started at whichever of its null, its grid values and the values its two starts ended at fits best there,
+    # and judged against the null continued beside it
 
     # the baseline of each hypothesis: the better in training of the nominal fit and its restart (at the grid's
     # mu, or from the preset servo): hypothesis -> (training chi^2, nominal values, in words, held-out error)
@@ -268,10 +260,8 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
         third[name] = (start, e_start)
         from_null[name] = (f"absent from {where}" if e_start == e.null()
                            else f"at {', '.join(f'{k} {v:.3g}' for k, v in e_start.items())} from {where}")
-    # and the null continued from the same start with the same budget, beside them (added after version 0.4.5):
-    # a third start that keeps its effect at the null is the baseline fitted further, and ends below it by that
-    # alone (fresh seed 2064, set 21: a lag kept at 0.03 ms, BIC gain 941 and +11 % held out; seed 2061, set 19,
-    # with timings tried in body-only tracks: a lag at 0.04 ms, BIC gain 2064 and +21 %). So a hypothesis fitted
+    # and the null continued from the same start with the same budget, beside them: a third start that keeps its
+    # effect at the null is the baseline fitted further, and ends below it by that alone. So a hypothesis fitted
     # a third time is judged against that continued null where it fits better
     third_baselines = {}  # hypothesis -> (chi^2, held-out error, training error) of the null continued beside it
     if third:
@@ -358,7 +348,7 @@ class SecondHypothesis:
 def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, nom0: dict, n: int,
                       dtest: DelayTest, say, reading: str | None, first: dict,
                       drag: DragTest | None = None) -> SecondHypothesis:
-    """A second joint hypothesis beside the accepted one (added after version 0.4.1).
+    """A second joint hypothesis beside the accepted one.
 
     The joint hypotheses are alternatives in the first pass: the best accepted one is kept. But two can be
     there at once (a dead time and a phase offset, a lag and an anisotropic plate), and the rounds after
@@ -372,13 +362,11 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
 
     Each starts from where its own first-pass fit (``first``: name -> that fit) ended, its own value with
     the accepted effect's: once at the accepted fit's nominal values, once at its own fit's (the two basins
-    the first pass found). Started from the first pass's starts instead, a dead time beside an anisotropic
-    plate stayed in the nominal fit's valley (fresh seed 2045, set 6: held-out -28 %, where alone it had
-    reached +83 %). Where the delay test reads a constant delay, a servo timing gets a third start (version
-    0.4.15): the timing at the test's constant, the servo at its preset, the other nominal values at the
-    accepted fit's (``delay_reading_start``). Its first-pass fits were made without the accepted effect, and
-    beside a phase offset between robots the nominal servo had taken a 27 ms dead time up and both starts
-    ended at 0 ms (fresh seed 2144, set 2; the delay test read 17 +- 4 ms). A plate hypothesis's null
+    the first pass found; started from the first pass's starts instead, a second effect can stay in the
+    nominal fit's valley). Where the delay test reads a constant delay, a servo timing gets a third start:
+    the timing at the test's constant, the servo at its preset, the other nominal values at the accepted
+    fit's (``delay_reading_start``), since its first-pass fits were made without the accepted effect, which
+    the nominal servo may have taken up. A plate hypothesis's null
     restart (``tasks`` without an effect) is run again with the accepted effect, moved to its values like the
     first pass's start, as that hypothesis's baseline."""
     fe1, _, e1, nom_e1, _ = best
@@ -469,8 +457,7 @@ def delay_reading_start(e: Effect, dtest) -> dict | None:
 # each plate hypothesis's grid: the plate's mu at these factors of the nominal fit's, times its parameter's
 # start values. An anisotropic plate matters where the model robot slides more (mu lower), either axis
 # rougher; arms dragging on the plate make the measured robot turn and step more, which the nominal fit
-# mimics by a slipperier plate (stress sets of seeds 2028-2040: mu 0.08-0.10 for a true 0.34-0.45), so
-# its grid also raises mu
+# mimics by a slipperier plate, so its grid also raises mu
 PLATE_GRIDS = {"anisotropic_friction": ((1.0, 0.5, 0.25), (0.4, 0.63, 1.6, 2.5)),
                "arm_plate_contact": ((0.5, 1.0, 2.0, 4.0), (0.1, 0.25, 0.5))}
 PLATE_GRID_MU, PLATE_GRID_RATIO = PLATE_GRIDS["anisotropic_friction"]
@@ -501,13 +488,9 @@ def plate_grid_starts(train: Problem, nom0: dict, e: Effect) -> list[tuple[dict,
     the stress suite's --plate-both-sides, not the rule), for the anisotropic plate also the best point whose
     ratio lies on the other side of 1 (the other axis rougher), from the same grid runs.
 
-    Why it was tried (December 2026, version 0.4.18): on the stored stress sets of the twenty-three fresh
-    seeds 2049-2149, 6 of the 32 anisotropic plates tried and not named had ended on the wrong side of 1 (a
-    plate hidden at 0.59 fitted at 2.5, one at 0.46 at 1.14), most of them losing held out. Why it is not
-    the rule: on nine stored missed plates it named none; where the fit had gone to the wrong side, the start
-    on the true side ended above it in training (docs/calibration.md). The model-free drift
-    does not say the side either: its anisotropy K (``drift.PlateDrift``) had the sign of the truth in 24 of
-    58 stored readings, its axis no nearer the plate's axes than chance."""
+    Not the rule: where the fit had gone to the wrong side of 1, the start on the true side ended above it in
+    training, and the model-free drift does not say the side either (its history and numbers:
+    notebook/calibration-rules.md)."""
     (p,) = e.params
     factors, values = PLATE_GRIDS[e.name]
     lo, hi = NOMINAL_BY_NAME["plate_friction"].bounds(train.trials[0].params)  # where the fit can start
@@ -569,9 +552,7 @@ class TiltHeldout:
 
     The tilt is named without the model (the drift test) and sized by the model's drift per degree, so no
     held-out rule decides it. Where it raises the held-out error the drift is real but the model's tilt does
-    not carry it to other trials: read on the stored stress sets of seeds 2063-2143 (after the numbers were
-    seen; docs/calibration.md), a tilt named that way was the hidden effect in 4 of 12 sets, one that
-    lowered it in 8 of 9. Reported, used by no rule."""
+    not carry it to other trials. Reported, used by no rule."""
 
     without: float  # held-out error before the tilt (1 = measurement noise)
     with_tilt: float  # and with it
@@ -620,14 +601,10 @@ def tilt_stage(trials: list[Trial], train: Problem, model: Model, say, drift: di
         tilt["z2"] = z2
         tilt["one_direction"] = bool(drift["directions"]["consistent"])
         # a plate slipperier along one axis, or a grip that depends on the robot's heading, drifts with each
-        # gait's own step (calibrate.drift.PlateDrift): a gate since seed 2051 (reported only before: on fresh
-        # seeds 2042-2043 it had stopped 1 of 3 anisotropic plates and 1 of 12 tilts; on seeds 2041 and
-        # 2044-2050, run since with the gate frozen, it kept 16 of 16 tilts and stopped 5 of 11 plates not
-        # level in another way; docs/calibration.md)
+        # gait's own step (calibrate.drift.PlateDrift): the tilt's gate (policy.tilt_accepted)
         # where the model already drags its arms on the plate or holds an anisotropic plate, its own drift on a
-        # level plate follows the robot's step, and the gate reads the drift the model leaves (since version
-        # 0.4.10: a tilt beside arms on the plate was stopped by the data's own reading, 2043/16, 2057/26,
-        # 2077/7; docs/calibration.md). That drift is stopped only where one drift vector does not fit it
+        # level plate follows the robot's step, and the gate reads the drift the model leaves. That drift is
+        # stopped only where one drift vector does not fit it
         # (p < P_ONE_VECTOR) and one anisotropy fits it better: the model already holds a step-following
         # drift, so a step-following rest must show. Elsewhere the data's own reading, as before.
         tilt["gate_beyond_model"] = ARM_PLATE in model.base or ANISO in model.base
@@ -831,7 +808,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         library = ()
     say = on_step or (lambda msg: None)
     # is an arm read off its commanded corners by a constant? Read off the arms' rests before anything else
-    # (calibrate.armoffset, version 0.4.7): outside the library, so reported as unexplained, and taken
+    # (calibrate.armoffset): outside the library, so reported as unexplained, and taken
     # out of the arm tracks, where it would add itself to every arm residual of every fit
     aoff = read_offsets(trials)
     if aoff.present:
@@ -855,9 +832,8 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     noise = noise_stage(trials, train, test, library, model, say)
     if noise.applies:  # measured without the model: the rounds do not fit it again
         library = tuple(e for e in library if e.name != "tracking_noise")
-    # is there a phase offset between the robots? Read off their own curves before any fit (after version
-    # 0.4.1): where it is absent, no fit tries one (on fresh seeds a model fit named offsets of 0.006-0.008
-    # period in clean sets with two robots, the model's mismatch between their trials)
+    # is there a phase offset between the robots? Read off their own curves before any fit: where it is absent,
+    # no fit tries one (a model fit names the model's mismatch between two robots' trials an offset)
     otest = offset_test(train.trials) if max(tr.robots for tr in trials) > 1 else None
     if otest is not None and otest.applicable:
         say(f"phase offset on the robots' own {otest.read_from}: {otest.mean:+.4f} +- {otest.se:.4f} periods "
@@ -868,13 +844,12 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         # measured width, 0.84x on one of them)
         train.effect_fixed = {"phase_offset": (otest.mean, otest.interval)}
     # do the arms drag on the plate? Read off the body's heading between the kicks of each swing, before any
-    # fit (after version 0.4.1): where they do, the arm-plate friction is fitted jointly with the nominal
-    # parameters; where they do not, no fit tries it (by default it was fitted only in the rounds, after a
-    # nominal fit that had made the plate slipperier to mimic the drag, and added on clean data)
+    # fit: where they do, the arm-plate friction is fitted jointly with the nominal parameters; where they do
+    # not, no fit tries it
     dtest = drag_test(train.trials)
     plate_hypotheses, library, drag_action = drag_plan(dtest, tuple(plate_hypotheses), library)
-    # is the plate other than level and isotropic at all? The plate-frame drift, read before any fit (after
-    # version 0.4.1): where it reads the trials and finds none, no fit tries an anisotropic plate
+    # is the plate other than level and isotropic at all? The plate-frame drift, read before any fit: where it
+    # reads the trials and finds none, no fit tries an anisotropic plate
     drift = drift_test(trials)
     aniso_asked = ANISO in {e.name for e in library}
     plate_skip = plate_skip_reason(drift) if aniso_asked else None
@@ -909,8 +884,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     after_nominal = nom.errors if nom else before  # the nominal parameters alone, or the preset
     v = train.vector(EffectSet.of(model.base))
     # the rounds' baseline is the model as it stands: the nominal parameters with what the nominal stage and
-    # the tilt stage added (until version 0.4.1 the held-out error of the nominal parameters alone where no
-    # tilt was fixed, which credited a round with a joint hypothesis's gain)
+    # the tilt stage added (the nominal parameters alone would credit a round with a joint hypothesis's gain)
     current = {"err_heldout": test.error(EffectSet.of(model.base)), "chi2_train": float(v @ v)}
     tilt_heldout = None if before_tilt is None else TiltHeldout(before_tilt, current["err_heldout"])
     if tilt_heldout is not None:
