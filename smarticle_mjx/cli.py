@@ -492,6 +492,7 @@ def calibrate(
     """Residuals of the model against measured tracks, ranked candidate effects, the fit, before/after."""
     from .calibrate import report
     from .calibrate.data import load
+    from .calibrate.heldout import compare_heldout
     from .calibrate.stages import calibrate as run, plate_hypotheses_with
     if model is not None:
         _model(model)
@@ -505,9 +506,7 @@ def calibrate(
     t0 = time.perf_counter()
     result = run(trials, on_step=lambda msg: typer.echo(f"[{time.perf_counter() - t0:4.0f} s] {msg}"), nominal=nominal,
                  plate_hypotheses=plates)
-    if changes:
-        result.summary["overrides"] = dict(changes)
-    report.write(result, trials, out)
+    report.write(result, compare_heldout(result, trials), out, overrides=dict(changes) if changes else None)
     typer.echo(f"{result.verdict}; wrote {out / 'report.md'}")
 
 

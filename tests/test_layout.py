@@ -217,3 +217,14 @@ def test_the_calibration_code_keeps_no_version_history():
     assert _history_lines("x = 1  # since version 0.4.3\n# (since seed 2051)\ny = 2\n") == [
         "x = 1  # since version 0.4.3", "# (since seed 2051)"]
     assert (root / "notebook" / "calibration-rules.md").is_file()
+
+
+def test_the_calibration_report_only_formats():
+    """calibrate/report.py formats what the stages found: it imports nothing that simulates or fits (the
+    held-out comparison is a stage of its own, calibrate/heldout.py)."""
+    root = pathlib.Path(__file__).resolve().parents[1]
+    tree = ast.parse((root / "smarticle_mjx" / "calibrate" / "report.py").read_text())
+    imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    assert not imported & {"sim", "fit", "stages", "nominal", "heldout.compare_heldout", "..engine.simulate"}, imported
+    assert not any("simulate" in a.name or "fit_" in a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)
+                   for a in n.names)

@@ -17,12 +17,11 @@ from ..plots import check_out_dir, pyplot
 from ..report import json_default
 from .data import Trial
 from .drift import MIN_SPREAD_DEG
-from .effects import BY_NAME, EffectSet
-from .nominal import apply as apply_nominal
+from .effects import BY_NAME
+from .heldout import HeldoutComparison
 from .observables import LABELS, reproduced
 from .phase import OFFSET_SYSTEMATIC
-from .residuals import BINS, DEG, metrics
-from .sim import simulate_trials
+from .residuals import BINS, DEG
 
 
 def _num(x, spec=".3g"):
@@ -97,28 +96,17 @@ def check_output(out, overwrite: bool = False) -> None:
 SCHEMA = 1  # report.json's layout; reports written before schema 1 existed carry none
 
 
-def write(cal, trials: list[Trial], out_dir) -> dict:
-    """Write the report of a ``stages.calibrate`` result (a ``Calibration``); returns the JSON written."""
+def write(cal, heldout: HeldoutComparison, out_dir, overrides: dict | None = None) -> dict:
+    """Write the report of a ``stages.calibrate`` result ``cal`` (a ``Calibration``) with its held-out
+    comparison (``heldout.compare_heldout``); ``overrides``: the scene fields the command changed
+    (``--set``), recorded as given. Formats only: nothing is fitted or simulated. Returns the JSON written."""
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     from .. import __version__
-    result = {"schema": SCHEMA, "package": f"smarticle-mjx {__version__}", **cal.summary}
-    held = [t for t in trials if t.name in set(result["trials"]["heldout"])]
-    final: EffectSet = cal.effects
-    nominal = cal.nominal
-    before_tracks = simulate_trials(held, scene_for=lambda tr: tr.params)
-    after_tracks = simulate_trials(held, scene_for=lambda tr: final.scene(apply_nominal(tr.params, nominal)),
-                                   phase_for=lambda tr: final.phases(tr.robots, tr.periods))
-    # the metrics compare what the camera saw with what it would see of the model:
-    # a fitted tracking noise is added to the model's track (seeded)
-    sxy, sth = final.noise()
-    if sxy or sth:
-        rng = np.random.default_rng(0)
-        for trk in after_tracks:
-            trk[..., :2] += rng.normal(0, sxy / 1e3, trk[..., :2].shape)
-            trk[..., 2] += rng.normal(0, np.radians(sth), trk[..., 2].shape)
-    result["metrics_heldout"] = {"before": metrics(held, before_tracks), "after": metrics(held, after_tracks)}
-    result["figures"] = _figures(result, held, before_tracks, after_tracks, out)
+    result = {"schema": SCHEMA, "package": f"smarticle-mjx {__version__}", **cal.summary,
+              **({"overrides": dict(overrides)} if overrides else {})}
+    result["metrics_heldout"] = heldout.metrics_json()
+    result["figures"] = _figures(result, list(heldout.trials), heldout.before, heldout.after, out)
     (out / "report.json").write_text(json.dumps(result, indent=1, default=json_default))
     (out / "report.md").write_text(markdown(result))
     return result

@@ -746,7 +746,8 @@ def rounds_stage(train: Problem, test: Problem, library, model: Model, current: 
 class Calibration:
     """What the loop found: the fitted model (``effects`` on top of the ``nominal`` values), the verdict, each
     stage's typed result, and the JSON-ready ``summary`` that report.json records (the same results, as
-    report.write formats them; a caller may add to it, as ``smx calibrate`` adds its ``--set`` changes).
+    report.write formats them, with the held-out comparison of ``heldout.compare_heldout`` and the command's
+    ``--set`` changes beside).
 
     Attributes:
       before, after_nominal, after: the model's errors with the preset, the nominal values (with what the
