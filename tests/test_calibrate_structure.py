@@ -841,14 +841,14 @@ def test_a_second_joint_hypothesis_beside_the_accepted_one_is_named_only_where_i
     first = {"servo_dead_time": fe1, "phase_offset": fe_off, "servo_lag": fe1}
     second = second_hypothesis(train, test, tasks, best, nom0, 60, types.SimpleNamespace(constant_delay=True),
                                lambda msg: None, None, first)
-    assert [t["effect"] for t in second.tried] == ["phase_offset"]
-    assert second.tried[0]["beside"] == "servo_dead_time"
+    assert [t.effect for t in second.tried] == ["phase_offset"]
+    assert second.tried[0].beside == "servo_dead_time"
     if phase:
         assert second.effect is off
         assert second.fit.values["phase_offset"]["phase_offset"] == pytest.approx(0.1, abs=0.002)
         assert second.fit.values["servo_dead_time"]["dead_time_s"] == pytest.approx(0.02, abs=1e-3)
     else:
-        assert second.effect is None and not second.tried[0]["accepted"]
+        assert second.effect is None and not second.tried[0].accepted
 
 
 class _HiddenDeadTime(_TwoEffects):
@@ -891,11 +891,11 @@ def test_a_second_servo_timing_starts_at_the_delay_tests_reading_where_it_reads_
     assert delay_reading_start(lag, dtest) == ({"extra_lag_s": 0.027} if constant_delay else None)
     second = second_hypothesis(train, test, tasks, best, nom0, 60, dtest, lambda msg: None, None,
                                {"phase_offset": fe_off, "servo_dead_time": fe_dead})
-    assert [t["effect"] for t in second.tried] == ["servo_dead_time"]
-    got = second.tried[0]["values"]["dead_time_s"]
-    assert second.tried[0]["starts"] == (3 if constant_delay else 2)
+    assert [t.effect for t in second.tried] == ["servo_dead_time"]
+    got = second.tried[0].values["dead_time_s"]
+    assert second.tried[0].starts == (3 if constant_delay else 2)
     if constant_delay:
-        assert second.tried[0]["start"] == START_DELAY_READING
+        assert second.tried[0].start == START_DELAY_READING
         assert second.effect is dead
         assert got == pytest.approx(0.027, abs=1e-3)
         assert second.fit.values["phase_offset"]["phase_offset"] == pytest.approx(0.1, abs=0.002)
@@ -965,7 +965,7 @@ def test_the_arm_rise_reads_a_lag_or_a_dead_time_and_chooses_between_two_that_pa
     hypothesis or a set without a reading to the held-out gain."""
     from smarticle_mjx.calibrate.effects import BY_NAME
     from smarticle_mjx.calibrate.observables import RISE_LAG_MS, servo_reading
-    from smarticle_mjx.calibrate.stages import servo_choice
+    from smarticle_mjx.calibrate.stages import Hypothesis, servo_choice
 
     def rise(amps, excess):
         meas = {"arm_rise_ms": [{"gait": f"{a}", "amplitude_deg": float(a), "mean": 50.0 + e, "se": 0.1, "n": 30}
@@ -982,13 +982,13 @@ def test_the_arm_rise_reads_a_lag_or_a_dead_time_and_chooses_between_two_that_pa
     assert servo_reading(rise([40], [12.0])) is None
     lag_e, dead_e, off_e = BY_NAME["servo_lag"], BY_NAME["servo_dead_time"], BY_NAME["phase_offset"]
     passed = [("fit-lag", 0.30, lag_e), ("fit-dead", 0.35, dead_e), ("fit-off", 0.2, off_e)]
-    hyps = [{"effect": "servo_lag", "accepted": True}, {"effect": "servo_dead_time", "accepted": True},
-            {"effect": "phase_offset", "accepted": True}]
-    kept = servo_choice(passed, hyps, "servo_lag", lambda m: None)
+    hyps = [Hypothesis(name, True, True) for name in ("servo_lag", "servo_dead_time", "phase_offset")]
+    kept, marked = servo_choice(passed, hyps, "servo_lag", lambda m: None)
     assert [c[2].name for c in kept] == ["servo_lag", "phase_offset"]
-    assert hyps[1]["accepted"] is False and "reads a lag" in hyps[1]["reason"] and hyps[0]["accepted"]
-    assert servo_choice(passed, [dict(h) for h in hyps], None, lambda m: None) == passed
-    assert servo_choice(passed[1:], [dict(h) for h in hyps], "servo_lag", lambda m: None) == passed[1:]
+    assert marked[1].accepted is False and "reads a lag" in marked[1].reason and marked[0].accepted
+    assert marked[1].as_json()["reason"] == marked[1].reason and hyps[1].accepted  # a new entry, not mutated
+    assert servo_choice(passed, hyps, None, lambda m: None) == (passed, hyps)
+    assert servo_choice(passed[1:], hyps, "servo_lag", lambda m: None) == (passed[1:], hyps)
 
 
 def _wobbling_pair(offset, seed, amplitude_deg=40.0, frame_hz=60.0, periods=5, noise_deg=0.3):
@@ -1120,14 +1120,13 @@ def test_a_tilt_is_not_named_where_the_gaits_drifts_follow_the_robots_step():
     robot's own step as a plate slipperier along one axis makes them (seed 2049's set 11, a grip that
     depends on the heading: chi2 0.4 as one anisotropy against 75.5 as one drift vector)."""
     from smarticle_mjx.calibrate.stages import tilt_accepted
-    base = {"ok": True, "z2": 40.0, "chi2_before": 80.0, "chi2_after": 6.0, "one_direction": True,
-            "follows_the_robot": False}
-    assert tilt_accepted(base)
-    assert not tilt_accepted({**base, "follows_the_robot": True})
-    assert not tilt_accepted({**base, "one_direction": False})
-    assert not tilt_accepted({**base, "z2": 3.0})
-    assert not tilt_accepted({**base, "chi2_after": 50.0})
-    assert not tilt_accepted({"ok": False})
+    base = {"ok": True, "chi2_before": 80.0, "chi2_after": 6.0}
+    assert tilt_accepted(base, 40.0, True, False)
+    assert not tilt_accepted(base, 40.0, True, True)
+    assert not tilt_accepted(base, 40.0, False, False)
+    assert not tilt_accepted(base, 3.0, True, False)
+    assert not tilt_accepted({**base, "chi2_after": 50.0}, 40.0, True, False)
+    assert not tilt_accepted({"ok": False}, 40.0, True, False)
 
 
 def test_the_plate_level_gate_tries_an_anisotropic_plate_only_where_the_drift_shows_a_plate():

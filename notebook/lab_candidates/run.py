@@ -99,6 +99,7 @@ def screen(plan: dict, variants: dict, only, out: pathlib.Path) -> dict:
             continue
         t0 = time.perf_counter()
         s = _settings(rs)
+        (out / "relax").mkdir(parents=True, exist_ok=True)
         paths = ensure_relax(rs, name, out / "relax", presets.DEFAULT)
         spread = spreading_of(paths)
         cfg = scan_config(plan, s)
@@ -129,6 +130,7 @@ def full(plan: dict, variants: dict, name: str, out: pathlib.Path) -> dict:
     s.update(periods=FULL_PERIODS, first_trial=FULL_FIRST)
     study = RelaxStudy(stages=FULL_STAGES, trials=FULL_TRIALS, settings=tuple(sorted(s.items())))
     t0 = time.perf_counter()
+    (out / "full").mkdir(parents=True, exist_ok=True)
     paths = ensure_relax(study, f"full_{name}", out / "full", presets.DEFAULT)
     data = read_relax([str(p) for p in paths])
     em = EM.emergence(data)

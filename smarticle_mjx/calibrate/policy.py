@@ -174,15 +174,16 @@ def plate_skip_reason(drift: dict) -> str | None:
 P_ONE_VECTOR = 0.05
 
 
-def tilt_accepted(tilt: dict) -> bool:
-    """Whether the drift stage names a tilt from its fit (``drift.fit_tilt``'s result with ``z2``,
-    ``one_direction`` and ``follows_the_robot`` set): the tilt is clear of zero (z^2 over ``TILT_Z2``), it
+def tilt_accepted(tilt: dict, z2: float, one_direction: bool, follows: bool) -> bool:
+    """Whether the drift stage names a tilt from its fit (``drift.fit_tilt``'s result; its ``z2`` from zero,
+    whether the gaits' drifts point ``one_direction``, whether they follow the robot's own step,
+    ``follows``): the tilt is clear of zero (z^2 over ``TILT_Z2``), it
     takes at least half the drift's chi^2, the gaits' drifts point one way (``drift.directions``) and they
     do not follow the robot's own step better than they fit one drift vector
     (``drift.PlateDrift.follows_the_robot``; evidence: on stress seeds run with the gate it kept 16 of 16
     tilts and stopped 5 of 11 plates not level in another way)."""
-    return bool(tilt.get("ok") and tilt["z2"] > TILT_Z2 and tilt["chi2_after"] <= 0.5 * tilt["chi2_before"]
-                and tilt["one_direction"] and not tilt["follows_the_robot"])
+    return bool(tilt.get("ok") and z2 > TILT_Z2 and tilt["chi2_after"] <= 0.5 * tilt["chi2_before"]
+                and one_direction and not follows)
 
 
 def verdict(err_heldout: float, chosen: list, arm_offset: ArmOffsetReading | None = None) -> str:
@@ -240,20 +241,20 @@ def first_choice(passed: list, otest: OffsetTest | None, drag: DragTest | None =
     return max(passed, key=lambda c: c[1], default=None)
 
 
-def servo_choice(passed: list, hypotheses: list, reading: str | None, say) -> list:
+def servo_choice(passed: list, hypotheses: list, reading: str | None, say) -> tuple[list, list]:
     """Where a lag and a dead time both passed (two readings of one servo's timing), keep the one the arm
-    rise reads (``observables.servo_reading``) and mark the other refused in ``hypotheses``; without a
-    reading, or with one servo hypothesis passed, leave them to the held-out gain."""
+    rise reads (``observables.servo_reading``) and mark the other refused (with the reason) among the
+    ``hypotheses`` (``stages.Hypothesis``); without a reading, or with one servo hypothesis passed, leave them
+    to the held-out gain. Returns (passed, hypotheses)."""
     names = {c[2].name for c in passed}
     if reading is None or not set(SERVO_HYPOTHESES) <= names:
-        return passed
+        return passed, hypotheses
     other = next(x for x in SERVO_HYPOTHESES if x != reading)
-    for h in hypotheses:
-        if h["effect"] == other and h.get("accepted"):
-            h["accepted"] = False
-            h["reason"] = f"the arm rise reads a {'lag' if reading == 'servo_lag' else 'dead time'}"
+    why = f"the arm rise reads a {'lag' if reading == 'servo_lag' else 'dead time'}"
+    hypotheses = [dataclasses.replace(h, accepted=False, reason=why) if h.effect == other and h.accepted else h
+                  for h in hypotheses]
     say(f"  both servo timings passed: kept {reading}, which the arm rise reads")
-    return [c for c in passed if c[2].name != other]
+    return [c for c in passed if c[2].name != other], hypotheses
 
 
 def follows_the_robot(read: dict, beyond_model: bool) -> bool:

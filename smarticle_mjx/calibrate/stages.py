@@ -81,6 +81,57 @@ class Model:
 
 
 @dataclasses.dataclass(frozen=True)
+class Hypothesis:
+    """One joint hypothesis of the nominal stage as judged (an entry of the report's nominal hypotheses).
+
+    Three kinds: not tried (``tried`` False, with the ``reason``); tried in the first pass (fitted with the
+    nominal parameters); tried ``beside`` the accepted first one (the second hypothesis, with whether the
+    first stayed present and which ``start`` it came from). A tried one carries its fitted ``values`` and
+    ``interval``, its held-out error against the ``baseline_err_heldout``, the gains the rule read
+    (``policy.judged``), whether it is ``present``, ``accepted`` and by which ``rule``, and the fit's cost;
+    a first-pass hypothesis refused after passing (``policy.servo_choice``) gains a ``reason``."""
+
+    effect: str
+    tried: bool
+    accepted: bool
+    reason: str | None = None
+    beside: str | None = None
+    values: dict | None = None
+    interval: dict | None = None
+    err_heldout: float | None = None
+    heldout_gain: float | None = None
+    bic_gain: float | None = None
+    present: bool | None = None
+    first_present: bool | None = None
+    rule: str | None = None
+    baseline_err_heldout: float | None = None
+    evaluations: int | None = None
+    starts: int | None = None
+    start: str | None = None
+
+    _FIRST = ("effect", "tried", "values", "interval", "err_heldout", "heldout_gain", "bic_gain", "present",
+              "accepted", "rule", "baseline_err_heldout", "evaluations", "starts")
+    _BESIDE = ("effect", "beside", "tried", "values", "interval", "err_heldout", "heldout_gain", "bic_gain",
+               "present", "first_present", "accepted", "rule", "baseline_err_heldout", "evaluations", "starts",
+               "start")
+
+    @classmethod
+    def skipped(cls, effect: str, reason: str) -> "Hypothesis":
+        """A hypothesis not tried, and why."""
+        return cls(effect, False, False, reason)
+
+    def as_json(self) -> dict:
+        """``report.json``'s entry (the keys of its kind, in the report's order)."""
+        if not self.tried:
+            return {"effect": self.effect, "tried": False, "accepted": self.accepted, "reason": self.reason}
+        keys = self._BESIDE if self.beside is not None else self._FIRST
+        out = {k: getattr(self, k) for k in keys}
+        if self.reason is not None:
+            out["reason"] = self.reason
+        return out
+
+
+@dataclasses.dataclass(frozen=True)
 class NominalStage:
     """The nominal stage: the robot's nominal parameters fitted (with the joint hypotheses accepted), their
     values fitted alone and the errors then, every joint hypothesis as judged (the report's entries), and the
@@ -89,7 +140,7 @@ class NominalStage:
     fit: object  # nominal.NominalFit (with an accepted hypothesis's nominal values), or None
     start: dict  # the nominal values fitted alone
     errors: Errors  # with the nominal values alone
-    hypotheses: list
+    hypotheses: tuple[Hypothesis, ...]
     delay: DelayTest  # the measured arm delay against the preset model's, by amplitude
     rise: DelayTest | None = None  # the arm rise's excess over the preset model's, split the same way
 
@@ -181,11 +232,10 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             continue
         e, e_start = BY_NAME[name], None
         if name in SERVO_HYPOTHESES and servo_skip is not None:
-            hypotheses.append({"effect": name, "tried": False, "accepted": False, "reason": servo_skip})
+            hypotheses.append(Hypothesis.skipped(name, servo_skip))
             continue
         if name == "phase_offset" and otest is not None and otest.absent:
-            hypotheses.append({"effect": name, "tried": False, "accepted": False,
-                               "reason": offset_absent_reason(otest)})
+            hypotheses.append(Hypothesis.skipped(name, offset_absent_reason(otest)))
             continue
         # a present offset is held at its reading (train.effect_fixed, set by calibrate): nothing to start
         if name == "phase_offset" and not (otest is not None and otest.present):
@@ -301,16 +351,15 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
                 f"held-out error {base_err:.2f}, the baseline for {name}")
         j, rule = measured_structure(name, otest, *judged(e, fe.interval, base_chi2, chi2_e, n, base_err, err_e,
                                                           dtest), drag=drag)
-        hypotheses.append({"effect": name, "tried": True, "values": fe.values[name], "interval": interval,
-                           "err_heldout": err_e, "heldout_gain": j.heldout_gain, "bic_gain": j.bic_gain,
-                           "present": j.present, "accepted": j.accepted, "rule": rule,
-                           "baseline_err_heldout": base_err,
-                           "evaluations": fe.evaluations, "starts": len(fes)})
+        hypotheses.append(Hypothesis(name, True, j.accepted, values=fe.values[name], interval=interval,
+                                     err_heldout=err_e, heldout_gain=j.heldout_gain, bic_gain=j.bic_gain,
+                                     present=j.present, rule=rule, baseline_err_heldout=base_err,
+                                     evaluations=fe.evaluations, starts=len(fes)))
         say(f"  nominal + {name}: held-out error {err_e:.2f} ({j.heldout_gain:+.0%}), BIC gain {j.bic_gain:.1f}"
             + floor_note(rule))
         if j.accepted:
             passed.append((fe, j.heldout_gain, e, nom_e, interval))
-    passed = servo_choice(passed, hypotheses, reading, say)
+    passed, hypotheses = servo_choice(passed, hypotheses, reading, say)
     best = first_choice(passed, otest, drag)
     if best is not None:
         fe, _, e, nom_e, interval = best
@@ -330,7 +379,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
             train.nominal = test.nominal = dict(nom_2)
             nominal_fit = dataclasses.replace(fe2, values=dict(nom_2))
             say(f"added {e2.name} beside {e.name} (both fitted with the nominal parameters)")
-    return NominalStage(nominal_fit, nom0, alone, hypotheses, dtest, rtest)
+    return NominalStage(nominal_fit, nom0, alone, tuple(hypotheses), dtest, rtest)
 
 
 SERVO_NULL = "servo restarted"  # the key of the nominal fit restarted from the preset servo, without an effect
@@ -342,7 +391,7 @@ class SecondHypothesis:
 
     fit: object  # nominal.NominalFit of the nominal parameters with both effects, or None: none accepted
     effect: Effect | None
-    tried: list  # entries for the report's nominal hypotheses, marked "beside"
+    tried: list  # Hypothesis entries for the report's nominal hypotheses, each ``beside`` the first
 
 
 def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, nom0: dict, n: int,
@@ -414,17 +463,16 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
                                      drag=drag)
         first_present = is_present(e1, {p.name: fe.interval[p.name] for p in e1.params})
         ok = j.accepted and first_present
-        tried.append({"effect": name, "beside": e1.name, "tried": True, "values": fe.values[name],
-                      "interval": interval, "err_heldout": err, "heldout_gain": j.heldout_gain,
-                      "bic_gain": j.bic_gain, "present": j.present, "first_present": first_present,
-                      "accepted": ok, "rule": rule, "baseline_err_heldout": base_err,
-                      "evaluations": fe.evaluations, "starts": len(fes), "start": label})
+        tried.append(Hypothesis(name, True, ok, beside=e1.name, values=fe.values[name], interval=interval,
+                                err_heldout=err, heldout_gain=j.heldout_gain, bic_gain=j.bic_gain, present=j.present,
+                                first_present=first_present, rule=rule, baseline_err_heldout=base_err,
+                                evaluations=fe.evaluations, starts=len(fes), start=label))
         say(f"  nominal + {e1.name} + {name}: held-out error {err:.2f} ({j.heldout_gain:+.0%} over "
             f"{e1.name} alone), BIC gain {j.bic_gain:.1f}" + ("" if first_present else f"; {e1.name} no longer shown")
             + ("; started at the delay test's reading" if label == START_DELAY_READING else "") + floor_note(rule))
         if ok:
             passed.append((fe, j.heldout_gain, e))
-    passed = servo_choice(passed, tried, reading, say)
+    passed, tried = servo_choice(passed, tried, reading, say)
     pick = max(passed, key=lambda c: c[1], default=None)
     if pick is None:
         return SecondHypothesis(None, None, tried)
@@ -538,11 +586,38 @@ SPLIT_SWAPPED = False
 
 @dataclasses.dataclass(frozen=True)
 class TiltStage:
-    """The plate-tilt stage: the model-free drift test, the tilt fitted to a significant drift, its runs."""
+    """The plate-tilt stage: the model-free drift test, the tilt fitted to a significant drift (``drift.
+    fit_tilt``'s result, as it returned it), the decision on it (None where nothing was fitted), its runs."""
 
     drift: dict  # the model-free drift test
-    tilt: dict | None  # the tilt fitted to a significant drift
+    fit: dict | None  # the tilt fitted to a significant drift
     runs: int  # model runs it took
+    decision: "TiltDecision | None" = None
+
+    @property
+    def tilt(self) -> dict | None:
+        """The fit with the decision's readings beside it (report.json's ``tilt_fit``)."""
+        if self.fit is None:
+            return None
+        return {**self.fit, **(self.decision.as_dict() if self.decision is not None else {})}
+
+
+@dataclasses.dataclass(frozen=True)
+class TiltDecision:
+    """What decides a fitted tilt (``policy.tilt_accepted``): its z^2 from zero, whether the gaits' drifts
+    point one way, whether the gate reads the drift beyond the model's own on a level plate (the model drags
+    its arms on the plate or holds an anisotropic plate), whether that drift follows the robot's own step,
+    and the verdict."""
+
+    z2: float
+    one_direction: bool
+    gate_beyond_model: bool
+    follows_the_robot: bool
+    accepted: bool
+
+    def as_dict(self) -> dict:
+        return {"z2": self.z2, "one_direction": self.one_direction, "gate_beyond_model": self.gate_beyond_model,
+                "follows_the_robot": self.follows_the_robot, "accepted": self.accepted}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -595,43 +670,44 @@ def tilt_stage(trials: list[Trial], train: Problem, model: Model, say, drift: di
             + (f"; this gait alone: {np.round(g['tilt_deg'], 2).tolist()} deg" if g.get("tilt_deg") else ""))
     if not tilt.get("ok") and tilt.get("uphill_groups"):
         say("  plate_tilt not fitted: in no gait does the model robot drift downhill")
-    if tilt.get("ok"):
-        t_vec = np.array(tilt["tilt_deg"])
-        z2 = float(t_vec @ np.linalg.solve(np.diag(np.square(tilt["se_deg"])), t_vec))
-        tilt["z2"] = z2
-        tilt["one_direction"] = bool(drift["directions"]["consistent"])
-        # a plate slipperier along one axis, or a grip that depends on the robot's heading, drifts with each
-        # gait's own step (calibrate.drift.PlateDrift): the tilt's gate (policy.tilt_accepted)
-        # where the model already drags its arms on the plate or holds an anisotropic plate, its own drift on a
-        # level plate follows the robot's step, and the gate reads the drift the model leaves. That drift is
-        # stopped only where one drift vector does not fit it
-        # (p < P_ONE_VECTOR) and one anisotropy fits it better: the model already holds a step-following
-        # drift, so a step-following rest must show. Elsewhere the data's own reading, as before.
-        tilt["gate_beyond_model"] = ARM_PLATE in model.base or ANISO in model.base
-        read = tilt["plate_models_beyond_model"] if tilt["gate_beyond_model"] else drift["plate_models"]
-        tilt["follows_the_robot"] = follows_the_robot(read, tilt["gate_beyond_model"])
-        if tilt["gate_beyond_model"]:
-            say(f"  the drift beyond the model's on a level plate: one drift vector chi2 {read['chi2_one_vector']:.1f}"
-                f" (p {read['p_one_vector']:.2g}), one anisotropy of the robot's step {read['chi2_anisotropy']:.1f}"
-                f" (the data's own: {drift['plate_models']['chi2_one_vector']:.1f} and "
-                f"{drift['plate_models']['chi2_anisotropy']:.1f})")
-        tilt["accepted"] = tilt_accepted(tilt)
-        say(f"  plate_tilt from the drift: {t_vec.round(2).tolist()} deg, accepted: {tilt['accepted']}"
-            + ("" if tilt["one_direction"] else
-               f" (the gaits' drifts point up to {drift['directions']['max_angle_deg']:.0f} deg apart: "
-               "a plate not level in another way)")
-            + ("" if not tilt["follows_the_robot"] else
-               " (the gaits' drifts" + (" beyond the model's" if tilt["gate_beyond_model"] else "")
-               + " follow the robot's own step, as on a plate slipperier along one axis, not "
-               f"one drift vector as a tilt's: chi2 {read['chi2_anisotropy']:.1f} against "
-               f"{read['chi2_one_vector']:.1f})"))
-        if tilt["accepted"]:
-            vals = {"tilt_x_deg": float(t_vec[0]), "tilt_y_deg": float(t_vec[1])}
-            model.add(BY_NAME["plate_tilt"], vals, tilt["interval"])
-            model.base = {**model.base, "plate_tilt": vals}
-            model.fixed["plate_tilt"] = vals
-            say("added plate_tilt (plate-frame drift)")
-    return TiltStage(drift, tilt, 3)
+    if not tilt.get("ok"):
+        return TiltStage(drift, tilt, 3)
+    t_vec = np.array(tilt["tilt_deg"])
+    z2 = float(t_vec @ np.linalg.solve(np.diag(np.square(tilt["se_deg"])), t_vec))
+    one_direction = bool(drift["directions"]["consistent"])
+    # a plate slipperier along one axis, or a grip that depends on the robot's heading, drifts with each
+    # gait's own step (calibrate.drift.PlateDrift): the tilt's gate (policy.tilt_accepted)
+    # where the model already drags its arms on the plate or holds an anisotropic plate, its own drift on a
+    # level plate follows the robot's step, and the gate reads the drift the model leaves. That drift is
+    # stopped only where one drift vector does not fit it
+    # (p < P_ONE_VECTOR) and one anisotropy fits it better: the model already holds a step-following
+    # drift, so a step-following rest must show. Elsewhere the data's own reading, as before.
+    beyond = ARM_PLATE in model.base or ANISO in model.base
+    read = tilt["plate_models_beyond_model"] if beyond else drift["plate_models"]
+    follows = follows_the_robot(read, beyond)
+    if beyond:
+        say(f"  the drift beyond the model's on a level plate: one drift vector chi2 {read['chi2_one_vector']:.1f}"
+            f" (p {read['p_one_vector']:.2g}), one anisotropy of the robot's step {read['chi2_anisotropy']:.1f}"
+            f" (the data's own: {drift['plate_models']['chi2_one_vector']:.1f} and "
+            f"{drift['plate_models']['chi2_anisotropy']:.1f})")
+    accepted = tilt_accepted(tilt, z2, one_direction, follows)
+    decision = TiltDecision(z2, one_direction, beyond, follows, accepted)
+    say(f"  plate_tilt from the drift: {t_vec.round(2).tolist()} deg, accepted: {accepted}"
+        + ("" if one_direction else
+           f" (the gaits' drifts point up to {drift['directions']['max_angle_deg']:.0f} deg apart: "
+           "a plate not level in another way)")
+        + ("" if not follows else
+           " (the gaits' drifts" + (" beyond the model's" if beyond else "")
+           + " follow the robot's own step, as on a plate slipperier along one axis, not "
+           f"one drift vector as a tilt's: chi2 {read['chi2_anisotropy']:.1f} against "
+           f"{read['chi2_one_vector']:.1f})"))
+    if accepted:
+        vals = {"tilt_x_deg": float(t_vec[0]), "tilt_y_deg": float(t_vec[1])}
+        model.add(BY_NAME["plate_tilt"], vals, tilt["interval"])
+        model.base = {**model.base, "plate_tilt": vals}
+        model.fixed["plate_tilt"] = vals
+        say("added plate_tilt (plate-frame drift)")
+    return TiltStage(drift, tilt, 3, decision)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -864,7 +940,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     nom = (nominal_stage(train, test, trials, library, model, say, tuple(plate_hypotheses), otest, dtest) if nominal
            else None)
     if nom and plate_skip:
-        nom.hypotheses.append({"effect": ANISO, "tried": False, "accepted": False, "reason": plate_skip})
+        nom = dataclasses.replace(nom, hypotheses=nom.hypotheses + (Hypothesis.skipped(ANISO, plate_skip),))
     if nominal:  # the library's effects that rescale a fitted nominal parameter would fit it twice
         library = tuple(e for e in library if e.name not in NOMINAL_EFFECTS and e.name not in SERVO_HYPOTHESES
                         and e.name not in plate_hypotheses
@@ -927,7 +1003,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         "measured": {k: list(v) for k, v in train.priors.items()},
         "before": before.as_dict(), "after_nominal": after_nominal.as_dict(), "after": after.as_dict(),
         "rounds": [r.as_dict() for r in rounds],
-        "nominal_hypotheses": nom.hypotheses if nom else [], "plate_hypotheses": list(plate_hypotheses),
+        "nominal_hypotheses": [h.as_json() for h in nom.hypotheses] if nom else [], "plate_hypotheses": list(plate_hypotheses),
         "delay_test": nom.delay.as_dict() if nom else None,
         "offset_test": otest.as_dict() if otest is not None else None,
         "arm_offset": {**aoff.as_dict(), "taken_out": bool(aoff.present)},
