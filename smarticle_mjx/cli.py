@@ -272,6 +272,9 @@ def relax(
                                                  "robots out of phase start one after another, each from its first corner"),
     retrigger_sd: float = typer.Option(0.0, help="re-start every robot's gait each cycle with a delay drawn "
                                        "afresh per robot and cycle, this s.d. (periods; 0: started once)"),
+    onset_offset_sd: float = typer.Option(0.0, help="lasting per-robot timing offsets of this s.d. (periods) that "
+                                          "set in at --onset-cycle: the robots start in phase (0: none)"),
+    onset_cycle: int = typer.Option(1, help="the cycle at which --onset-offset-sd's offsets set in (>= 1)"),
     plate: float = typer.Option(0.6, help="side of the square plate (m); robots past its edge are recorded"),
     quiet_periods: int = typer.Option(10, help="stop a trial after this many periods without contact (0: never)"),
     backend: str = typer.Option("native", help="native, mjx, warp or dart (the DART twin; needs the dart extra)"),
@@ -289,7 +292,7 @@ def relax(
                       period_s=gait_spec.period_s, seed=seed,
                       gap_mm=gap_mm, start=start, headings=headings, start_phi=start_phi, jitter_mm=jitter_mm,
                       jitter_deg=jitter_deg, phase_jitter=phase_jitter, retrigger_sd=retrigger_sd,
-                      plate_m=plate, quiet_periods=quiet_periods, backend=backend, batch_size=batch_size,
+                      onset_offset_sd=onset_offset_sd, onset_cycle=onset_cycle, plate_m=plate, quiet_periods=quiet_periods, backend=backend, batch_size=batch_size,
                       model=_model(model), imperfections=imperfections, overrides=_sets(set_))
     _run_study(cfg, out, store, executor)
 

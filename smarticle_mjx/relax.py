@@ -163,10 +163,20 @@ def start_poses(config: RelaxConfig, params: SceneParams) -> tuple[np.ndarray, n
 
 
 def retrigger_of(config: RelaxConfig, trials) -> np.ndarray:
-    """[T, 3] the engine's per-cycle retrigger of ``trials`` (s.d., the study's seed, the trial)."""
+    """[T, 3] the engine's per-cycle retrigger of ``trials`` (s.d., the study's seed, the trial), or [T, 4] its
+    lasting offsets that set in (s.d., seed, trial, onset cycle: ``Lanes.retrigger``)."""
     trials = np.atleast_1d(np.asarray(trials))
+    if config.onset_offset_sd > 0:
+        return np.stack([np.full(len(trials), config.onset_offset_sd), np.full(len(trials), config.seed), trials,
+                         np.full(len(trials), config.onset_cycle)], 1).astype(float)
     return np.stack([np.full(len(trials), config.retrigger_sd), np.full(len(trials), config.seed), trials], 1
                     ).astype(float)
+
+
+def retriggered(config: RelaxConfig) -> bool:
+    """Whether the study's robots change their timing after the start (a per-cycle re-trigger or lasting
+    offsets that set in)."""
+    return config.retrigger_sd > 0 or config.onset_offset_sd > 0
 
 
 def trial_lanes(config: RelaxConfig, starts: np.ndarray, phase: np.ndarray, trials,
@@ -181,7 +191,7 @@ def trial_lanes(config: RelaxConfig, starts: np.ndarray, phase: np.ndarray, tria
                                   start_delays=start_delays)
     if start_delays and lanes.phase.any():
         lanes = lanes.with_start_delays()
-    if config.retrigger_sd > 0:
+    if retriggered(config):
         lanes = dataclasses.replace(lanes, retrigger=retrigger_of(config, trials))
     return lanes
 

@@ -136,7 +136,7 @@ def resimulate_trial(store_path, trial: int, frame_interval: float):
     Returns (times [S], poses [S, N, 5] from the start, ``SimResult``, params, gait, the stored rows of
     that trial). Raises ValueError for a trial the store does not hold."""
     from .engine.simulate import simulate
-    from .relax import RUN, retrigger_of, start_poses
+    from .relax import RUN, retrigger_of, retriggered, start_poses
     from .store import Store
     st = Store(store_path)
     config = relax_config_from_json(st.config["relax"])
@@ -153,7 +153,7 @@ def resimulate_trial(store_path, trial: int, frame_interval: float):
     stride = max(1, int(round(frame_interval / params.timestep)))
     res = simulate(params, start[0], gait, max(int(rows["periods_run"]), 1), phase=phase[0], track_stride=stride,
                    imperfections=config.robots(), row=trial, start_delays=made_with_start_delays(st),
-                   retrigger=retrigger_of(config, trial)[0] if config.retrigger_sd > 0 else None)
+                   retrigger=retrigger_of(config, trial)[0] if retriggered(config) else None)
     t = np.concatenate([[0.0], res.track_t])
     return t, np.concatenate([start[0][None], res.track], 0), res, params, gait, rows
 

@@ -223,6 +223,11 @@ class RelaxConfig:
     # every robot re-started each cycle with a delay drawn afresh per robot and cycle (s.d., periods), as
     # the lab firmware re-synchronised its robots on a trigger every cycle; 0: started once
     retrigger_sd: float = 0.0
+    # lasting per-robot timing offsets that set in after the start (s.d., periods): every robot starts in
+    # phase and from cycle onset_cycle on runs its gait late or early by its own delay, drawn once per robot
+    # and trial; 0: none. Not with retrigger_sd
+    onset_offset_sd: float = 0.0
+    onset_cycle: int = 1
     plate_m: float = 0.6  # side of the square plate, centred on the packing
     backend: str = "native"
     batch_size: int = 4
@@ -259,6 +264,9 @@ class RelaxConfig:
         sync = f"gait start offsets of s.d. {sd:.3g} periods, drawn per robot and trial" if sd > 0 else "in phase"
         if self.retrigger_sd > 0:
             sync += f", every robot re-triggered each cycle with a delay of s.d. {self.retrigger_sd:g} periods"
+        if self.onset_offset_sd > 0:
+            sync += (f", lasting offsets of s.d. {self.onset_offset_sd:g} periods per robot setting in at cycle "
+                     f"{self.onset_cycle}")
         return (f"compressed start ({pack}, headings {self.headings}, {spacing}, jitter {self.jitter_mm:g} mm / "
                 f"{self.jitter_deg:g}°), {sync}")
 
@@ -279,10 +287,15 @@ class RelaxConfig:
             raise ValueError(f"first trial must be >= 0, got {self.first_trial}")
         if self.periods < 1:
             raise ValueError(f"periods must be >= 1, got {self.periods}")
-        for name in ("gap_mm", "jitter_mm", "jitter_deg", "phase_jitter", "retrigger_sd"):
+        for name in ("gap_mm", "jitter_mm", "jitter_deg", "phase_jitter", "retrigger_sd", "onset_offset_sd"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name.replace('_', '-')} must be a finite number >= 0, got {v}")
+        if self.onset_cycle < 1:
+            raise ValueError(f"onset cycle must be >= 1 (robots start in phase), got {self.onset_cycle}")
+        if self.onset_offset_sd > 0 and self.retrigger_sd > 0:
+            raise ValueError("lasting offsets that set in (onset-offset-sd) and a per-cycle re-trigger (retrigger-sd) "
+                             "exclude each other")
         if self.phase_jitter > 0 and self.backend != "native":
             raise ValueError(f"the {self.backend} backend starts every robot's gait at t = 0; robots out of phase "
                              "(--phase-jitter) start one after another on the native backend")
@@ -312,7 +325,8 @@ class RelaxConfig:
         d = dataclasses.asdict(self)
         if self.imperfections == "none":
             del d["imperfections"]  # stores of ideal robots keep their earlier configuration
-        for k, default in (("start", "lattice"), ("headings", "aligned"), ("start_phi", None), ("retrigger_sd", 0.0)):
+        for k, default in (("start", "lattice"), ("headings", "aligned"), ("start_phi", None), ("retrigger_sd", 0.0),
+                           ("onset_offset_sd", 0.0), ("onset_cycle", 1)):
             if d[k] == default:
                 del d[k]  # as do stores of the start the study always had
         _overrides_json(d, self.overrides)

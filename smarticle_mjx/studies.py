@@ -42,7 +42,8 @@ def _stamp(text) -> str:
 # keys a spec's JSON omits while they hold their default (ScanConfig/RelaxConfig.to_json): a stored spec
 # without one ran at the default, so the wanted spec's value is not filled in for it
 _OMITTED = {"scan": ("initial", "imperfections", "overrides"),
-            "relax": ("imperfections", "start", "headings", "start_phi", "retrigger_sd", "overrides")}
+            "relax": ("imperfections", "start", "headings", "start_phi", "retrigger_sd", "onset_offset_sd",
+                      "onset_cycle", "overrides")}
 
 
 def _kind(cfg: ScanConfig | RelaxConfig) -> str:

@@ -404,3 +404,52 @@ def test_ideal_robots_run_every_lane_together_whatever_the_draws():
     cfg = ScanConfig(robot_draws=10, robot_seed=0, seed=3)
     assert cfg.lane_draw(np.arange(30)).tolist() == [0] * 30
     assert cfg.to_json() == ScanConfig(seed=3).to_json()
+
+
+def test_lasting_offsets_set_in_at_their_onset_cycle_and_stay(tmp_path):
+    """Lasting per-robot timing offsets that set in after the start: every robot runs in phase until the
+    onset cycle, then each keeps one offset (drawn once per robot and trial, s.d. as asked) in every later
+    cycle. Physical fact: a lone robot with such a phase offset d has its arms, from the onset on, where the
+    robot without it has them d periods later (checked against the plain run, sampled at full rate);
+    a relaxation with them replays exactly from its store, and they exclude a per-cycle re-trigger."""
+    from smarticle_mjx.engine import Lanes
+    from smarticle_mjx.engine.simulate import simulate
+    from smarticle_mjx.gait import GaitSpec
+    from smarticle_mjx.presets import DEFAULT, params as preset_params
+    from smarticle_mjx.relax import RelaxConfig, run_relax
+    from smarticle_mjx.replay import resimulate_trial
+    b, n, sd = 2, 400, 0.05
+    lanes = Lanes(np.zeros((b, n, 5)), np.full(b, 1.0), np.ones(b, np.int32), np.zeros(b, np.int32),
+                  np.zeros((b, n)), 1.6, retrigger=np.array([[sd, 0, 7, 2], [sd, 0, 8, 2]], float))
+    assert not lanes.at_time(1.6).phase.any()  # before the onset: in phase
+    k2, k5 = (np.mod(lanes.at_time(k * 1.6).phase + 0.5, 1.0) - 0.5 for k in (2, 5))
+    assert np.array_equal(k2, k5) and not np.allclose(k2[0], k2[1])  # lasting, and each trial its own
+    assert k2.std() == pytest.approx(sd, rel=0.15)
+    with pytest.raises(ValueError, match="onset cycle"):
+        Lanes(np.zeros((1, 2, 5)), np.ones(1), np.ones(1, np.int32), np.zeros(1, np.int32), np.zeros((1, 2)),
+              1.6, retrigger=np.array([[sd, 0, 1, 0]], float))
+    # a lone robot: with offset d from cycle 1 on, its arms at time t follow the undelayed robot's at t - d T
+    p = preset_params(DEFAULT)
+    g = GaitSpec(amplitude_deg=60.0)
+    a0 = g.setpoints(0.0, p.robot.servo_speed)
+    start = [[0.0, 0.0, 0.0, float(a0[0]), float(a0[1])]]
+    row = np.array([0.04, 3, 1, 1], float)
+    d = float(np.mod(Lanes(np.zeros((1, 1, 5)), np.ones(1), np.ones(1, np.int32), np.zeros(1, np.int32),
+                           np.zeros((1, 1)), 1.6, retrigger=row[None]).at_time(1.6).phase[0, 0] + 0.5, 1) - 0.5)
+    assert abs(d) > 0.005
+    late = simulate(p, start, g, 4, retrigger=row, track_stride=8)
+    plain = simulate(p, start, g, 4, track_stride=8)
+    T, t = late.period, late.track_t
+    assert np.array_equal(t, plain.track_t) and t[-1] > 3.5 * T
+    for tt in (2.3 * T, 2.7 * T, 3.4 * T):  # well after the onset, away from the onset's own transient
+        i = int(np.argmin(np.abs(t - tt)))
+        j = int(np.argmin(np.abs(t - (t[i] + d * T))))  # a phase offset d leads by d periods
+        assert np.degrees(np.abs(late.track[i, 0, 3:5] - plain.track[j, 0, 3:5])).max() < 2.0, (tt, d)
+    before = t < 0.9 * T
+    assert np.abs(late.track[before, 0, 3:5] - plain.track[before, 0, 3:5]).max() == 0.0  # in phase before it
+    out = tmp_path / "onset.h5"
+    run_relax(RelaxConfig(n_robots=3, trials=1, periods=6, onset_offset_sd=0.04, onset_cycle=2, quiet_periods=0), out)
+    _, _, res, _, _, rows = resimulate_trial(out, 0, frame_interval=0.2)
+    assert np.array_equal(res.poses[1:].astype(np.float32), rows["poses"])
+    with pytest.raises(ValueError, match="exclude each other"):
+        RelaxConfig(onset_offset_sd=0.04, retrigger_sd=0.02).validate(preset_params(DEFAULT))

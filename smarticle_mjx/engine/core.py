@@ -194,6 +194,9 @@ class Lanes:
         gait is started again each cycle with a delay drawn afresh per robot and cycle,
         Normal(0, s.d.) periods from the stream (seed, key, cycle), as the lab's firmware
         re-synchronised its robots on an external trigger every cycle (on top of ``phase``).
+        [B, 4] (s.d., seed, key, onset cycle >= 1): a lasting timing offset instead, drawn once per
+        robot, Normal(0, s.d.) periods from the stream (seed, key), that sets in at the onset cycle and
+        stays (every robot runs in phase before it).
       hold: [B, N] seconds, or None: each robot waits that long at the run's start, holding the
         setpoint its gait has when it starts (rate 0), then runs its gait; it applies in the run's
         first period only (the backends drop it after, :meth:`started`). Robots started at different
@@ -232,9 +235,12 @@ class Lanes:
             if not (np.isfinite(self.robot_period).all() and (self.robot_period > 0).all()):
                 raise ValueError("lanes.robot_period must be positive")
         if self.retrigger is not None:
-            if self.retrigger.shape != (b, 3) or not (np.isfinite(self.retrigger).all() and
-                                                      (self.retrigger[:, 0] >= 0).all()):
-                raise ValueError(f"lanes.retrigger must be [{b}, 3] (s.d. >= 0, seed, key)")
+            if self.retrigger.shape not in ((b, 3), (b, 4)) or not (np.isfinite(self.retrigger).all() and
+                                                                    (self.retrigger[:, 0] >= 0).all()):
+                raise ValueError(f"lanes.retrigger must be [{b}, 3] (s.d. >= 0, seed, key) or [{b}, 4] (and an onset "
+                                 "cycle)")
+            if self.retrigger.shape[1] == 4 and not (self.retrigger[:, 3] >= 1).all():
+                raise ValueError("a lasting offset's onset cycle must be >= 1 (robots start in phase)")
         if self.hold is not None:
             if self.hold.shape != (b, n) or not (np.isfinite(self.hold).all() and (self.hold >= 0).all()):
                 raise ValueError(f"lanes.hold must be [{b}, {n}] seconds >= 0")
@@ -386,10 +392,16 @@ class Lanes:
         cycle = np.broadcast_to(np.asarray(cycle, np.int64), (self.size,))
         n = self.poses.shape[1]
         out = np.zeros((self.size, n))
-        for b, (sd, seed, key) in enumerate(self.retrigger):
-            if sd > 0:
-                rng = np.random.default_rng([int(seed), int(key), int(cycle[b]), 0x54524947])  # "TRIG"
-                out[b] = rng.normal(0.0, sd, n)
+        for b, row in enumerate(self.retrigger):
+            sd, seed, key = row[:3]
+            if sd <= 0:
+                continue
+            if len(row) == 4:  # a lasting offset: one draw per robot, from its onset cycle on
+                if cycle[b] >= int(row[3]):
+                    out[b] = np.random.default_rng([int(seed), int(key), 0x4C415354]).normal(0.0, sd, n)  # "LAST"
+                continue
+            rng = np.random.default_rng([int(seed), int(key), int(cycle[b]), 0x54524947])  # "TRIG"
+            out[b] = rng.normal(0.0, sd, n)
         return out
 
     @property

@@ -66,7 +66,8 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
         quirks must already be in ``params``); ``row``: the lane or trial
         whose phase jitter applies.
       retrigger: optional [3] (s.d. in periods, seed, key): every robot re-started each cycle with a
-        fresh delay (``Lanes.retrigger``).
+        fresh delay; or [4] (and an onset cycle): a lasting offset per robot from that cycle on
+        (``Lanes.retrigger``).
       start_delays: read ``phase`` and the imperfections' start offsets as start delays
         (``Lanes.with_start_delays``: the robot furthest ahead starts at t = 0, the others later, each
         from its gait's first corner), as relaxation trials and scans run them since version 0.4.1;
@@ -95,7 +96,7 @@ def simulate(params: SceneParams, poses, gait: GaitSpec, periods: int, phase=Non
     if start_delays and lanes.phase.any():
         lanes = lanes.with_start_delays()
     if retrigger is not None:
-        lanes = dataclasses.replace(lanes, retrigger=np.asarray(retrigger, float).reshape(1, 3))
+        lanes = dataclasses.replace(lanes, retrigger=np.asarray(retrigger, float).reshape(1, -1))
     lanes = on_step_grid(lanes, params.timestep)
     from . import make_backend
     be = make_backend(backend, scene, nthread=nthread)
