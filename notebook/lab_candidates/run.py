@@ -108,7 +108,7 @@ def screen(plan: dict, variants: dict, only, out: pathlib.Path) -> dict:
         ensure_scan(cfg, spath)
         beta = beta_of(spath)
         drift, robots = lone_drift(s)
-        sources = {**plan["sources"], **plan["sources"].get("more", {})}
+        sources = {**plan["sources"], **plan["sources"].get("more", {}), **plan["sources"].get("onset", {})}
         results[name] = {"settings": {k: v for k, v in s.items()}, "source": sources.get(name, ""),
                          "lone_drift_W_per_cycle": drift, "lone_robots": robots, "beta": beta, "spreading": spread,
                          "scan_store": spath.name, **errors(drift, beta["beta"], spread["phi_tau_median"]),
