@@ -79,15 +79,12 @@ class ImperfectionSet:
     def check_backend(self, backend: str) -> None:
         """ValueError, before anything runs, where ``backend`` cannot run this set's gait
         imperfections (the engines refuse them again when they meet them)."""
-        if backend == "mjx" and self.speed_sd:
-            raise ValueError(f"imperfections {self.name!r}: the mjx backend runs arms at the model's servo "
-                             "speed; per-arm speeds run on the native, warp and dart backends")
-        if backend in ("mjx", "warp", "dart") and self.phase_sd:
-            raise ValueError(f"imperfections {self.name!r}: the {backend} backend starts every robot's gait at "
-                             "t = 0; robots with start offsets start one after another on the native backend")
-        if backend == "dart" and self.clock_halfwidth:
-            raise ValueError(f"imperfections {self.name!r}: the dart backend runs robots that share one gait "
-                             "period; clock drift runs on the MuJoCo backends")
+        from .capabilities import require
+        prefix = f"imperfections {self.name!r}: "
+        for needed, feature in ((self.speed_sd, "per_arm_speeds"), (self.phase_sd, "start_delays"),
+                                (self.clock_halfwidth, "own_clocks"), (self.changes_scene, "robot_quirks")):
+            if needed:
+                require(backend, feature, prefix)
 
     def priors(self) -> dict:
         return {"speed_sd": self.speed_sd, "backlash_deg": None if self.backlash_deg is None else list(self.backlash_deg),

@@ -296,9 +296,11 @@ class RelaxConfig:
         if self.onset_offset_sd > 0 and self.retrigger_sd > 0:
             raise ValueError("lasting offsets that set in (onset-offset-sd) and a per-cycle re-trigger (retrigger-sd) "
                              "exclude each other")
-        if self.phase_jitter > 0 and self.backend != "native":
-            raise ValueError(f"the {self.backend} backend starts every robot's gait at t = 0; robots out of phase "
-                             "(--phase-jitter) start one after another on the native backend")
+        from .capabilities import require
+        if self.phase_jitter > 0:
+            require(self.backend, "start_delays", "--phase-jitter: ")
+        if self.retrigger_sd > 0 or self.onset_offset_sd > 0:
+            require(self.backend, "retrigger", "--retrigger-sd / --onset-offset-sd: ")
         if not self.plate_m > 0:
             raise ValueError(f"plate side must be positive, got {self.plate_m}")
         if self.start not in ("lattice", "hex"):

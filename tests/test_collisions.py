@@ -132,7 +132,7 @@ def test_collision_record_through_a_scan_store_and_report(tmp_path):
         Store(plain).run(fields=("coll_steps",))
     bad = CliRunner().invoke(app, ["scan", "--configs", "polar", "--positions", "2", "--periods", "1",
                                    "--collisions", "--backend", "mjx", "--out", str(tmp_path / "m.h5")])
-    assert bad.exit_code == 2 and "native and dart backends only" in bad.output
+    assert bad.exit_code == 2 and "collision records (--collisions) run on the native and dart backends, not" in bad.output
 
 
 def test_sequence_and_kind_summary_of_a_built_record():

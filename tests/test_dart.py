@@ -412,7 +412,7 @@ def test_smx_simulate_writes_a_dart_track_at_dart_s_step(tmp_path):
     np.testing.assert_allclose(res.track[-1], res.poses[-1], atol=1e-12)
     assert np.degrees(np.abs(res.track[:, 0, 3:5]).max()) > 44.5
     bad = CliRunner().invoke(app, ["simulate", "--backend", "mjx", "--out", str(tmp_path / "m.csv")])
-    assert bad.exit_code == 2 and "native or dart" in bad.output
+    assert bad.exit_code == 2 and "run on the native and dart backends, not" in bad.output
 
 
 @needs_dart

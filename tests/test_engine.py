@@ -364,7 +364,7 @@ def test_open_backend_builds_the_sensors_its_records_need_and_refuses_what_it_ca
     assert mujoco.MjModel.from_xml_string(Scene.mjcf(params, 2, sensors="none")).nsensor == 0
     built = []
     monkeypatch.setattr(engine.Scene, "build", lambda *a, **k: built.append(a))
-    with pytest.raises(ValueError, match="native and dart backends only"):
+    with pytest.raises(ValueError, match="collision records .--collisions. run on the native and dart backends, not mjx"):
         open_backend("mjx", params, 2, collisions=True)
     with pytest.raises(ValueError, match="unknown backend 'bullet'"):
         open_backend("bullet", params, 2)

@@ -198,14 +198,16 @@ def test_a_backend_that_cannot_run_the_imperfections_refuses_them_before_any_sto
     r = runner.invoke(app, ["scan", "--configs", "polar", "--positions", "2", "--periods", "1", "--backend", "mjx",
                             "--imperfections", "servo-speed", "--out", str(tmp_path / "x.h5"), "--quiet"])
     assert r.exit_code == 2, r.output
-    assert "mjx backend runs arms at the model's servo speed" in r.output
+    assert "arms with their own servo speeds (imperfections) run on the native, warp and dart backends, not mjx" in r.output
     assert len(r.output.strip().splitlines()) == 1 and list(tmp_path.iterdir()) == []
     from smarticle_mjx.engine.dart import DartNumerics, check_model
     check_model(presets.params(), DartNumerics())  # the ideal default builds
     for params in (presets.params("lab-hobby"), I.draw("com-offset", 2, 0).scene(presets.params())):
-        with pytest.raises(ValueError, match="DART twin builds ideal robots"):
+        with pytest.raises(ValueError, match="gear backlash or centre-of-mass offsets run on the native, mjx and warp "
+                                             "backends, not dart"):
             check_model(params, DartNumerics())
-    with pytest.raises(ValueError, match="share one gait period"):
+    with pytest.raises(ValueError, match="own gait periods in one lane .clock drift. run on the native and mjx "
+                                         "backends, not dart"):
         I.get("clock-drift").check_backend("dart")
 
 

@@ -228,3 +228,33 @@ def test_the_calibration_report_only_formats():
     assert not imported & {"sim", "fit", "stages", "nominal", "heldout.compare_heldout", "..engine.simulate"}, imported
     assert not any("simulate" in a.name or "fit_" in a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)
                    for a in n.names)
+
+
+_BY_NAME = re.compile(r"backend\w*\)?\s*(==|!=|not in|in)\s*\(?\s*[\"'](native|mjx|warp|dart)[\"']")
+
+
+def test_no_backend_is_checked_by_name_outside_the_capability_table():
+    """What a backend can run is read from one table (smarticle_mjx/capabilities.py), so an unsupported option
+    is refused by one rule with one message; only the backend registry (engine/__init__.py) names backends."""
+    root = pathlib.Path(__file__).resolve().parents[1] / "smarticle_mjx"
+    allowed = {root / "capabilities.py", root / "engine" / "__init__.py"}
+    found = [f"{p.relative_to(root)}:{i}" for p in root.rglob("*.py") if p not in allowed
+             for i, line in enumerate(p.read_text().splitlines(), 1) if _BY_NAME.search(line)]
+    assert not found, found
+    assert _BY_NAME.search('    if backend == "dart":') and _BY_NAME.search('if self.backend in ("mjx", "warp"):')
+    assert not _BY_NAME.search('for m in ("warp", "mujoco_warp")')
+
+
+def test_every_backend_has_a_row_in_the_capability_table():
+    from smarticle_mjx.capabilities import CAPABILITIES, FEATURES, refusal, supports
+    from smarticle_mjx.engine import BACKENDS
+    assert set(CAPABILITIES) == set(BACKENDS) and all(set(c) <= set(FEATURES) for c in CAPABILITIES.values())
+    assert supports("native", "start_delays") and not supports("mjx", "start_delays")
+    assert refusal("warp", "collision_record") == ("collision records (--collisions) run on the native and dart "
+                                                   "backends, not warp")
+
+
+def test_the_engine_page_prints_the_capability_table_the_code_reads():
+    from smarticle_mjx.capabilities import markdown
+    page = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "engine.md").read_text()
+    assert "\n".join(markdown()) in page

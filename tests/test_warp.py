@@ -238,7 +238,7 @@ def test_robots_with_their_own_amplitude_and_chirality_run_as_on_native(scene, w
     assert np.abs(n.poses[:, :, 0, 3:] - n.poses[:, :, 1, 3:]).max() > np.radians(5), "the two gaits must differ"
     np.testing.assert_allclose(w.poses[..., 3:], n.poses[..., 3:], atol=2e-3)
     other = Lanes.from_robot_gaits(poses, [g0, GaitSpec(30.0, "cw", period_s=0.15)])
-    with pytest.raises(ValueError, match="different gait periods in one lane run on the native or MJX backend"):
+    with pytest.raises(ValueError, match="own gait periods in one lane .clock drift. run on the native and mjx backends, not warp"):
         warp.advance(warp.initial_state(other), other, 1)
 
 

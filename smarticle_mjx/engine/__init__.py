@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from ..capabilities import CAPABILITIES, backends_with, require, supports
 from .core import Lanes, PeriodRecords, Scene, Status, steps_per_period
 
 BACKENDS = ("native", "mjx", "warp", "dart")
@@ -26,19 +27,19 @@ def make_backend(name: str, scene: Scene, nthread: int | None = None, **kw):
     raise ValueError(f"unknown backend {name!r}; choose one of {', '.join(BACKENDS)}")
 
 
-COLLISION_RECORD = ("native", "dart")  # backends that record the per-period collision record
-TRACK_RECORD = ("native", "dart")  # backends that record full-rate tracks
+COLLISION_RECORD = backends_with("collision_record")  # backends that record the per-period collision record
+TRACK_RECORD = backends_with("full_rate_tracks")  # backends that record full-rate tracks
 
 
 def check_backend(name: str, collisions: bool = False, tracks: bool = False) -> None:
     """ValueError for a backend the engine does not know, or one asked for a record it cannot make (the
-    collision record, full-rate tracks): the one check of a backend's name."""
+    collision record, full-rate tracks; ``capabilities.require``)."""
     if name not in BACKENDS:
         raise ValueError(f"unknown backend {name!r}; choose one of {', '.join(BACKENDS)}")
-    if collisions and name not in COLLISION_RECORD:
-        raise ValueError("--collisions is recorded by the native and dart backends only")
-    if tracks and name not in TRACK_RECORD:
-        raise ValueError(f"--backend must be native or dart (the backends that record tracks), got {name!r}")
+    if collisions:
+        require(name, "collision_record")
+    if tracks:
+        require(name, "full_rate_tracks")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,7 +61,7 @@ class StudyEngine:
         check_backend(self.backend, collisions, tracks)
         from .dart import check_study
         check_study(self.backend, self.settings, params, overrides)
-        if self.backend == "warp":
+        if self.backend == "warp":  # the backend registry: the one place that names backends
             from . import mjwarp
             if not mjwarp.available():
                 raise ValueError(mjwarp.MISSING)
@@ -94,5 +95,5 @@ def open_backend(name: str, params, n_robots: int, *, collisions: bool = False, 
     return make_backend(name, scene, nthread=nthread, **options)
 
 
-__all__ = ["BACKENDS", "COLLISION_RECORD", "Lanes", "PeriodRecords", "Scene", "Status", "StudyEngine", "check_backend",
+__all__ = ["BACKENDS", "CAPABILITIES", "COLLISION_RECORD", "Lanes", "require", "supports", "PeriodRecords", "Scene", "Status", "StudyEngine", "check_backend",
            "make_backend", "open_backend", "steps_per_period"]

@@ -17,6 +17,8 @@ import jax
 import mujoco
 import numpy as np
 
+from ..capabilities import require
+
 from .. import gait as gait_mod
 from ..labels import CONTACT_KINDS, PARTS, Status  # noqa: F401 (the engine's names for them)
 from ..scene import SceneLayout, SceneParams, build_mjcf, compile_model
@@ -78,9 +80,9 @@ def collision_sensors_xml(n_robots: int) -> str:
 
 
 def refuse_mounts(params: SceneParams, backend: str) -> None:
-    """ValueError in one line where a backend other than the native one gets arms with mounts."""
+    """ValueError in one line where a backend that cannot build them gets arms with mounts."""
     if params.robot.has_mount:
-        raise ValueError(f"arms with mounts (robot.arm_mount_length > 0) run on the native backend, not {backend}")
+        require(backend, "arm_mounts")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -643,15 +645,30 @@ class BackendBase:
 
 
 def check_start_delays(lanes: Lanes, backend: str) -> None:
-    """ValueError (one line) for lanes whose robots start at different times (``Lanes.hold``), which
-    only the native backend runs."""
+    """ValueError (one line) for lanes whose robots start at different times (``Lanes.hold``) or whose servo
+    references start at the arms (``Lanes.start_ref``) on a backend that does not run them."""
     if lanes.hold is not None:
-        raise ValueError(f"the {backend} backend starts every robot's gait at t = 0; robots started at "
-                         "different times (imperfections' start offsets, a relaxation's phase jitter) run on "
-                         "the native backend")
+        require(backend, "start_delays")
     if lanes.start_ref is not None:
-        raise ValueError(f"the {backend} backend starts every servo reference at its gait's setpoint; "
-                         "references started at the arms (a replay of measured trials) run on the native backend")
+        require(backend, "start_ref")
+
+
+def check_records(record, backend: str) -> None:
+    """ValueError (one line) for a record (``Record``: full-rate tracks, the collision record) the backend
+    does not make."""
+    if record is not None and record.track_stride:
+        require(backend, "full_rate_tracks")
+    if record is not None and record.collisions:
+        require(backend, "collision_record")
+
+
+def check_timing(lanes: Lanes, backend: str) -> None:
+    """ValueError (one line) for lanes whose robots' phases move on after the start (own clocks, a per-cycle
+    re-trigger or lasting offsets) on a backend that holds one period's controls."""
+    if lanes.robot_period is not None:
+        require(backend, "own_clocks")
+    if lanes.retrigger is not None:
+        require(backend, "retrigger")
 
 
 def check_solver(scene: Scene, backend: str, solvers) -> None:

@@ -38,7 +38,8 @@ from typing import Sequence
 import numpy as np
 
 from ..gait import GaitSpec
-from .core import (BackendBase, check_start_delays, PeriodRecords, Status, blank_collisions, collision_bin_of,
+from ..capabilities import require, supports
+from .core import (BackendBase, check_start_delays, check_timing, PeriodRecords, Status, blank_collisions, collision_bin_of,
                    lane_controls, on_step_grid, steps_per_period)
 from ..scene import RobotQuirk, SceneParams
 
@@ -100,11 +101,9 @@ def check_model(params: SceneParams, numerics: DartNumerics) -> None:
         raise ValueError("DART has no joint armature: its pd servo needs a model with servo_armature 0, "
                          f"got {params.robot.servo_armature:g} kg m^2")
     if params.robot.has_mount:
-        raise ValueError("the DART twin builds one shape per arm: arms with mounts (robot.arm_mount_length > 0) "
-                         "run on the native backend")
+        require("dart", "arm_mounts")  # the twin builds one shape per arm
     if params.robot.backlash_deg > 0 or any(q != RobotQuirk() for q in params.quirks):
-        raise ValueError("the DART twin builds ideal robots: backlash and centre-of-mass offsets run on the "
-                         "MuJoCo backends")
+        require("dart", "robot_quirks")  # the twin builds ideal rigid arms on one hinge each
 
 
 # Scene fields the twin does not read: MuJoCo's numerics (DART steps and resolves contacts by its own
@@ -119,7 +118,7 @@ NOT_BUILT = ("timestep", "integrator", "contact_substeps", "substep_gate", "solv
 def check_study(backend: str, spec, params: SceneParams | None = None, overrides=()) -> None:
     """A study's backend and DART numerics agree, DART is installed when it runs on it, can build
     ``params`` when given and reads every field the study's ``overrides`` change (ValueError)."""
-    if backend == "dart":
+    if supports(backend, "own_numerics"):
         ignored = sorted(k for k, _ in overrides if k in NOT_BUILT)
         if ignored:
             raise ValueError(f"--set {', '.join(ignored)}: the DART twin does not read "
@@ -137,12 +136,12 @@ def check_study(backend: str, spec, params: SceneParams | None = None, overrides
 
 def study_options(backend: str, spec) -> dict:
     """Keyword arguments of ``make_backend`` beyond the scene for a study on ``backend`` (DART's numerics)."""
-    return {"numerics": numerics_of(spec)} if backend == "dart" else {}
+    return {"numerics": numerics_of(spec)} if supports(backend, "own_numerics") else {}
 
 
 def study_timestep(backend: str, spec, scene_timestep: float) -> float:
     """The step the study's engine takes: DART's numerics' on the twin, the scene's on MuJoCo."""
-    return numerics_of(spec).timestep if backend == "dart" else scene_timestep
+    return numerics_of(spec).timestep if supports(backend, "own_numerics") else scene_timestep
 
 
 def study_json(d: dict, backend: str) -> dict:
@@ -150,7 +149,7 @@ def study_json(d: dict, backend: str) -> dict:
     numerics resolved, so the store says what ran; other backends' stores keep
     the settings they had before the twin existed (no such key)."""
     spec = d.pop("dart_numerics")
-    if backend == "dart":
+    if supports(backend, "own_numerics"):
         d["dart_numerics"] = numerics_of(spec).record()
     return d
 
@@ -482,9 +481,7 @@ class DartBackend(BackendBase):
         times the step) and its component along r = c_j - c_i, with the body
         centres taken after the step (they move ~1e-6 of |r| in one step)."""
         check_start_delays(lanes, "dart")
-        if lanes.varies:
-            raise ValueError("the dart backend runs robots that share one gait period and start it once "
-                             "(clock drift and per-cycle retriggering run on the MuJoCo backends)")
+        check_timing(lanes, "dart")
         dt = self.numerics.timestep
         lanes = on_step_grid(lanes, dt)
         nstep = steps_per_period(lanes.period, dt)

@@ -29,7 +29,7 @@ import time
 import mujoco
 import numpy as np
 
-from .core import (BackendBase, Lanes, check_solver, check_start_delays, PeriodRecords, Record, Scene, Status,
+from .core import (BackendBase, Lanes, check_records, check_solver, check_start_delays, check_timing, PeriodRecords, Record, Scene, Status,
                    refuse_mounts, distinct_gaits, lane_controls, on_step_grid, steps_per_period)
 
 MISSING = "the warp backend needs MuJoCo Warp: pip install -e '.[gpu]'"
@@ -267,9 +267,7 @@ class WarpBackend(BackendBase):
 
     def _set_table(self, b: _Batch, lanes: Lanes, nstep: int):
         """Controls of one period, one row per distinct gait among the lanes."""
-        if lanes.varies:
-            raise ValueError("robots with different gait periods in one lane run on the native or MJX backend, as "
-                             "do robots retriggered every cycle, not on Warp (its control table holds one period)")
+        check_timing(lanes, "warp")  # its control table holds one period
         wp = self._wp
         first, row = distinct_gaits(lanes)  # lanes with one gait share a row
         dt = float(self.model.opt.timestep)
@@ -323,8 +321,7 @@ class WarpBackend(BackendBase):
     def advance(self, state, lanes: Lanes, n_periods: int, *, t0: float = 0.0, record: Record | None = None):
         """Advance ``state`` [B, nstate] by ``n_periods`` gait periods; same contract as the native backend."""
         check_start_delays(lanes, "warp")
-        if record is not None and (record.track_stride or record.collisions):
-            raise ValueError("full-rate tracks and the collision record are recorded by the native backend only")
+        check_records(record, "warp")
         wp = self._wp
         dt = float(self.model.opt.timestep)
         lanes = on_step_grid(lanes, dt)

@@ -24,7 +24,8 @@ from mujoco import mjx
 
 from .. import gait as gait_mod
 from . import mjx_collision
-from .core import (BackendBase, Lanes, check_solver, check_start_delays, PeriodRecords, Record, Scene, Status,
+from ..capabilities import require
+from .core import (BackendBase, Lanes, check_records, check_solver, check_start_delays, PeriodRecords, Record, Scene, Status,
                    refuse_mounts, on_step_grid, steps_per_period)
 
 
@@ -124,8 +125,7 @@ class MjxBackend(BackendBase):
         their own gaits (then amplitude, chirality and kind are [B, N] too).
         """
         if lanes.arm_speed is not None:
-            raise ValueError("the mjx backend runs arms at the model's servo speed; per-arm speeds "
-                             "(imperfections) run on the native, warp and dart backends")
+            require("mjx", "per_arm_speeds")  # its controls are traced at the model's servo speed
         if lanes.per_robot:
             amp, chi, kind, period = lanes.robot_gait()
             period = jnp.asarray(period, jnp.float32)
@@ -176,8 +176,7 @@ class MjxBackend(BackendBase):
     def advance(self, state, lanes: Lanes, n_periods: int, *, t0: float = 0.0, record: Record | None = None):
         """Advance batched ``state`` by ``n_periods``; same contract as the native backend."""
         check_start_delays(lanes, "mjx")
-        if record is not None and (record.track_stride or record.collisions):
-            raise ValueError("full-rate tracks and the collision record are recorded by the native backend only")
+        check_records(record, "mjx")
         lanes = on_step_grid(lanes, float(self.model.opt.timestep))
         nstep = steps_per_period(lanes.period, float(self.model.opt.timestep))
         b = lanes.size

@@ -25,6 +25,8 @@ import json
 import math
 import pathlib
 
+from ..capabilities import supports
+
 BETA_MAX = 0.068  # |beta - beta_ref|
 SPEED_MAX = 0.20  # |net speed / reference - 1|
 TABLE = pathlib.Path(__file__).with_name("step_checks.json")
@@ -128,7 +130,7 @@ def lookup(model: str, imperfections: str, timestep_s: float, integrator: str, o
            backend: str = "native", checks: tuple[StepCheck, ...] | None = None) -> StepCheck:
     """The check of a store's (model preset, imperfection set, step, integrator), or why there is none."""
     base = dict(model=model, imperfections=imperfections, timestep_s=float(timestep_s), integrator=integrator)
-    if backend == "dart":
+    if not supports(backend, "mujoco_numerics"):
         return StepCheck(**base, status=NOT_CHECKED, why="the DART twin runs its own step")
     # a check is keyed by the step and the integrator, so a store that changed only those (``--set
     # timestep=...``) is looked up like the preset at that step; any other change is another model
