@@ -96,7 +96,7 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     data = read_relax([str(p) for p in have])
     ref = json.loads(pathlib.Path(args.reference).read_text())
-    a = RX.analyse(data)
+    a = RX.analyse_relaxation(data)
     trials = {int(t) for t in data.trial}
     rep = reproduce(a, ref, trials)
     print(f"stages {[p.name for p in have]} ({len(trials)} trials); rule (a) {rep['emerged']} gliders "

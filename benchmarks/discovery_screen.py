@@ -57,10 +57,10 @@ def measure(data: dict, seed: int = 0) -> dict:
     summary, trials = RX.crowd(data)
     flagged = int(((np.asarray(data.status) & int(BAD_STATUS)) != 0).sum())
     usable = len(trials)
-    a = RX.analyse(data, min_periods=APART_PERIODS)
+    a = RX.analyse_relaxation(data, min_periods=APART_PERIODS)
     apart = a.emerged
     # the lab's own rule (bound and apart >= 100 periods), where the trials are long enough for it
-    lab_rule = RX.analyse(data, min_periods=100).emerged if int(np.max(data.periods_run)) >= 100 else None
+    lab_rule = RX.analyse_relaxation(data, min_periods=100).emerged if int(np.max(data.periods_run)) >= 100 else None
     plateau = [[np.nan if t.plateau.censored else t.plateau.period] for t in trials]
     plateau_c = [[t.plateau.period] for t in trials]  # censored ones at their (lower-bound) end
     chains = [[e.lifetime for e in t.chains] for t in trials]

@@ -230,7 +230,7 @@ def relax_part(engine: str, workers: int, rows: dict):
     t = time.perf_counter()
     with ProcessPoolExecutor(k) as pool:
         paths = list(pool.map(_relax_stage, [engine] * k, cuts[:-1].tolist(), np.diff(cuts).tolist()))
-    a = relaxation.analyse(read_relax(paths), min_periods=RELAX["min_periods"]).as_json()
+    a = relaxation.analyse_relaxation(read_relax(paths), min_periods=RELAX["min_periods"]).as_json()
     rows.setdefault(engine, {})[name] = {
         "trials": a["valid"], "periods": RELAX["periods"], "min_periods": RELAX["min_periods"],
         "emerged": a["emerged"], "fraction": a["fraction"], "interval": a["interval"],

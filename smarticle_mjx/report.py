@@ -324,13 +324,13 @@ def lab_relax_fraction() -> tuple[float, tuple[float, float]]:
 
 def relax_summary(data: RelaxRecord, min_periods: int = 100, apart_W: float = 2.0, crowd=None, analysis=None,
                   reading=None, emergence=None) -> dict:
-    """The relaxation study's numbers (``analysis``: reduce.relaxation.analyse's, computed when None), its
+    """The relaxation study's numbers (``analysis``: reduce.relaxation.analyse_relaxation's, computed when None), its
     crowd's (``crowd``: a ``CrowdSummary``, computed when None) and every emergence reading with the pairs'
     touch runs (``emergence``: reduce.emergence.emergence's, computed when None; ``reading``: the one the
     report prints, None: the primary one) beside the lab's, as the report's JSON records them."""
     from .reduce import emergence as EM, relaxation as RX
     if analysis is None:
-        analysis = RX.analyse(data, min_periods=min_periods, apart_W=apart_W)
+        analysis = RX.analyse_relaxation(data, min_periods=min_periods, apart_W=apart_W)
     if emergence is None:
         emergence = EM.emergence(data, keep_periods=min(EM.KEEP_PERIODS, min_periods), periods=min_periods,
                                  apart_W=apart_W)
@@ -388,7 +388,7 @@ def write_relax_report(paths, out_dir, min_periods: int = 100, apart_W: float = 
     out.mkdir(parents=True, exist_ok=True)
     from .reduce import relaxation as RX
     crowd, trials = RX.crowd(data)
-    ra = RX.analyse(data, min_periods=min_periods, apart_W=apart_W)
+    ra = RX.analyse_relaxation(data, min_periods=min_periods, apart_W=apart_W)
     a = relax_summary(data, min_periods, apart_W, crowd=crowd, analysis=ra, reading=reading)
     a.update(crowd_times(data, trials))
     figs = trial_figure(data, ra, out)

@@ -156,8 +156,8 @@ def test_emergence_counts_each_reading_over_usable_trials_and_matches_the_old_ru
     assert em.of("pair").distance.mean == pytest.approx(1.2)  # 0.01 W x 120 periods after period 30
     assert em.of("apart").distance.mean == pytest.approx((1.5 + 0.0) / 2)
     assert em.of("moved").kinds == {"C1": 0, "C2": 2}
-    # reading (a) is the bound-and-apart rule of reduce.relaxation.analyse, counted the same way
-    old = RX.analyse(data)
+    # reading (a) is the bound-and-apart rule of reduce.relaxation.analyse_relaxation, counted the same way
+    old = RX.analyse_relaxation(data)
     assert em.of("apart").emerged == old.emerged and em.of("apart").distance.mean == pytest.approx(old.distance.mean)
     js = em.as_json()
     assert js["primary"] == "pair" and len(js["runs"]) == 3

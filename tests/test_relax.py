@@ -111,7 +111,7 @@ def test_analyse_counts_gliders_with_exact_interval():
                    start_poses=np.repeat(start[None], t, 0), left_plate=np.zeros((t, 4), np.int32),
                    periods_run=np.full(t, 150), valid=np.ones(t, bool), status=np.zeros(t, np.int32),
                    trial=np.arange(t), body_length=W, periods=150)
-    a = RX.analyse(data)
+    a = RX.analyse_relaxation(data)
     assert (a.emerged, a.valid) == (7, 10)
     from scipy.stats import binomtest
     ci = binomtest(7, 10).proportion_ci(0.95, method="exact")
@@ -389,3 +389,21 @@ def test_a_relaxation_page_says_which_start_and_synchrony_its_stores_ran():
     old = {k: v for k, v in RelaxConfig().to_json().items()
            if k not in ("start", "headings", "start_phi", "retrigger_sd")}
     assert relax_config_from_json(old).start_words() == ideal
+
+
+def test_the_old_name_of_the_relaxation_analysis_warns_and_gives_the_same_numbers(tmp_path):
+    """One name per public function: reduce.relaxation.analyse is now analyse_relaxation (the scan's is
+    reduce.analysis.analyse); the old name works for one release, with a DeprecationWarning."""
+    import warnings
+    from smarticle_mjx.reduce import relaxation as RX2
+    from smarticle_mjx.relax import RelaxConfig, run_relax
+    from smarticle_mjx.store import read_relax
+    out = tmp_path / "r.h5"
+    run_relax(RelaxConfig(n_robots=3, trials=1, periods=3, quiet_periods=0), out)
+    data = read_relax(out)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        old = RX2.analyse(data, min_periods=2)
+    assert any(issubclass(w.category, DeprecationWarning) and "analyse_relaxation" in str(w.message) for w in caught)
+    import json
+    assert json.dumps(old.as_json()) == json.dumps(RX2.analyse_relaxation(data, min_periods=2).as_json())

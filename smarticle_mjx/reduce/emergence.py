@@ -80,7 +80,7 @@ def parse_reading(text: str | None) -> Reading:
 
 
 def reading_from_analysis(a) -> "EmergenceReading":
-    """Reading (a) as :func:`smarticle_mjx.reduce.relaxation.analyse` counted it (a ``RelaxAnalysis``)."""
+    """Reading (a) as :func:`smarticle_mjx.reduce.relaxation.analyse_relaxation` counted it (a ``RelaxAnalysis``)."""
     gl = [r.glider for r in a.per_trial if r.glider is not None]
     return EmergenceReading(Reading.APART, a.valid, a.emerged, a.fraction, tuple(a.interval),
                             fisher_p(a.emerged, a.valid) if a.valid else float("nan"), a.distance,
@@ -324,7 +324,7 @@ def emergence_from_runs(runs: dict[int, tuple[TouchRun, ...]], apart: dict[int, 
 def emergence(data: RelaxRecord, keep_periods: int = KEEP_PERIODS, periods: int = GLIDER_PERIODS,
               apart_W: float = 2.0) -> Emergence:
     """Every reading of :func:`smarticle_mjx.store.read_relax` output over its usable trials (the trials
-    :func:`smarticle_mjx.reduce.relaxation.analyse` counts)."""
+    :func:`smarticle_mjx.reduce.relaxation.analyse_relaxation` counts)."""
     if keep_periods < 1 or periods < keep_periods:
         raise ValueError("keep_periods must be >= 1 and no longer than the glider's periods")
     W = float(data.body_length)

@@ -95,7 +95,7 @@ class Episode:
 
 @dataclasses.dataclass(frozen=True)
 class TrialRow:
-    """One valid trial of :func:`analyse`: its gliders (episodes of at least ``min_periods``), the longest
+    """One valid trial of :func:`analyse_relaxation`: its gliders (episodes of at least ``min_periods``), the longest
     of them (None without), the contact rule's relaxation time and whether it was still crowded at the
     end, and the periods it ran."""
 
@@ -181,8 +181,17 @@ def relaxation_time(touched, periods_run=None) -> tuple[int, bool]:
     return last, last == k
 
 
-def analyse(data: RelaxRecord, min_periods: int = 100, apart_W: float = 2.0, min_episode: int = 2,
-            level: float = 0.95) -> "RelaxAnalysis":
+def analyse(*args, **kwargs) -> "RelaxAnalysis":
+    """Deprecated name of :func:`analyse_relaxation` (one name per public function; ``reduce.analysis.analyse``
+    is the scan's). Kept for one release with a DeprecationWarning."""
+    import warnings
+    warnings.warn("smarticle_mjx.reduce.relaxation.analyse is now analyse_relaxation; the old name goes in the "
+                  "next release", DeprecationWarning, stacklevel=2)
+    return analyse_relaxation(*args, **kwargs)
+
+
+def analyse_relaxation(data: RelaxRecord, min_periods: int = 100, apart_W: float = 2.0, min_episode: int = 2,
+                       level: float = 0.95) -> "RelaxAnalysis":
     """The relaxation study's numbers (:class:`RelaxAnalysis`) from :func:`smarticle_mjx.store.read_relax` output.
 
     Args:
@@ -365,7 +374,7 @@ class LeftPlate:
 
 @dataclasses.dataclass(frozen=True)
 class RelaxAnalysis:
-    """The relaxation study's numbers (:func:`analyse`): trials (all, valid: unflagged), the trials in
+    """The relaxation study's numbers (:func:`analyse_relaxation`): trials (all, valid: unflagged), the trials in
     which a glider emerged with its exact interval, the rule's ``min_periods`` and ``apart_W``, the
     periods run; per-trial rows (:class:`TrialRow`) and every episode (:class:`Episode`, with its
     track); the gliders' distance, contour length and lifetime (W, W, periods), how many were still
@@ -886,7 +895,7 @@ def crowd_pairs(data: RelaxRecord, min_periods: int = PAIR_RUN_MIN) -> tuple[Pai
 
 def crowd(data: RelaxRecord) -> tuple[CrowdSummary, list[CrowdTrial]]:
     """The crowd measures of every usable trial of :func:`smarticle_mjx.store.read_relax` output
-    (the trials :func:`analyse` counts: valid, no bad status)."""
+    (the trials :func:`analyse_relaxation` counts: valid, no bad status)."""
     W, D = float(data.body_length), float(data.body_thickness)
     trials = [crowd_trial(data.poses[t], data.touched[t], data.start_poses[t], W, D,
                           data.left_plate[t], data.periods_run[t]) for t in np.flatnonzero(data.usable)]

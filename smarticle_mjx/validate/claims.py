@@ -437,7 +437,7 @@ def pb_dip(ev: BindingVsAmplitude) -> Outcome:
 
 
 # ----------------------------------------------------------------- relaxation
-# evidence: .inputs.Relaxation (reduce.relaxation.analyse of the pooled stages, its crowd, the stores'
+# evidence: .inputs.Relaxation (reduce.relaxation.analyse_relaxation of the pooled stages, its crowd, the stores'
 # settings, the lab's fraction and Fisher's exact test of the model's emergence against it)
 
 RULE_WORDS = {  # each reading's glider, as the page's notes state it (reduce.emergence)

@@ -148,7 +148,7 @@ def relax(paths: list, figures: pathlib.Path, made: list, reading=None) -> tuple
     from ..specs import relax_config_from_json
     from ..store import read_relax
     data = read_relax(paths)
-    ra, (crowd, crowd_trials) = RX.analyse(data), RX.crowd(data)
+    ra, (crowd, crowd_trials) = RX.analyse_relaxation(data), RX.crowd(data)
     spreading = SP.study_spreading(data, crowd_trials)
     reading = EM.parse_reading(reading)
     em = EM.emergence(data)

@@ -184,7 +184,7 @@ class Diagonal:
 
 @dataclasses.dataclass(frozen=True)
 class Relaxation:
-    """The relaxation study pooled over its complete stages: its numbers (``reduce.relaxation.analyse``),
+    """The relaxation study pooled over its complete stages: its numbers (``reduce.relaxation.analyse_relaxation``),
     its crowd's (None when not measured), the settings the stores ran, the lab's emergence fraction with
     its exact interval, Fisher's exact p of the model's emergence against the lab's, and the stages."""
 
