@@ -13,4 +13,4 @@ if _FLAG.split("=")[0] not in _os.environ.get("XLA_FLAGS", ""):
 # with 2 host devices a 1024-lane batch stalled with every thread idle here
 # (docs/engine.md), while one device never did.
 
-__version__ = "0.4.18"
+__version__ = "0.4.19"

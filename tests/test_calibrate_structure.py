@@ -1476,3 +1476,70 @@ def test_every_counterfactual_of_the_stress_suite_changes_a_rule_the_calibration
     finally:
         policy.P_LEVEL = before
     assert policy.plate_skip_reason({"dof": 4, "p": 0.99}) is not None
+
+
+def test_the_invariants_refuse_an_effect_that_raises_the_held_out_error_or_ended_on_its_bound():
+    """Over every rule (policy.invariants): an accepted hypothesis whose held-out gain is below zero is refused
+    whatever test proposed it (a measured offset, a servo after the delay test); one whose size ended on its
+    bound away from its null is reported at its bound and refused; a dead time ending at 0 s (its null's own
+    bound) or one inside its range keeps its judgement."""
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.policy import AT_BOUND, RAISES_HELDOUT, Judgement, at_bound, floor_note, invariants
+    aniso, dead = BY_NAME["anisotropic_friction"], BY_NAME["servo_dead_time"]
+    (pa,), (pd,) = aniso.params, dead.params
+    ok = Judgement(50.0, 0.3, True, True)
+    inside = {pa.name: 0.5 * (pa.lo + pa.hi)}
+    assert invariants(aniso, inside, ok, "held-out gain") == (ok, "held-out gain")
+    lost = Judgement(50.0, -0.02, True, True)
+    j, rule = invariants(aniso, inside, lost, "measured")
+    assert not j.accepted and rule == RAISES_HELDOUT and "raises the held-out error" in floor_note(rule)
+    top = {pa.name: pa.hi}
+    assert at_bound(aniso, top) == [pa.name]
+    j, rule = invariants(aniso, top, ok, "held-out gain")
+    assert not j.accepted and rule == AT_BOUND and "bound" in floor_note(rule)
+    assert at_bound(dead, {pd.name: pd.null}) == []  # absent at its own bound: nothing claimed
+    refused = Judgement(50.0, -0.5, True, False)
+    assert invariants(aniso, top, refused, "held-out gain") == (refused, "held-out gain")  # only acceptances change
+
+
+def test_an_effect_taken_out_again_leaves_the_model_as_before_it():
+    from smarticle_mjx.calibrate.effects import BY_NAME
+    from smarticle_mjx.calibrate.stages import FinalGuard, Model
+    m = Model()
+    m.add(BY_NAME["servo_lag"], {"lag_s": 0.02}, {"lag_s": (0.01, 0.03)})
+    m.base = {"servo_lag": {"lag_s": 0.02}}
+    m.add(BY_NAME["plate_tilt"], {"tilt_x_deg": 1.0, "tilt_y_deg": 0.0}, {})
+    m.base = {**m.base, "plate_tilt": {"tilt_x_deg": 1.0, "tilt_y_deg": 0.0}}
+    m.fixed["plate_tilt"] = m.base["plate_tilt"]
+    m.drop("plate_tilt")
+    assert [e.name for e in m.chosen] == ["servo_lag"] and set(m.base) == {"servo_lag"} and not m.fixed
+    assert set(m.found) == {"servo_lag"}
+    g = FinalGuard(12.0, 9.0, ("servo_lag",))
+    from smarticle_mjx.calibrate.report import final_guard_markdown
+    text = "\n".join(final_guard_markdown(g.as_dict()))
+    assert "(servo_lag)" in text and "to 12," in text and "own 9;" in text and "none is kept" in text
+    assert final_guard_markdown(None) == []
+
+
+def test_a_drift_named_tilt_that_raises_the_held_out_error_is_not_kept(tmp_path):
+    """Stress set 2147/22 (another simulator's robot with a tilted plate): the model-free drift test names a
+    tilt, but with it the held-out error rises (15.3 -> 17.1: the model's tilt does not carry the drift to
+    the held-out trials). Whatever test proposed it, an effect that raises the held-out error is not kept:
+    the tilt is refused by that invariant, the report says so, and the final held-out error is not above
+    the nominal fit's. (Here the hidden effect was the tilt: the invariant costs this set its right answer,
+    which the closed-loop issue's item 2, a judgement beyond the robot's misfit, is to win back.)"""
+    from smarticle_mjx.calibrate import report
+    from smarticle_mjx.calibrate.policy import RAISES_HELDOUT
+    from smarticle_mjx.calibrate.stages import calibrate
+    from smarticle_mjx.calibrate.stress import draw_set, write_set
+    s = draw_set(2147, 22)
+    assert s["hidden"] == ["plate_tilt"]
+    write_set(s, tmp_path / "data")
+    cal = calibrate(load(tmp_path / "data"))
+    r = cal.summary
+    th, tf = r["drift"]["tilt_heldout"], r["drift"]["tilt_fit"]
+    assert th["rose"] and tf["refused"] == RAISES_HELDOUT and not tf["accepted"]
+    assert "plate_tilt" not in [a["effect"] for a in r["added"]] and "plate_tilt" not in cal.added
+    assert r["after"]["err_heldout"] <= r["after_nominal"]["err_heldout"]
+    text = "\n".join(report.drift_markdown(r["drift"], r["plate_level"]))
+    assert "**It rose**" in text and "so the tilt was not kept" in text

@@ -32,7 +32,7 @@ import numpy as np
 from .drift import MIN_SPREAD_DEG
 from .armdrag import DragTest
 from .armoffset import ArmOffsetReading
-from .effects import Effect
+from .effects import Effect, on_bound_away_from_null, value_to_unit
 from .observables import DELAY_MIN_MS, DelayTest
 from .phase import OffsetTest
 
@@ -102,8 +102,10 @@ BELOW_FLOOR = "below the delay floor"
 
 
 def floor_note(rule: str) -> str:
-    """What a progress line adds where the delay floor refused a timing."""
-    return f"; refused: its interval ends below {DELAY_MIN_MS:g} ms" if rule == BELOW_FLOOR else ""
+    """What a progress line adds where the delay floor or an invariant refused a hypothesis."""
+    return {BELOW_FLOOR: f"; refused: its interval ends below {DELAY_MIN_MS:g} ms",
+            RAISES_HELDOUT: "; refused: it raises the held-out error",
+            AT_BOUND: "; refused: its size ended on its bound"}.get(rule, "")
 
 
 def below_delay_floor(effect: Effect, interval: dict) -> bool:
@@ -225,6 +227,28 @@ def measured_structure(name: str, otest: OffsetTest | None, j: Judgement, rule: 
         return dataclasses.replace(j, accepted=True), MEASURED_OFFSET
     if name == ARM_PLATE and drag is not None and drag.present and j.present:
         return dataclasses.replace(j, accepted=j.bic_gain > 0 and j.heldout_gain >= 0), MEASURED_DRAG
+    return j, rule
+
+
+# The invariants, over every rule above (the closed-loop issue, item 3): whatever test proposed an effect,
+RAISES_HELDOUT = "raises the held-out error"  # it is not kept where it raises the held-out error;
+AT_BOUND = "at its bound"  # a size that ended on its bound is reported as such, never accepted as a finding.
+
+
+def at_bound(effect: Effect, values: dict) -> list[str]:
+    """The parameters of a fitted effect that ended on a bound away from their null (within 1 % of the fit's
+    range, where a bounded least-squares fit stops: ``effects.bound_side``)."""
+    return [p.name for p in effect.params if on_bound_away_from_null(p, value_to_unit(p, float(values[p.name])))]
+
+
+def invariants(effect: Effect, values: dict, j: Judgement, rule: str) -> tuple[Judgement, str]:
+    """The judgement ``j`` (by ``rule``) of a fitted ``effect`` with ``values`` under the invariants: an accepted
+    effect that raises the held-out error (gain below 0), or whose size ended on its bound, is refused, and the
+    rule that refused it named (:data:`RAISES_HELDOUT`, :data:`AT_BOUND`); otherwise ``j`` and ``rule``."""
+    if j.accepted and not j.heldout_gain >= 0:
+        return dataclasses.replace(j, accepted=False), RAISES_HELDOUT
+    if j.accepted and at_bound(effect, values):
+        return dataclasses.replace(j, accepted=False), AT_BOUND
     return j, rule
 
 

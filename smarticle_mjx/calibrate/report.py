@@ -220,6 +220,16 @@ def drag_markdown(dt: dict | None) -> list[str]:
             f"**{dt['action'][0].upper() + dt['action'][1:]}.**", ""]
 
 
+def final_guard_markdown(guard: dict | None) -> list[str]:
+    """The report's line where the final model's held-out error ended above the nominal fit's (``stages.
+    FinalGuard``): the effects were dropped; nothing where it did not."""
+    if not guard:
+        return []
+    return [f"**The effects added ({', '.join(guard['dropped'])}) raised the held-out error to "
+            f"{guard['final_err_heldout']:.3g}, above the nominal parameters' own {guard['nominal_err_heldout']:.3g}; "
+            "none is kept** (the calibration never ends worse than its nominal fit).", ""]
+
+
 def markdown(r: dict) -> str:
     b, a = r["before"], r["after"]
     an = r.get("after_nominal") or b
@@ -235,6 +245,7 @@ def markdown(r: dict) -> str:
                                                   for i, dt in r["numerics"]) if r.get("numerics") else "")
              + ("; model changed by --set " + ", ".join(f"{k}={v}" for k, v in r["overrides"].items())
                 if r.get("overrides") else "") + ".", ""]
+    lines += final_guard_markdown(r.get("final_guard"))
     nom = r.get("nominal")
     measured = (nom or {}).get("measured") or {}
     if nom:
@@ -402,7 +413,10 @@ def drift_markdown(dr: dict | None, pl: dict | None) -> list[str]:
                 lines += ["", f"Held-out error with the model as it stood before the tilt: {th['without']:.3g}; with "
                           f"the tilt: {th['with_tilt']:.3g}"
                           + (". **It rose**: the drift is there, but the model's tilt does not carry it to the "
-                             "held-out trials. On the stress suite a tilt named this way was the hidden effect in "
+                             "held-out trials"
+                             + (", so the tilt was not kept (no effect that raises the held-out error is, whatever "
+                                "test proposed it)" if tf.get("refused") else "")
+                             + ". On the stress suite a tilt named this way was the hidden effect in "
                              "a third of the sets (a plate slipperier along one axis or a grip that depends on the "
                              "robot's heading drifts alike); check it at more headings." if th["rose"] else ".")]
             beyond = bool(tf.get("gate_beyond_model"))

@@ -30,7 +30,7 @@ from . import policy
 from .policy import (  # noqa: F401  (the acceptance rules; re-exported for the readings that name them here)
     ANISO, ARM_PLATE, BELOW_FLOOR, MAX_EFFECTS, MEASURED_DRAG, MEASURED_OFFSET, MIN_HELDOUT_GAIN, MIN_SHARE,
     NO_ARMS, P_LEVEL, P_ONE_VECTOR, TILT_Z2, UNEXPLAINED, Judgement, below_delay_floor, first_choice, floor_note,
-    follows_the_robot, is_present, judge, judged, measured_structure, plate_skip_reason, servo_choice,
+    follows_the_robot, invariants, is_present, judge, judged, measured_structure, plate_skip_reason, servo_choice,
     servo_skip_reason, tilt_accepted, verdict)
 from .observables import DelayTest, delay_test, observables, servo_reading
 from .nominal import BY_NAME as NOMINAL_BY_NAME, apply as apply_nominal, fit_nominal
@@ -78,6 +78,12 @@ class Model:
     def add(self, e: Effect, values, interval) -> None:
         self.chosen.append(e)
         self.found[e.name] = (values, interval)
+
+    def drop(self, name: str) -> None:
+        """Take effect ``name`` out again (an invariant refused it after it was added)."""
+        self.chosen = [e for e in self.chosen if e.name != name]
+        for d in (self.base, self.found, self.fixed):
+            d.pop(name, None)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -351,6 +357,7 @@ def nominal_stage(train: Problem, test: Problem, trials: list[Trial], library, m
                 f"held-out error {base_err:.2f}, the baseline for {name}")
         j, rule = measured_structure(name, otest, *judged(e, fe.interval, base_chi2, chi2_e, n, base_err, err_e,
                                                           dtest), drag=drag)
+        j, rule = invariants(e, fe.values[name], j, rule)
         hypotheses.append(Hypothesis(name, True, j.accepted, values=fe.values[name], interval=interval,
                                      err_heldout=err_e, heldout_gain=j.heldout_gain, bic_gain=j.bic_gain,
                                      present=j.present, rule=rule, baseline_err_heldout=base_err,
@@ -461,6 +468,7 @@ def second_hypothesis(train: Problem, test: Problem, tasks: list, best: tuple, n
         interval = {p.name: fe.interval[p.name] for p in e.params}
         j, rule = measured_structure(name, None, *judged(e, interval, base_chi2, chi2, n, base_err, err, dtest),
                                      drag=drag)
+        j, rule = invariants(e, fe.values[name], j, rule)
         first_present = is_present(e1, {p.name: fe.interval[p.name] for p in e1.params})
         ok = j.accepted and first_present
         tried.append(Hypothesis(name, True, ok, beside=e1.name, values=fe.values[name], interval=interval,
@@ -603,6 +611,20 @@ class TiltStage:
 
 
 @dataclasses.dataclass(frozen=True)
+class FinalGuard:
+    """The invariant on the final model (``policy``): its held-out error ended above the nominal fit's (the
+    preset model's without one), so the effects it had added were dropped."""
+
+    final_err_heldout: float
+    nominal_err_heldout: float
+    dropped: tuple[str, ...]
+
+    def as_dict(self) -> dict:
+        return {"final_err_heldout": self.final_err_heldout, "nominal_err_heldout": self.nominal_err_heldout,
+                "dropped": list(self.dropped)}
+
+
+@dataclasses.dataclass(frozen=True)
 class TiltDecision:
     """What decides a fitted tilt (``policy.tilt_accepted``): its z^2 from zero, whether the gaits' drifts
     point one way, whether the gate reads the drift beyond the model's own on a level plate (the model drags
@@ -614,10 +636,12 @@ class TiltDecision:
     gate_beyond_model: bool
     follows_the_robot: bool
     accepted: bool
+    refused: str | None = None  # the invariant that took an accepted tilt out again (policy.RAISES_HELDOUT)
 
     def as_dict(self) -> dict:
         return {"z2": self.z2, "one_direction": self.one_direction, "gate_beyond_model": self.gate_beyond_model,
-                "follows_the_robot": self.follows_the_robot, "accepted": self.accepted}
+                "follows_the_robot": self.follows_the_robot, "accepted": self.accepted,
+                **({"refused": self.refused} if self.refused else {})}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -952,6 +976,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     before_tilt = None  # the held-out error of the model as it stood, where the tilt stage adds a tilt
     if "plate_tilt" in {e.name for e in library}:
         base_before = dict(model.base)
+        library_with_tilt = library
         tilt = tilt_stage(trials, train, model, say, drift)
         if "plate_tilt" in model.fixed and "plate_tilt" not in base_before:
             before_tilt = test.error(EffectSet.of(base_before))
@@ -966,11 +991,31 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
     tilt_heldout = None if before_tilt is None else TiltHeldout(before_tilt, current["err_heldout"])
     if tilt_heldout is not None:
         say(f"  held-out error {tilt_heldout.without:.3g} -> {tilt_heldout.with_tilt:.3g} with the tilt"
-            + (" (it rose: the model's tilt does not carry the drift to the held-out trials)"
-               if tilt_heldout.rose else ""))
+            + (" (it rose: the model's tilt does not carry the drift to the held-out trials; not kept, as no "
+               "effect that raises the held-out error is)" if tilt_heldout.rose else ""))
+    if tilt_heldout is not None and tilt_heldout.rose:  # policy's invariant: whatever test proposed it
+        model.drop("plate_tilt")
+        tilt = dataclasses.replace(tilt, decision=dataclasses.replace(tilt.decision, accepted=False,
+                                                                      refused=policy.RAISES_HELDOUT))
+        library = library_with_tilt  # the rounds may fit a tilt and judge it held out, as any effect
+        v = train.vector(EffectSet.of(model.base))
+        current = {"err_heldout": test.error(EffectSet.of(model.base)), "chi2_train": float(v @ v)}
     rounds = rounds_stage(train, test, library, model, current, say)
     final = EffectSet.of(model.base)
     after = errors(train, test, final)
+    guard = None
+    if model.chosen and after.err_heldout > after_nominal.err_heldout:
+        # policy's invariant: the final held-out error is never above the nominal fit's (the preset's without one)
+        guard = FinalGuard(after.err_heldout, after_nominal.err_heldout, tuple(e.name for e in model.chosen))
+        say(f"the final held-out error {after.err_heldout:.3g} is above the "
+            f"{'nominal fit' if nom else 'preset model'}'s {after_nominal.err_heldout:.3g}: "
+            f"{', '.join(guard.dropped)} not kept")
+        for name in guard.dropped:
+            model.drop(name)
+        train.nominal = test.nominal = dict(nom.start) if nom else dict(train.nominal)
+        train.effect_fixed = {}
+        final = EffectSet.of(model.base)
+        after = errors(train, test, final)
     # what the fitted values mean on the tracks: arm delay, phase lead, plate drift of the data and of the
     # model at each stage, and of the final model without each added effect (that effect's share)
     stages = {"preset": ({}, null)}
@@ -1016,6 +1061,7 @@ def calibrate(trials: list[Trial], library: tuple[Effect, ...] = LIBRARY, on_ste
         "drift": {**tilt.drift, "tilt_fit": tilt.tilt,
                   "tilt_heldout": tilt_heldout.as_dict() if tilt_heldout is not None else None},
         "noise_test": noise.as_dict(), "observables": obs,
+        **({"final_guard": guard.as_dict()} if guard is not None else {}),
         "plate_level": {"p": drift["p"], "dof": drift["dof"], "threshold_p": policy.P_LEVEL,
                         "anisotropic_plate_tried": aniso_asked and plate_skip is None, "reason": plate_skip},
         "criteria": {"min_heldout_gain": MIN_HELDOUT_GAIN, "unexplained_error": UNEXPLAINED,
