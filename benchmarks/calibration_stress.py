@@ -82,6 +82,9 @@ def run_set(s: dict, plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES, overr
             "hypotheses": res.get("nominal_hypotheses"), "delay_test": res.get("delay_test"),
             # the held-out error before and with a tilt named from the drift (stored since 0.4.14)
             "tilt_heldout": (res.get("drift") or {}).get("tilt_heldout"),
+            # the invariants that fired (stored since 0.4.19): the tilt taken out again, the final guard
+            "tilt_refused": ((res.get("drift") or {}).get("tilt_fit") or {}).get("refused"),
+            "final_guard": res.get("final_guard"),
             "version": __version__, "source": source_hash(),
             **({"overrides": dict(overrides)} if overrides else {})}
 
