@@ -13,13 +13,17 @@ Writes results/arm_offset_dev.json and prints one line per set and a summary.
 
 from __future__ import annotations
 
+import pathlib
+
 import argparse
 import json
 import tempfile
 
-from calibration_stress import RESULTS, draw_set, seed_indices, write_set
+from smarticle_mjx.calibrate.stress import draw_set, seed_indices, write_set
 from smarticle_mjx.calibrate.armoffset import MIN_OFFSET_DEG, Z, read_offsets
 from smarticle_mjx.calibrate.data import load
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"  # this folder's results
 
 
 def one(seed: int, index: int) -> dict | None:

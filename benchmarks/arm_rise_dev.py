@@ -20,7 +20,7 @@ import tempfile
 
 ROOT = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(ROOT))
-import calibration_stress as CS  # noqa: E402
+from smarticle_mjx.calibrate import stress as CS  # noqa: E402
 
 from smarticle_mjx import __version__  # noqa: E402
 from smarticle_mjx.calibrate import observables as OB  # noqa: E402

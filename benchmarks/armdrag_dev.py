@@ -13,7 +13,7 @@ import time
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
-import calibration_stress as CS  # noqa: E402
+from smarticle_mjx.calibrate import stress as CS  # noqa: E402
 
 from smarticle_mjx.calibrate import data as D  # noqa: E402
 from smarticle_mjx.calibrate.armdrag import drag_test  # noqa: E402

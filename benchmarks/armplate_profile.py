@@ -12,7 +12,7 @@ import tempfile
 import time
 
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
-from calibration_stress import draw_set, write_set  # noqa: E402
+from smarticle_mjx.calibrate.stress import draw_set, write_set  # noqa: E402
 from smarticle_mjx.calibrate.data import load, priors  # noqa: E402
 from smarticle_mjx.calibrate.effects import EffectSet  # noqa: E402
 from smarticle_mjx.calibrate.fit import Problem, split  # noqa: E402

@@ -31,7 +31,7 @@ import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(ROOT))
-import calibration_stress as CS  # noqa: E402
+from smarticle_mjx.calibrate import stress as CS  # noqa: E402
 
 from smarticle_mjx import __version__  # noqa: E402
 from smarticle_mjx.calibrate import observables as OB  # noqa: E402

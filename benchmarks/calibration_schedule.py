@@ -26,11 +26,13 @@ import platform
 import tempfile
 import time
 
-from calibration_stress import RESULTS, draw_set, parse_set, write_set
+from smarticle_mjx.calibrate.stress import draw_set, parse_set, write_set
 from smarticle_mjx import __version__
 from smarticle_mjx.calibrate import sim
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.stages import calibrate
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"  # this folder's results
 
 OUT = RESULTS / "calibration_schedule.json"
 

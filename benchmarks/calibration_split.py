@@ -19,14 +19,18 @@ Prints the tables and writes results/calibration_split_<seed>.json.
 
 from __future__ import annotations
 
+import pathlib
+
 import argparse
 import json
 
-from calibration_stress import RESULTS
+
 from smarticle_mjx.calibrate.stress import SPLIT_BAR as BAR  # noqa: F401  (the comparison lives in the package)
 from smarticle_mjx.calibrate.stress import set_kind as kind  # noqa: F401
 from smarticle_mjx.calibrate.stress import split_compare as compare, split_summary as summary, stored_rows as stored  # noqa: F401
 from smarticle_mjx.calibrate.stress import tried_gains as tried  # noqa: F401
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"  # this folder's results
 
 def tables(s: dict) -> str:
     out = ["| sets | compared | same effects added | right: rule's split | right: swapped | right: both |",

@@ -35,7 +35,7 @@ from smarticle_mjx.calibrate.stress import (  # noqa: F401
     speed_table, summarise, trials_of, write_set)
 from smarticle_mjx.calibrate.stress import COUNTERFACTUALS, apply_counterfactual
 from smarticle_mjx.calibrate.stress import indices as _indices  # noqa: F401
-from smarticle_mjx.calibrate.stress import pooled_rows as _pooled_rows
+from smarticle_mjx.calibrate.stress import _plain, pooled_rows as _pooled_rows, run_set as _run_set, stored_set as _stored_set
 
 
 ROOT = pathlib.Path(__file__).resolve().parent
@@ -48,45 +48,9 @@ def pooled_rows(seeds: str, results=None) -> list[dict]:
     return _pooled_rows(seeds, RESULTS if results is None else results)
 
 
-def _plain(x):
-    """numpy scalars as JSON numbers and booleans."""
-    return x.item() if isinstance(x, np.generic) else float(x)
-
-
 def run_set(s: dict, plate_hypotheses: tuple[str, ...] = PLATE_HYPOTHESES, overrides: tuple = ()) -> dict:
-    """One set calibrated as ``smx calibrate`` would (``overrides``: its ``--set`` changes to the model, for
-    the set and its clean twin alike), scored."""
-    from smarticle_mjx import __version__
-    from smarticle_mjx.calibrate.data import load
-    from smarticle_mjx.calibrate.stages import calibrate
-    t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory() as tmp:
-        write_set(s, tmp)
-        trials = load(tmp, None, overrides)
-        t = time.perf_counter()
-        res = calibrate(trials, on_step=lambda m: print(f"    [{time.perf_counter() - t:5.0f} s] {m}", flush=True),
-                        plate_hypotheses=plate_hypotheses).summary
-        wall = time.perf_counter() - t
-    twin = None
-    if s["hidden"]:
-        with tempfile.TemporaryDirectory() as tmp:
-            write_set(s, tmp, effects=False)
-            twin = calibrate(load(tmp, None, overrides), structural=False).summary["after"]["err_heldout"]
-    return {"set": s, "score": score(s, res, twin), "wall_s": wall, "total_s": time.perf_counter() - t0,
-            "model_runs": res["model_runs"], "plate_hypotheses": res.get("plate_hypotheses"), "fitted": {a["effect"]: a["values"] for a in res["added"]},
-            "intervals": {a["effect"]: a["interval"] for a in res["added"]},
-            "intervals_statistical": {a["effect"]: a.get("interval_statistical", a["interval"]) for a in res["added"]},
-            "nominal_findings": res["nominal_findings"], "plate_level": res.get("plate_level"),
-            # every joint hypothesis of the nominal stage as judged (values, gains, baseline, rule), and the
-            # delay test, so that a miss can be read without running the set again (stored after 0.4.3)
-            "hypotheses": res.get("nominal_hypotheses"), "delay_test": res.get("delay_test"),
-            # the held-out error before and with a tilt named from the drift (stored since 0.4.14)
-            "tilt_heldout": (res.get("drift") or {}).get("tilt_heldout"),
-            # the invariants that fired (stored since 0.4.19): the tilt taken out again, the final guard
-            "tilt_refused": ((res.get("drift") or {}).get("tilt_fit") or {}).get("refused"),
-            "final_guard": res.get("final_guard"),
-            "version": __version__, "source": source_hash(),
-            **({"overrides": dict(overrides)} if overrides else {})}
+    """``calibrate.stress.run_set`` with its progress printed."""
+    return _run_set(s, plate_hypotheses, overrides, say=lambda m: print(m, flush=True))
 
 
 def print_summary(rows: list[dict], summary: dict | None = None) -> None:
@@ -97,19 +61,8 @@ def print_summary(rows: list[dict], summary: dict | None = None) -> None:
 
 
 def stored_set(spec: str, hides: str | None = None) -> dict:
-    """The stored result of stress set ``spec`` ("seed/index", e.g. "2148/14") as run_set wrote it; exits with
-    a one-line message where the spec is malformed, the set was not run, or it does not hide ``hides``."""
-    try:
-        seed, index = parse_set(spec)
-    except argparse.ArgumentTypeError as e:
-        raise SystemExit(str(e)) from None
-    path = RESULTS / "calibration_stress" / str(seed) / f"set_{index:04d}.json"
-    if not path.exists():
-        raise SystemExit(f"no stored stress set {seed}/{index} (run benchmarks/calibration_stress.py first)")
-    row = json.loads(path.read_text())
-    if hides is not None and hides not in row["set"]["truth"]:
-        raise SystemExit(f"stress set {seed}/{index} hides no {hides}")
-    return row
+    """``calibrate.stress.stored_set`` from this folder's results."""
+    return _stored_set(spec, RESULTS, hides)
 
 
 def main():

@@ -28,18 +28,22 @@ suite's frozen "right" is reported as it was, beside it split by visibility.
 
 from __future__ import annotations
 
+import pathlib
+
 import argparse
 import json
 import time
 
 import numpy as np
 
-from calibration_stress import RESULTS, SERVO, _indices, draw_set
+from smarticle_mjx.calibrate.stress import SERVO, draw_set, indices as _indices
 from smarticle_mjx.calibrate import independent as IND
 from smarticle_mjx.calibrate.observables import crossings
 from smarticle_mjx.calibrate.stress import (  # noqa: F401  (the measure lives in the package)
     DEFAULT_NOISE, NOISE_KEYS, VISIBLE)
 from smarticle_mjx.calibrate.stress import visibility as measure
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"  # this folder's results
 
 OUT = RESULTS / "calibration_visibility.json"
 def _servo_law(s: dict) -> str:

@@ -21,6 +21,8 @@ Writes results/host_gait_cost.json.
 
 from __future__ import annotations
 
+import pathlib
+
 import contextlib
 import json
 import time
@@ -28,9 +30,11 @@ import time
 import numpy as np
 
 from calibration_schedule import arguments, both_ways, finish
-from calibration_stress import RESULTS
+
 from smarticle_mjx import gait
 from smarticle_mjx.calibrate.stages import calibrate
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"  # this folder's results
 
 OUT = RESULTS / "host_gait_cost.json"
 HOST = gait.host_setpoints

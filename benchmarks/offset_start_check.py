@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
-import calibration_stress as CS  # noqa: E402
+from smarticle_mjx.calibrate import stress as CS  # noqa: E402
 
 OUT = pathlib.Path(__file__).parent / "results" / "offset_start_check.json"
 
@@ -59,8 +59,8 @@ def main():
     if not args.cut > 0:
         sys.exit("--cut must be a positive number of gait periods")
     results = json.loads(OUT.read_text()) if OUT.exists() else {}
-    for idx in CS._indices(args.sets):
-        path = CS.RESULTS / "calibration_stress" / str(args.suite_seed) / f"set_{idx:04d}.json"
+    for idx in CS.indices(args.sets):
+        path = pathlib.Path(__file__).resolve().parent / "results" / "calibration_stress" / str(args.suite_seed) / f"set_{idx:04d}.json"
         if not path.exists():
             sys.exit(f"{path}: no stored set (run calibration_stress.py for it first)")
         stored = json.loads(path.read_text())

@@ -20,16 +20,24 @@ One JSON line per set on standard output:
 
 from __future__ import annotations
 
+import pathlib
+
 import argparse
 import json
 import tempfile
 import time
 
-from calibration_stress import stored_set, write_set
+from smarticle_mjx.calibrate.stress import stored_set as _stored_set, write_set
 from smarticle_mjx.calibrate.data import load, priors
 from smarticle_mjx.calibrate.effects import BY_NAME, EffectSet
 from smarticle_mjx.calibrate.fit import Problem, split
 from smarticle_mjx.calibrate.nominal import fit_nominal
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"  # this folder's results
+
+
+def stored_set(spec: str, hides: str | None = None) -> dict:
+    return _stored_set(spec, RESULTS, hides)
 
 PLATE = "anisotropic_friction"
 

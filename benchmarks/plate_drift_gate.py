@@ -38,9 +38,11 @@ import pathlib
 import tempfile
 import time
 
-from calibration_stress import RESULTS, _indices, draw_set, write_set
+from smarticle_mjx.calibrate.stress import draw_set, indices as _indices, write_set
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.drift import drift_test
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"  # this folder's results
 
 KINDS = ("plate_tilt", "anisotropic_friction")
 

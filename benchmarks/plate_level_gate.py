@@ -22,14 +22,18 @@ Writes results/plate_level_gate_<tag>.json and prints the table.
 
 from __future__ import annotations
 
+import pathlib
+
 import argparse
 import json
 import math
 import time
 
-from calibration_stress import RESULTS, draw_set
+from smarticle_mjx.calibrate.stress import draw_set
 from plate_drift_gate import measure
 from smarticle_mjx.calibrate.stages import ANISO, P_LEVEL, plate_skip_reason
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"  # this folder's results
 
 
 def stored(min_seed: int, max_seed: int | None, clean: bool) -> list[dict]:

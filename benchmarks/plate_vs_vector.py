@@ -20,9 +20,15 @@ import json
 import pathlib
 import tempfile
 
-from calibration_stress import RESULTS, draw_set, pooled_rows, write_set
+from smarticle_mjx.calibrate.stress import draw_set, pooled_rows as _pooled_rows, write_set
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.drift import drift_test
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"  # this folder's results
+
+
+def pooled_rows(seeds: str) -> list[dict]:
+    return _pooled_rows(seeds, RESULTS)
 
 
 def main() -> int:

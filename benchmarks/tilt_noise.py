@@ -23,10 +23,12 @@ import json
 import pathlib
 import tempfile
 
-from calibration_stress import RESULTS, draw_set, seed_indices, write_set
+from smarticle_mjx.calibrate.stress import draw_set, seed_indices, write_set
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.drift import P_DRIFT, drift_test
 from smarticle_mjx.calibrate.stress import NOISE_KEYS, without_noise  # noqa: F401
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"  # this folder's results
 
 NOISE = NOISE_KEYS
 

@@ -29,6 +29,8 @@ Writes results/tilt_slide_law.json (set by set, resumable) and prints a table.
 
 from __future__ import annotations
 
+import pathlib
+
 import argparse
 import json
 import math
@@ -37,12 +39,18 @@ import time
 
 import numpy as np
 
-from calibration_stress import RESULTS, _indices, stored_set, write_set
+from smarticle_mjx.calibrate.stress import indices as _indices, stored_set as _stored_set, write_set
 from smarticle_mjx.calibrate.data import load
 from smarticle_mjx.calibrate.drift import fit_tilt
 from smarticle_mjx.calibrate.effects import EffectSet
 from smarticle_mjx.calibrate.sim import simulate_trials
 from smarticle_mjx.calibrate.stages import calibrate
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"  # this folder's results
+
+
+def stored_set(spec: str, hides: str | None = None) -> dict:
+    return _stored_set(spec, RESULTS, hides)
 
 OUT = RESULTS / "tilt_slide_law.json"
 

@@ -568,3 +568,64 @@ def visibility(s: dict) -> dict:
             err_wo = _error(meas, load(d), _noise(s, e == "tracking_noise"))
             out[e] = {"error_without": err_wo, "signal": err_wo - err_full}
     return {"err_full": err_full, "effects": out}
+
+
+def _plain(x):
+    """numpy scalars as JSON numbers and booleans."""
+    return x.item() if isinstance(x, np.generic) else float(x)
+
+
+def run_set(s: dict, plate_hypotheses: tuple[str, ...] | None = None, overrides: tuple = (), say=print) -> dict:
+    """One set calibrated as ``smx calibrate`` would (``overrides``: its ``--set`` changes to the model, for
+    the set and its clean twin alike), scored: the row the suite stores (``say``: each progress line)."""
+    import time
+    from .. import __version__
+    from .fit import PLATE_HYPOTHESES
+    from .stages import calibrate
+    plate_hypotheses = PLATE_HYPOTHESES if plate_hypotheses is None else plate_hypotheses
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        write_set(s, tmp)
+        trials = load(tmp, None, overrides)
+        t = time.perf_counter()
+        res = calibrate(trials, on_step=lambda m: say(f"    [{time.perf_counter() - t:5.0f} s] {m}"),
+                        plate_hypotheses=plate_hypotheses).summary
+        wall = time.perf_counter() - t
+    twin = None
+    if s["hidden"]:
+        with tempfile.TemporaryDirectory() as tmp:
+            write_set(s, tmp, effects=False)
+            twin = calibrate(load(tmp, None, overrides), structural=False).summary["after"]["err_heldout"]
+    return {"set": s, "score": score(s, res, twin), "wall_s": wall, "total_s": time.perf_counter() - t0,
+            "model_runs": res["model_runs"], "plate_hypotheses": res.get("plate_hypotheses"),
+            "fitted": {a["effect"]: a["values"] for a in res["added"]},
+            "intervals": {a["effect"]: a["interval"] for a in res["added"]},
+            "intervals_statistical": {a["effect"]: a.get("interval_statistical", a["interval"]) for a in res["added"]},
+            "nominal_findings": res["nominal_findings"], "plate_level": res.get("plate_level"),
+            # every joint hypothesis of the nominal stage as judged (values, gains, baseline, rule), and the
+            # delay test, so that a miss can be read without running the set again
+            "hypotheses": res.get("nominal_hypotheses"), "delay_test": res.get("delay_test"),
+            # the held-out error before and with a tilt named from the drift
+            "tilt_heldout": (res.get("drift") or {}).get("tilt_heldout"),
+            # the invariants that fired: the tilt taken out again, the final guard
+            "tilt_refused": ((res.get("drift") or {}).get("tilt_fit") or {}).get("refused"),
+            "final_guard": res.get("final_guard"),
+            "version": __version__, "source": source_hash(),
+            **({"overrides": dict(overrides)} if overrides else {})}
+
+
+def stored_set(spec: str, results, hides: str | None = None) -> dict:
+    """The stored row of stress set ``spec`` ("seed/index", e.g. "2148/14") under ``results`` (the folder
+    holding ``calibration_stress/``) as :func:`run_set` wrote it; SystemExit with a one-line message where
+    the spec is malformed, the set was not run, or it does not hide ``hides``."""
+    try:
+        seed, index = parse_set(spec)
+    except argparse.ArgumentTypeError as e:
+        raise SystemExit(str(e)) from None
+    path = pathlib.Path(results) / "calibration_stress" / str(seed) / f"set_{index:04d}.json"
+    if not path.exists():
+        raise SystemExit(f"no stored stress set {seed}/{index} (run benchmarks/calibration_stress.py first)")
+    row = json.loads(path.read_text())
+    if hides is not None and hides not in row["set"]["truth"]:
+        raise SystemExit(f"stress set {seed}/{index} hides no {hides}")
+    return row
