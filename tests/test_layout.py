@@ -258,3 +258,19 @@ def test_the_engine_page_prints_the_capability_table_the_code_reads():
     from smarticle_mjx.capabilities import markdown
     page = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "engine.md").read_text()
     assert "\n".join(markdown()) in page
+
+
+# benchmarks that still import another benchmark (research readings to move to notebook/, the house issue's
+# item 1): the list may only shrink
+_BENCHMARK_IMPORTS_LEFT = {"host_gait_cost.py", "step_mechanism.py", "step_profile.py", "substep_cost.py",
+                           "warp_flags.py"}
+
+
+def test_benchmarks_import_the_package_not_each_other():
+    """A benchmark's shared logic lives in the package (the stress suite's set runner in calibrate.stress):
+    no benchmark imports benchmarks/calibration_stress.py, and no new one imports another benchmark."""
+    root = pathlib.Path(__file__).resolve().parents[1]
+    names = {p.stem for p in (root / "benchmarks").glob("*.py")}
+    importing = {p.name for p in sorted((root / "benchmarks").glob("*.py"))
+                 if [b for b in _benchmark_imports(p, names - {p.stem}) if b != "sys.path"]}
+    assert importing <= _BENCHMARK_IMPORTS_LEFT, importing - _BENCHMARK_IMPORTS_LEFT
