@@ -5,7 +5,7 @@ before the tilt stage, was added first, although the plate-frame drift fitted on
 than one anisotropy of the robot's step (``drift.PlateDrift``: chi2 45 against 3306). The lead was to
 withhold the plate where the drift says one vector. This script reads, without any model, the drift of
 every stored set of the given whole seeds where the plate was added (their stored summaries,
-``calibration_stress.pooled_rows``; data written again as the suite writes them), so that the rule's price can be counted before anyone runs it: a set whose plate was named
+``calibrate.stress.pooled_rows``; data written again as the suite writes them), so that the rule's price can be counted before anyone runs it: a set whose plate was named
 rightly and whose drift fits one vector at least as well as one anisotropy would lose its plate.
 
     python benchmarks/plate_vs_vector.py --pool 2049-2051,2058-2066,2073,2140-2142

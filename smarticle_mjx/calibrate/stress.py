@@ -570,11 +570,6 @@ def visibility(s: dict) -> dict:
     return {"err_full": err_full, "effects": out}
 
 
-def _plain(x):
-    """numpy scalars as JSON numbers and booleans."""
-    return x.item() if isinstance(x, np.generic) else float(x)
-
-
 def run_set(s: dict, plate_hypotheses: tuple[str, ...] | None = None, overrides: tuple = (), say=print) -> dict:
     """One set calibrated as ``smx calibrate`` would (``overrides``: its ``--set`` changes to the model, for
     the set and its clean twin alike), scored: the row the suite stores (``say``: each progress line)."""
