@@ -374,8 +374,8 @@ def descent(ev: Descent) -> Outcome:
     ok = np.isfinite(y)
     from scipy.stats import spearmanr
     rho, p = spearmanr(x[ok], y[ok]) if ok.sum() >= 3 else (np.nan, np.nan)
-    drops = y[:-1] - y[1:]  # decrease from one amplitude to the next higher one
-    where = f"{x[np.nanargmax(drops)]:g}→{x[np.nanargmax(drops) + 1]:g}°" if np.isfinite(drops).any() else "–"
+    drop = ev.largest_drop
+    where = f"{drop[0]:g}→{drop[1]:g}°" if drop is not None else "–"
     near85 = where in ("80→85°", "85→90°", "80→90°")
     if ev.tolerance > 0:
         read = (f"pairs converged to {f(ev.tolerance, 'g')} W over {win} periods; not converged in brackets after "

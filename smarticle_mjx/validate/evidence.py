@@ -304,17 +304,16 @@ def _descent(ctx: Context) -> Descent:
     tol = spec.converge_tol if spec is not None else 0.0
     sep = descent(ctx.stores["descent"], win, tol)
     ctx.extra["descent"] = [dataclasses.asdict(x) for x in sep]
+    ev = Descent(tuple(sep), win, Store(ctx.stores["descent"][0]).config["scan"]["periods"],
+                 bool(spec is not None and spec.continuation), tol)
     if sep:
-        amps, r = np.array([x.amplitude_deg for x in sep]), np.array([x.r_W for x in sep])
         label = "steady |r| (W), started bound"
-        drops = r[:-1] - r[1:]  # the decrease from one amplitude to the next higher one, as the claim reads it
-        marks = {label: (amps[int(np.nanargmax(drops))], amps[int(np.nanargmax(drops)) + 1], "largest drop")} \
-            if np.isfinite(drops).any() else None
+        drop = ev.largest_drop
         ctx.draw(plots.versus_amplitude(
-            list(amps), {label: (list(r), [(x.r_W - x.lo, x.hi - x.r_W) for x in sep])},
-            ctx.figures, "steady_separation", marks=marks))
-    return Descent(tuple(sep), win, Store(ctx.stores["descent"][0]).config["scan"]["periods"],
-                   bool(spec is not None and spec.continuation), tol)
+            [x.amplitude_deg for x in sep],
+            {label: ([x.r_W for x in sep], [(x.r_W - x.lo, x.hi - x.r_W) for x in sep])},
+            ctx.figures, "steady_separation", marks=None if drop is None else {label: (*drop, "largest drop")}))
+    return ev
 
 
 @builds("amplitude", ("amplitude",))

@@ -127,6 +127,17 @@ class Descent:
     continuation: bool
     tolerance: float = 0.0
 
+    @property
+    def largest_drop(self) -> tuple[float, float] | None:
+        """The neighbouring amplitudes (lower, higher) between which steady |r| falls most from one amplitude to
+        the next higher one (the descent claim's reading, the figure's shading); None without two values."""
+        r = np.array([s.r_W for s in self.sep], float)
+        drops = r[:-1] - r[1:]
+        if not np.isfinite(drops).any():
+            return None
+        i = int(np.nanargmax(drops))
+        return self.sep[i].amplitude_deg, self.sep[i + 1].amplitude_deg
+
 
 @dataclasses.dataclass(frozen=True)
 class Pooled:
