@@ -18,7 +18,7 @@ from ..plots import check_out_dir
 from ..scene import SceneParams
 from ..specs import ScanConfig
 from ..studyfile import read_study
-from ..suite import STUDIES, SUITES, SWEEPS, suite as suite_studies
+from ..suite import DEFAULT_SUITE, STUDIES, SWEEPS, suite as suite_studies
 from ..studies import ensure
 from . import evidence, page
 from .claims import CLAIMS, Validation
@@ -153,12 +153,13 @@ def run_validation(data: pathlib.Path, out_md: pathlib.Path, sweeps: pathlib.Pat
             # a scan is one store; a staged study (started-bound, relaxation) a list of them
             stores[name] = got[0] if isinstance(spec, ScanConfig) else got
     figures = out_md.parent / out_md.stem
-    if known is not STUDIES:
-        result = evaluate(stores, {}, figures, specs, {"notes": notes, "suite": "paper"}, reading,
-                          claims=paper_claims(known), suite="paper")
+    suite = DEFAULT_SUITE if suite is None else suite
+    if suite != DEFAULT_SUITE:
+        result = evaluate(stores, {}, figures, specs, {"notes": notes, "suite": suite}, reading,
+                          claims=paper_claims(known), suite=suite)
         page.write_paper_page(result, stores, out_md, figures, command or page.relative_command(
             pathlib.Path(data).parent, out_md, model, imperfections=imperfections, overrides=overrides,
-            reading=reading, suite="paper"), model, specs, imperfections=imperfections, overrides=overrides)
+            reading=reading, suite=suite), model, specs, imperfections=imperfections, overrides=overrides)
         return result
     singles = single_robots(params, periods=single_periods, imperfections=imperfections)
     result = evaluate(stores, singles, figures, specs,

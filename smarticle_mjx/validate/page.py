@@ -20,6 +20,11 @@ REPO = SWEEPS.parent
 STEP_CHECK = REPO / "benchmarks" / "results" / "validation_step.json"
 
 
+def _cell(x) -> str:
+    """A table cell's text: every '|' escaped once (one already escaped stays as it is)."""
+    return str(x).replace("|", "\\|").replace("\\\\|", "\\|")
+
+
 def step_check_path(imperfections: str = "none") -> pathlib.Path:
     """The reference-step check of the page of ideal robots (``validation_step.json``) or of robots with
     the imperfections ``imperfections`` (``validation_step_<set>.json``)."""
@@ -170,9 +175,8 @@ def write_page(result: Validation, stores: dict, out_md: pathlib.Path, figures: 
              f"model was not tuned to any row. {result.count_words()} at this step.", "",
              *step_check(result, model, made["steps_ms"], check), "",
              "| claim | paper | measured | test | verdict | how measured, what was tried |", "|---|---|---|---|---|---|"]
-    cell = lambda x: str(x).replace("|", "\\|").replace("\\\\|", "\\|")  # noqa: E731
     for r in result.rows:
-        lines.append(f"| {cell(r.claim)} | {cell(r.paper)} | {cell(r.measured)} | {cell(r.test)} | "
+        lines.append(f"| {_cell(r.claim)} | {_cell(r.paper)} | {_cell(r.measured)} | {_cell(r.test)} | "
                      f"**{r.verdict}** | {r.note} |")
     lines += ["", "## Studies", "", "| study | file | store |", "|---|---|---|"]
     for name, paths in stores.items():
@@ -285,7 +289,6 @@ def write_paper_page(result: Validation, stores: dict, out_md: pathlib.Path, fig
     rel = pathlib.Path(figures).name
     every = [q for v in stores.values() for q in (v if isinstance(v, list) else [v])]
     made = made_with(every)
-    cell = lambda x: str(x).replace("|", "\\|").replace("\\\\|", "\\|")  # noqa: E731
     studies_of = {c.text: c.studies for c in CLAIMS}
     sizes = lambda names, sp: "; ".join(f"{n}: {study_size(sp[n])}" for n in names if n in sp)  # noqa: E731
     lines = ["# Validation against the paper at the paper's study sizes", "",
@@ -307,8 +310,8 @@ def write_paper_page(result: Validation, stores: dict, out_md: pathlib.Path, fig
         before = f"{old['verdict']}" if old else "not on the small page"
         if old and r.run and old["verdict"] != r.verdict:
             moved.append((r, old))
-        lines.append(f"| {cell(r.claim)} | {cell(r.paper)} | {cell(r.measured)} | {cell(r.test)} | **{r.verdict}** | "
-                     f"{before} | {cell(sizes(names, specs))}; small: {cell(sizes(names, small_specs))} |")
+        lines.append(f"| {_cell(r.claim)} | {_cell(r.paper)} | {_cell(r.measured)} | {_cell(r.test)} | **{r.verdict}** | "
+                     f"{before} | {_cell(sizes(names, specs))}; small: {_cell(sizes(names, small_specs))} |")
     lines += ["", "## What changed at the paper's size", ""]
     if not small:
         lines.append(f"No small-suite page was found beside this one (`{small_json.parent.name}/{small_json.name}`).")
@@ -316,8 +319,8 @@ def write_paper_page(result: Validation, stores: dict, out_md: pathlib.Path, fig
         lines.append("No verdict moved between the small suite and the paper's sizes.")
     for r, old in moved:
         names = studies_of.get(r.claim, ())
-        lines.append(f"- “{r.claim}”: {old['verdict']} on the small suite ({cell(old['measured'])}), **{r.verdict}** "
-                     f"here. What differs: {cell(sizes(names, small_specs))} → {cell(sizes(names, specs))}; the test is "
+        lines.append(f"- “{r.claim}”: {old['verdict']} on the small suite ({_cell(old['measured'])}), **{r.verdict}** "
+                     f"here. What differs: {_cell(sizes(names, small_specs))} → {_cell(sizes(names, specs))}; the test is "
                      "the same.")
     reb = result.extra.get("rebinding")
     if reb:
