@@ -70,5 +70,6 @@ def markdown() -> list[str]:
     backends = list(CAPABILITIES)
     lines = ["| option | " + " | ".join(backends) + " |", "|---|" + "---|" * len(backends)]
     for f in FEATURES.values():
-        lines.append(f"| {f.what} | " + " | ".join("yes" if f.key in CAPABILITIES[b] else "–" for b in backends) + " |")
+        cells = ("yes" if f.key in CAPABILITIES[b] else "–" for b in backends)
+        lines.append(f"| {f.what} | " + " | ".join(cells) + " |")
     return lines

@@ -292,7 +292,8 @@ def relax(
                       period_s=gait_spec.period_s, seed=seed,
                       gap_mm=gap_mm, start=start, headings=headings, start_phi=start_phi, jitter_mm=jitter_mm,
                       jitter_deg=jitter_deg, phase_jitter=phase_jitter, retrigger_sd=retrigger_sd,
-                      onset_offset_sd=onset_offset_sd, onset_cycle=onset_cycle, plate_m=plate, quiet_periods=quiet_periods, backend=backend, batch_size=batch_size,
+                      onset_offset_sd=onset_offset_sd, onset_cycle=onset_cycle,
+                      plate_m=plate, quiet_periods=quiet_periods, backend=backend, batch_size=batch_size,
                       model=_model(model), imperfections=imperfections, overrides=_sets(set_))
     _run_study(cfg, out, store, executor)
 

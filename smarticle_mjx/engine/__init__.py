@@ -95,5 +95,5 @@ def open_backend(name: str, params, n_robots: int, *, collisions: bool = False, 
     return make_backend(name, scene, nthread=nthread, **options)
 
 
-__all__ = ["BACKENDS", "CAPABILITIES", "COLLISION_RECORD", "Lanes", "require", "supports", "PeriodRecords", "Scene", "Status", "StudyEngine", "check_backend",
-           "make_backend", "open_backend", "steps_per_period"]
+__all__ = ["BACKENDS", "CAPABILITIES", "COLLISION_RECORD", "Lanes", "PeriodRecords", "Scene", "Status", "StudyEngine",
+           "check_backend", "make_backend", "open_backend", "require", "steps_per_period", "supports"]

@@ -17,9 +17,8 @@ import jax
 import mujoco
 import numpy as np
 
-from ..capabilities import require
-
 from .. import gait as gait_mod
+from ..capabilities import require
 from ..labels import CONTACT_KINDS, PARTS, Status  # noqa: F401 (the engine's names for them)
 from ..scene import SceneLayout, SceneParams, build_mjcf, compile_model
 

@@ -39,8 +39,8 @@ import numpy as np
 
 from ..gait import GaitSpec
 from ..capabilities import require, supports
-from .core import (BackendBase, check_start_delays, check_timing, PeriodRecords, Status, blank_collisions, collision_bin_of,
-                   lane_controls, on_step_grid, steps_per_period)
+from .core import (BackendBase, check_start_delays, check_timing, PeriodRecords, Status, blank_collisions,
+                   collision_bin_of, lane_controls, on_step_grid, steps_per_period)
 from ..scene import RobotQuirk, SceneParams
 
 MISSING = "the dart backend needs DART's Python package: pip install -e '.[dart]'"

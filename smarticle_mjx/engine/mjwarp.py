@@ -29,8 +29,8 @@ import time
 import mujoco
 import numpy as np
 
-from .core import (BackendBase, Lanes, check_records, check_solver, check_start_delays, check_timing, PeriodRecords, Record, Scene, Status,
-                   refuse_mounts, distinct_gaits, lane_controls, on_step_grid, steps_per_period)
+from .core import (BackendBase, Lanes, check_records, check_solver, check_start_delays, check_timing, PeriodRecords,
+                   Record, Scene, Status, refuse_mounts, distinct_gaits, lane_controls, on_step_grid, steps_per_period)
 
 MISSING = "the warp backend needs MuJoCo Warp: pip install -e '.[gpu]'"
 

@@ -25,8 +25,8 @@ from mujoco import mjx
 from .. import gait as gait_mod
 from . import mjx_collision
 from ..capabilities import require
-from .core import (BackendBase, Lanes, check_records, check_solver, check_start_delays, PeriodRecords, Record, Scene, Status,
-                   refuse_mounts, on_step_grid, steps_per_period)
+from .core import (BackendBase, Lanes, check_records, check_solver, check_start_delays, PeriodRecords, Record, Scene,
+                   Status, refuse_mounts, on_step_grid, steps_per_period)
 
 
 def strip_sensors(xml: str) -> str:
